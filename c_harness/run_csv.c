@@ -1,0 +1,296 @@
+/*
+ * run_csv - run a generated observer target over a CSV trajectory (no Python needed).
+ *
+ * Usage: run_csv in.csv out.csv [est0]
+ *
+ *   in.csv   one header line (names are ignored; it must have 1 + NY + NU columns),
+ *            then one row per sample: t, y_1..y_NY, u_1..u_NU
+ *   out.csv  written as: header "t,est0,...,est<NEST-1>", then t, est_1..est_NEST per row,
+ *            each number printed with %.17g (round-trips exactly)
+ *   est0     optional initial estimate, NEST comma-separated numbers (default: zeros)
+ *
+ * The target is initialised with y0 = the first row's y and est0, then <prefix>_step is
+ * called once per row; est at a row is the estimate at that sample, before the state
+ * advances by DT.  The time column is copied to the output; the observer always advances
+ * by the target's DT (a warning is printed once if the time column's spacing differs).
+ *
+ * Exit status: 0 success; 1 bad input file or I/O error; 2 usage error; 3 the target
+ * returned a non-zero status (row and status name on stderr).  On failure out.csv is not
+ * written (the output goes to a temporary file renamed on success).
+ *
+ * Build (see Makefile): cc -O3 -std=c99 -DOBS=<prefix> -DOBS_UPPER=<PREFIX>
+ *   -DOBS_HEADER='"<prefix>.h"' -I <target dir> run_csv.c <prefix>.c <prefix>_kernels.c -lm
+ */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "obs_bind.h"
+
+#define EXIT_INPUT 1
+#define EXIT_USAGE 2
+#define EXIT_STATUS 3
+
+#define N_COLS (1 + OBS_NY + OBS_NU)
+
+static const char *prog = "run_csv";
+
+/* Read one line (without the trailing newline / CR) into a growing buffer.
+ * Returns 1 if a line was read, 0 at end of file, -1 on a read or memory error. */
+static int read_line(FILE *f, char **buf, size_t *cap, size_t *len)
+{
+    int c;
+    size_t n = 0;
+    int got = 0;
+    while ((c = getc(f)) != EOF) {
+        got = 1;
+        if (c == '\n') break;
+        if (n + 1 >= *cap) {
+            size_t new_cap = *cap ? 2 * *cap : 256;
+            char *nb = (char *)realloc(*buf, new_cap);
+            if (!nb) return -1;
+            *buf = nb;
+            *cap = new_cap;
+        }
+        (*buf)[n++] = (char)c;
+    }
+    if (ferror(f)) return -1;
+    if (!got) return 0;
+    if (!*buf) { /* empty line and no buffer yet */
+        *buf = (char *)malloc(256);
+        if (!*buf) return -1;
+        *cap = 256;
+    }
+    if (n > 0 && (*buf)[n - 1] == '\r') --n;
+    (*buf)[n] = '\0';
+    *len = n;
+    return 1;
+}
+
+static int is_blank(const char *s)
+{
+    for (; *s; ++s)
+        if (*s != ' ' && *s != '\t') return 0;
+    return 1;
+}
+
+static size_t count_fields(const char *s)
+{
+    size_t n = 1;
+    for (; *s; ++s)
+        if (*s == ',') ++n;
+    return n;
+}
+
+/* Parse exactly `n` comma-separated numbers from `s` into `out`.
+ * On failure returns 0 and sets *bad_col (1-based) and copies the bad field into `bad`. */
+static int parse_numbers(const char *s, double *out, size_t n, size_t *bad_col, char *bad,
+                         size_t bad_size)
+{
+    size_t i;
+    const char *p = s;
+    for (i = 0; i < n; ++i) {
+        const char *field = p;
+        const char *field_end = strchr(p, ',');
+        char *end = NULL;
+        double v;
+        if (!field_end) field_end = p + strlen(p);
+        while (field < field_end && (*field == ' ' || *field == '\t')) ++field;
+        errno = 0;
+        v = strtod(field, &end);
+        if (end == field || end > field_end) goto fail;
+        while (end < field_end && (*end == ' ' || *end == '\t')) ++end;
+        if (end != field_end) goto fail;
+        out[i] = v;
+        p = *field_end ? field_end + 1 : field_end;
+        continue;
+    fail:
+        *bad_col = i + 1;
+        {
+            size_t len = (size_t)(field_end - p);
+            if (len >= bad_size) len = bad_size - 1;
+            memcpy(bad, p, len);
+            bad[len] = '\0';
+        }
+        return 0;
+    }
+    return 1;
+}
+
+static void usage(void)
+{
+    fprintf(stderr,
+            "usage: %s in.csv out.csv [est0]\n"
+            "  target '%s': in.csv columns t, y_1..y_%d, u_1..u_%d (%d columns, one header line);\n"
+            "  est0: %d comma-separated numbers (default zeros)\n",
+            prog, OBS_NAME, (int)OBS_NY, (int)OBS_NU, (int)N_COLS, (int)OBS_NEST);
+}
+
+int main(int argc, char **argv)
+{
+    const char *in_path, *out_path;
+    char *tmp_path = NULL;
+    FILE *in = NULL, *out = NULL;
+    char *line = NULL;
+    size_t cap = 0, len = 0;
+    long line_no = 0, row = 0;
+    int rc = EXIT_INPUT, r, warned_dt = 0;
+    double est0[OBS_LEN(OBS_NEST)];
+    int have_est0 = 0;
+    double vals[N_COLS];
+    double est[OBS_LEN(OBS_NEST)];
+    double t_prev = 0.0;
+    OBS_STATE state;
+    char bad[64];
+    size_t bad_col = 0;
+
+    if (argc < 3 || argc > 4) {
+        usage();
+        return EXIT_USAGE;
+    }
+    in_path = argv[1];
+    out_path = argv[2];
+    if (argc == 4) {
+        size_t n = count_fields(argv[3]);
+        if (n != (size_t)OBS_NEST) {
+            fprintf(stderr, "%s: est0 must have %d comma-separated numbers (NEST of '%s'), got %lu\n",
+                    prog, (int)OBS_NEST, OBS_NAME, (unsigned long)n);
+            return EXIT_USAGE;
+        }
+        if (!parse_numbers(argv[3], est0, (size_t)OBS_NEST, &bad_col, bad, sizeof bad)) {
+            fprintf(stderr, "%s: est0 entry %lu ('%s') is not a number\n", prog,
+                    (unsigned long)bad_col, bad);
+            return EXIT_USAGE;
+        }
+        have_est0 = 1;
+    }
+
+    in = fopen(in_path, "r");
+    if (!in) {
+        fprintf(stderr, "%s: cannot open input '%s': %s\n", prog, in_path, strerror(errno));
+        return EXIT_INPUT;
+    }
+
+    /* header */
+    r = read_line(in, &line, &cap, &len);
+    ++line_no;
+    if (r < 0) {
+        fprintf(stderr, "%s: %s: read error or out of memory\n", prog, in_path);
+        goto done;
+    }
+    if (r == 0 || is_blank(line)) {
+        fprintf(stderr, "%s: %s: empty file (expected a header line with %d columns: t, %d y, %d u)\n",
+                prog, in_path, (int)N_COLS, (int)OBS_NY, (int)OBS_NU);
+        goto done;
+    }
+    if (count_fields(line) != (size_t)N_COLS) {
+        fprintf(stderr,
+                "%s: %s:1: header has %lu columns, target '%s' expects %d (t, %d y, %d u)\n",
+                prog, in_path, (unsigned long)count_fields(line), OBS_NAME, (int)N_COLS,
+                (int)OBS_NY, (int)OBS_NU);
+        goto done;
+    }
+
+    tmp_path = (char *)malloc(strlen(out_path) + 5);
+    if (!tmp_path) {
+        fprintf(stderr, "%s: out of memory\n", prog);
+        goto done;
+    }
+    strcpy(tmp_path, out_path);
+    strcat(tmp_path, ".tmp");
+    out = fopen(tmp_path, "w");
+    if (!out) {
+        fprintf(stderr, "%s: cannot open output '%s': %s\n", prog, tmp_path, strerror(errno));
+        goto done;
+    }
+    fprintf(out, "t");
+    {
+        int i;
+        for (i = 0; i < (int)OBS_NEST; ++i) fprintf(out, ",est%d", i);
+    }
+    fprintf(out, "\n");
+
+    for (;;) {
+        int st, i;
+        size_t nf;
+        r = read_line(in, &line, &cap, &len);
+        ++line_no;
+        if (r < 0) {
+            fprintf(stderr, "%s: %s:%ld: read error or out of memory\n", prog, in_path, line_no);
+            goto done;
+        }
+        if (r == 0) break;
+        if (is_blank(line)) continue;
+        nf = count_fields(line);
+        if (nf != (size_t)N_COLS) {
+            fprintf(stderr, "%s: %s:%ld: row has %lu columns, expected %d (t, %d y, %d u)\n", prog,
+                    in_path, line_no, (unsigned long)nf, (int)N_COLS, (int)OBS_NY, (int)OBS_NU);
+            goto done;
+        }
+        if (!parse_numbers(line, vals, (size_t)N_COLS, &bad_col, bad, sizeof bad)) {
+            fprintf(stderr, "%s: %s:%ld: column %lu ('%s') is not a number\n", prog, in_path,
+                    line_no, (unsigned long)bad_col, bad);
+            goto done;
+        }
+        ++row;
+        if (row == 1) {
+            st = OBS_FN(init)(&state, NULL, vals + 1, have_est0 ? est0 : NULL);
+            if (st != 0) {
+                fprintf(stderr, "%s: %s:%ld: data row 1 (t=%.17g): %s_init returned %d: %s\n", prog,
+                        in_path, line_no, vals[0], OBS_NAME, st, obs_status_name(st));
+                rc = EXIT_STATUS;
+                goto done;
+            }
+        } else if (!warned_dt) {
+            double h = vals[0] - t_prev;
+            double tol = 1e-9 * (fabs(vals[0]) > 1.0 ? fabs(vals[0]) : 1.0);
+            if (fabs(h - (double)OBS_DT) > tol) {
+                fprintf(stderr,
+                        "%s: warning: %s:%ld: time step %.17g differs from the target's DT %.17g "
+                        "(the observer always advances by DT)\n",
+                        prog, in_path, line_no, h, (double)OBS_DT);
+                warned_dt = 1;
+            }
+        }
+        t_prev = vals[0];
+        st = OBS_FN(step)(&state, vals + 1, vals + 1 + OBS_NY, est);
+        if (st != 0) {
+            fprintf(stderr, "%s: %s:%ld: data row %ld (t=%.17g): %s_step returned %d: %s\n", prog,
+                    in_path, line_no, row, vals[0], OBS_NAME, st, obs_status_name(st));
+            rc = EXIT_STATUS;
+            goto done;
+        }
+        fprintf(out, "%.17g", vals[0]);
+        for (i = 0; i < (int)OBS_NEST; ++i) fprintf(out, ",%.17g", est[i]);
+        if (fprintf(out, "\n") < 0) {
+            fprintf(stderr, "%s: write error on '%s': %s\n", prog, tmp_path, strerror(errno));
+            goto done;
+        }
+    }
+    if (row == 0) {
+        fprintf(stderr, "%s: %s: no data rows after the header\n", prog, in_path);
+        goto done;
+    }
+    if (fclose(out) != 0) {
+        out = NULL;
+        fprintf(stderr, "%s: write error on '%s': %s\n", prog, tmp_path, strerror(errno));
+        goto done;
+    }
+    out = NULL;
+    if (rename(tmp_path, out_path) != 0) {
+        fprintf(stderr, "%s: cannot rename '%s' to '%s': %s\n", prog, tmp_path, out_path,
+                strerror(errno));
+        goto done;
+    }
+    rc = 0;
+
+done:
+    if (out) fclose(out);
+    if (rc != 0 && tmp_path) remove(tmp_path);
+    if (in) fclose(in);
+    free(line);
+    free(tmp_path);
+    return rc;
+}

@@ -1,0 +1,80 @@
+"""gcc -> shared library, cached by content hash (DESIGN §4 "Build and runtime").
+
+Default flags -O3 (portable); ``native=True`` adds -march=native; never -ffast-math.
+A failed compile raises BuildError carrying the compiler's message.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+from functools import lru_cache
+from pathlib import Path
+
+BASE_FLAGS = ["-O3", "-std=c99", "-fPIC", "-shared", "-Wall", "-Wextra", "-pedantic"]
+STRICT_FLAGS = ["-Werror"]
+
+
+class BuildError(RuntimeError):
+    """The C compiler failed; the message holds its command line and output."""
+
+
+def repo_root():
+    return Path(__file__).resolve().parent.parent
+
+
+def cache_dir():
+    """$CODEGEN_CACHE, else <repo>/build/cache."""
+    return Path(os.environ.get("CODEGEN_CACHE", repo_root() / "build" / "cache"))
+
+
+@lru_cache(maxsize=4)
+def compiler_version(cc):
+    try:
+        out = subprocess.run([cc, "--version"], capture_output=True, text=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError) as e:
+        raise BuildError(f"C compiler {cc!r} not usable: {e}") from None
+    return out.splitlines()[0]
+
+
+def build(target_dir, native=False, strict=False, cc=None, extra_flags=(), cache=None):
+    """Compile generated/<prefix>/ into lib<prefix>.so; returns its absolute Path.
+
+    The library lands in <cache>/<prefix>-<hash>/ where the hash covers the sources, the
+    flags and the compiler version, so an unchanged target is never rebuilt."""
+    target_dir = Path(target_dir).resolve()
+    meta_file = next(iter(sorted(target_dir.glob("*.json"))), None)
+    if meta_file is None:
+        raise BuildError(f"{target_dir} is not a generated target (no metadata .json)")
+    prefix = json.loads(meta_file.read_text())["prefix"]
+    cc = cc or os.environ.get("CC", "gcc")
+    flags = BASE_FLAGS + (["-march=native"] if native else []) + (STRICT_FLAGS if strict else []) \
+        + list(extra_flags)
+    sources = [target_dir / f"{prefix}.c", target_dir / f"{prefix}_kernels.c"]
+    h = hashlib.sha256()
+    for f in sorted(target_dir.iterdir()):
+        if f.suffix in (".c", ".h"):
+            h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    h.update(json.dumps([cc, compiler_version(cc), flags]).encode())
+    out_dir = Path(cache or cache_dir()) / f"{prefix}-{h.hexdigest()[:16]}"
+    lib = out_dir / f"lib{prefix}.so"
+    if lib.exists():
+        return lib
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".so", dir=out_dir)
+    os.close(fd)
+    cmd = [cc, *flags, "-I", str(target_dir), "-o", tmp, *map(str, sources), "-lm"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        os.unlink(tmp)
+        raise BuildError(f"compiling {prefix} failed (exit {proc.returncode}):\n  {' '.join(cmd)}\n"
+                         f"{proc.stderr.strip()}")
+    os.replace(tmp, lib)
+    return lib
+
+
+def clear_cache():
+    shutil.rmtree(cache_dir(), ignore_errors=True)

@@ -1,0 +1,176 @@
+"""Independent reference observers: numpy + pinocchio, written from SPEC's equations.
+
+Never imports CasADi, ``models`` or the symbolic ``codegen`` modules (DESIGN §1), so a
+cross-check of the generated C against it compares two independent implementations.
+It reads only plain data from an ObserverSpec (duck typing): ``family``, ``robot_source``,
+``p_names``, ``p_default``, ``x_names``, ``y_names``, ``u_names``, ``est_names``, ``jump``.
+
+    ref = reference_observer(spec, dt=1e-3, method="rk4", substeps=1)
+    ref.reset(y0, est0=None, p=None)
+    est = ref.step(y, u)          # est from the current state, then x advances over dt
+    EST = ref.run(Y, U)           # (N, ny), (N, nu) -> (N, nest)
+
+A family module gives ``rhs(robot, x, y, u, p)``, ``output(robot, x, y, u, p)``,
+``init(robot, y0, est0, p)``, ``sizes(robot)``, optionally ``P_NAMES`` and, for hybrid
+observers, ``jump(robot, x, y, p)``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import discretize, reduced_order
+from .robots import SEED_SOURCES, reference_robot
+
+FAMILIES = {
+    "reduced_order": reduced_order,
+}
+
+__all__ = ["reference_observer", "reference_robot", "ReferenceObserver", "FAMILIES", "SEED_SOURCES"]
+
+
+def reference_observer(spec, dt=1e-3, method="rk4", substeps=1):
+    """The reference implementation of ``spec`` discretized with ``method`` over ``dt``."""
+    return ReferenceObserver(spec, dt=dt, method=method, substeps=substeps)
+
+
+def _vector(value, n, name):
+    """A finite float64 vector of n entries, or ValueError naming the argument."""
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a float vector of shape ({n},): {exc}") from None
+    if a.shape not in ((n,), (n, 1), (1, n)) and not (n == 0 and a.size == 0):
+        raise ValueError(f"{name} must have shape ({n},), got {a.shape}")
+    a = a.reshape(n)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be a finite vector of shape ({n},), got {a}")
+    return a
+
+
+def _matrix(value, N, n, name, n_rows_name="N"):
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a float array of shape ({n_rows_name}, {n}): {exc}") from None
+    if n == 0 and a.size == 0:
+        return np.zeros((N if N is not None else 0, 0))
+    if a.ndim != 2 or a.shape[1] != n or (N is not None and a.shape[0] != N):
+        rows = n_rows_name if N is None else N
+        raise ValueError(f"{name} must have shape ({rows}, {n}), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        bad = np.argwhere(~np.isfinite(a))[0]
+        raise ValueError(f"{name} must be finite, got {a[tuple(bad)]} at row {bad[0]}")
+    return a
+
+
+class ReferenceObserver:
+    """A discretized observer in numpy: same step/run contract as the compiled one."""
+
+    def __init__(self, spec, dt=1e-3, method="rk4", substeps=1):
+        if spec.family not in FAMILIES:
+            raise ValueError(f"no reference for observer family {spec.family!r}; known: {sorted(FAMILIES)}")
+        if method not in discretize.METHODS:
+            raise ValueError(f"method must be one of {discretize.METHODS}, got {method!r}")
+        if not (np.isscalar(dt) and np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive finite number, got {dt!r}")
+        if int(substeps) != substeps or substeps < 1:
+            raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+        self.family = FAMILIES[spec.family]
+        self.robot = reference_robot(spec.robot_source)
+        self.dt, self.method, self.substeps = float(dt), method, int(substeps)
+        self.x_names, self.y_names = list(spec.x_names), list(spec.y_names)
+        self.u_names, self.est_names = list(spec.u_names), list(spec.est_names)
+        self.p_names = list(spec.p_names)
+        self.nx, self.ny, self.nu = len(self.x_names), len(self.y_names), len(self.u_names)
+        self.nest, self.np = len(self.est_names), len(self.p_names)
+
+        expected = self.family.sizes(self.robot)
+        got = {"nx": self.nx, "ny": self.ny, "nu": self.nu, "nest": self.nest}
+        if got != expected:
+            raise ValueError(f"{spec.family}: spec sizes {got} differ from the reference's {expected}")
+        wanted = getattr(self.family, "P_NAMES", None)
+        if wanted is not None and tuple(self.p_names) != tuple(wanted):
+            raise ValueError(f"{spec.family}: p_names {self.p_names} differ from the reference's {list(wanted)}")
+        self.hybrid = spec.jump is not None
+        if self.hybrid and not hasattr(self.family, "jump"):
+            raise ValueError(f"{spec.family}: the spec has a jump map but the reference family has none")
+
+        self.p_default = _vector(spec.p_default, self.np, "p_default")
+        self.params = self.p_default.copy()
+        self._x = None
+
+    # ------------------------------------------------------------ continuous time
+    def _p(self, p):
+        return self.params if p is None else _vector(p, self.np, "p")
+
+    def rhs(self, x, y, u, p=None):
+        """Flow xdot = rhs(x, y, u, p) of the continuous-time observer."""
+        return self.family.rhs(self.robot, _vector(x, self.nx, "x"), _vector(y, self.ny, "y"),
+                               _vector(u, self.nu, "u"), self._p(p))
+
+    def output(self, x, y, u, p=None):
+        """Estimate est = output(x, y, u, p)."""
+        return self.family.output(self.robot, _vector(x, self.nx, "x"), _vector(y, self.ny, "y"),
+                                  _vector(u, self.nu, "u"), self._p(p))
+
+    def jump(self, x, y, p=None):
+        """Hybrid jump map x+ = jump(x, y, p) (identity for non-hybrid families)."""
+        x = _vector(x, self.nx, "x")
+        if not self.hybrid:
+            return x
+        return self.family.jump(self.robot, x, _vector(y, self.ny, "y"), self._p(p))
+
+    # ------------------------------------------------------------ discrete time
+    @property
+    def state(self):
+        """Copy of the observer state x (None before reset)."""
+        return None if self._x is None else self._x.copy()
+
+    def reset(self, y0, est0=None, p=None):
+        """x = init(y0, est0, p); est0 None -> zeros, p None -> spec.p_default."""
+        y0 = _vector(y0, self.ny, "y0")
+        est0 = np.zeros(self.nest) if est0 is None else _vector(est0, self.nest, "est0")
+        p = self.p_default.copy() if p is None else _vector(p, self.np, "p")
+        x0 = np.asarray(self.family.init(self.robot, y0, est0, p), dtype=float).reshape(self.nx)
+        if not np.all(np.isfinite(x0)):
+            raise FloatingPointError(f"non-finite initial state {x0}")
+        self.params, self._x = p, x0
+        return self.state
+
+    def _advance(self, x, y, u):
+        """(est, x_next) for one step from state x; raises on a non-finite result."""
+        p = self.params
+        if self.hybrid:
+            x = self.family.jump(self.robot, x, y, p)
+        est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)
+        x_next = discretize.integrate(lambda xi: self.family.rhs(self.robot, xi, y, u, p),
+                                      x, self.dt, self.method, self.substeps)
+        if not (np.all(np.isfinite(est)) and np.all(np.isfinite(x_next))):
+            raise FloatingPointError(f"non-finite result (est={est}, x={x_next}); state unchanged")
+        return est, x_next
+
+    def _require_reset(self):
+        if self._x is None:
+            raise RuntimeError("call reset(y0, est0=None, p=None) before step/run")
+
+    def step(self, y, u):
+        """est from the current state (after the jump map, if hybrid), then x advances
+        over dt with y, u held constant (zero-order hold)."""
+        self._require_reset()
+        y = _vector(y, self.ny, "y")
+        u = _vector(u, self.nu, "u")
+        est, self._x = self._advance(self._x, y, u)
+        return est
+
+    def run(self, Y, U):
+        """Repeated step: Y (N, ny), U (N, nu) -> EST (N, nest). All-or-nothing: on an
+        error the state is left unchanged."""
+        self._require_reset()
+        Y = _matrix(Y, None, self.ny, "Y")
+        U = _matrix(U, Y.shape[0], self.nu, "U")
+        x = self._x
+        EST = np.empty((Y.shape[0], self.nest))
+        for k in range(Y.shape[0]):
+            EST[k], x = self._advance(x, Y[k], U[k])
+        self._x = x
+        return EST

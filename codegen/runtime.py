@@ -1,0 +1,165 @@
+"""ctypes loader: CompiledObserver with step() and run(), the loop of run() in C.
+
+Buffers are preallocated once; ``step`` copies y and u into them and calls the C step.
+Bad input (shape, NaN/Inf) raises before reaching C; a non-zero C status raises
+ObserverError naming the status.
+"""
+from __future__ import annotations
+
+import ctypes as ct
+import json
+from pathlib import Path
+
+import numpy as np
+
+_D = ct.POINTER(ct.c_double)
+
+
+class ObserverError(RuntimeError):
+    """The C step returned a non-zero status (the state was left unchanged)."""
+
+
+def as_vector(name, value, size):
+    """value as a finite float64 vector of length size, or ValueError naming ``name``."""
+    a = np.asarray(value, dtype=float)
+    if a.shape not in ((size,), (size, 1), (1, size)):
+        raise ValueError(f"{name}: expected shape ({size},), got {np.shape(value)}")
+    a = a.reshape(size)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: contains NaN or Inf: {a}")
+    return a
+
+
+def as_matrix(name, value, cols, rows=None):
+    a = np.asarray(value, dtype=float)
+    if a.ndim != 2 or a.shape[1] != cols or (rows is not None and a.shape[0] != rows):
+        want = f"({rows if rows is not None else 'N'}, {cols})"
+        raise ValueError(f"{name}: expected shape {want}, got {np.shape(value)}")
+    if not np.all(np.isfinite(a)):
+        bad = np.argwhere(~np.isfinite(a))[0]
+        raise ValueError(f"{name}: NaN or Inf at row {bad[0]}, column {bad[1]}")
+    return np.ascontiguousarray(a)
+
+
+class CompiledObserver:
+    """A generated observer loaded from its shared library.
+
+    ``obs.reset(y0, est0=None, p=None)``, ``obs.step(y, u) -> est``, ``obs.run(Y, U) -> EST``,
+    ``obs.rhs(x, y, u)``; ``obs.state``, ``obs.params``; ``obs.meta`` is the target's metadata.
+    """
+
+    def __init__(self, lib_path, meta):
+        self.lib_path = Path(lib_path).resolve()
+        self.meta = meta if isinstance(meta, dict) else json.loads(Path(meta).read_text())
+        self.prefix = self.meta["prefix"]
+        s = self.meta["sizes"]
+        self.nx, self.ny, self.nu, self.np, self.nest = s["nx"], s["ny"], s["nu"], s["np"], s["nest"]
+        self.dt = self.meta["discretization"]["dt"]
+        self.status_names = {v: k for k, v in self.meta["status"].items()}
+        lib = ct.CDLL(str(self.lib_path))  # absolute path: never LD_LIBRARY_PATH
+        f = lambda name: getattr(lib, f"{self.prefix}_{name}")  # noqa: E731
+        self._lib = lib
+        self._state_size = f("state_size")
+        self._state_size.restype = ct.c_long
+        self._init, self._step, self._run, self._rhs = f("init"), f("step"), f("run"), f("rhs")
+        self._set_params, self._get_state, self._set_state = f("set_params"), f("get_state"), f("set_state")
+        self._init.argtypes = [ct.c_void_p, _D, _D, _D]
+        self._step.argtypes = [ct.c_void_p, _D, _D, _D]
+        self._run.argtypes = [ct.c_void_p, ct.c_long, _D, _D, _D, ct.POINTER(ct.c_long)]
+        self._rhs.argtypes = [ct.c_void_p, _D, _D, _D, _D]
+        for g in (self._set_params, self._get_state, self._set_state):
+            g.argtypes = [ct.c_void_p, _D]
+        self._default_params = f("default_params")
+        self._default_params.argtypes = [_D]
+        self._default_params.restype = None
+        # preallocated buffers
+        self._s = ct.create_string_buffer(self._state_size())
+        self._buf = {k: np.zeros(max(1, m)) for k, m in
+                     (("y", self.ny), ("u", self.nu), ("est", self.nest), ("x", self.nx),
+                      ("xdot", self.nx), ("p", self.np))}
+        self._ptr = {k: v.ctypes.data_as(_D) for k, v in self._buf.items()}
+        self._default_params(self._ptr["p"])
+        self.p_default = self._buf["p"][: self.np].copy()
+        self.reset(np.zeros(self.ny))
+
+    # -------------------------------------------------------------- helpers
+    def _check(self, status, what):
+        if status != 0:
+            raise ObserverError(f"{self.prefix}_{what} returned {status} "
+                                f"({self.status_names.get(status, 'unknown')}); state unchanged")
+
+    def _load(self, key, name, value, size):
+        self._buf[key][:size] = as_vector(name, value, size)
+        return self._ptr[key]
+
+    # -------------------------------------------------------------- API
+    def reset(self, y0, est0=None, p=None):
+        """Initialise from the first measurement y0 and an initial estimate est0 (zeros)."""
+        y0 = as_vector("y0", y0, self.ny)
+        est0 = np.zeros(self.nest) if est0 is None else as_vector("est0", est0, self.nest)
+        p = self.p_default if p is None else as_vector("p", p, self.np)
+        arr = [np.ascontiguousarray(a) for a in (p, y0, est0)]
+        self._check(self._init(self._s, *(a.ctypes.data_as(_D) for a in arr)), "init")
+
+    def step(self, y, u):
+        """Estimate at this sample from measurement y and input u; the state advances by dt."""
+        yp = self._load("y", "y", y, self.ny)
+        up = self._load("u", "u", u, self.nu)
+        self._check(self._step(self._s, yp, up, self._ptr["est"]), "step")
+        return self._buf["est"][: self.nest].copy()
+
+    def c_step(self, y, u):
+        """The raw C step, no Python-side checks: returns (status, est). For tests of the C."""
+        self._buf["y"][: self.ny] = np.asarray(y, float).reshape(-1)[: self.ny]
+        self._buf["u"][: self.nu] = np.asarray(u, float).reshape(-1)[: self.nu]
+        st = self._step(self._s, self._ptr["y"], self._ptr["u"], self._ptr["est"])
+        return st, self._buf["est"][: self.nest].copy()
+
+    def run(self, Y, U):
+        """Many samples at once (rows of Y, U); the loop runs in C. Returns EST (N, nest)."""
+        Y = as_matrix("Y", Y, self.ny)
+        U = as_matrix("U", U, self.nu, rows=len(Y))
+        EST = np.empty((len(Y), self.nest))
+        done = ct.c_long(0)
+        st = self._run(self._s, len(Y), Y.ctypes.data_as(_D), U.ctypes.data_as(_D),
+                       EST.ctypes.data_as(_D), ct.byref(done))
+        if st != 0:
+            raise ObserverError(f"{self.prefix}_run stopped at sample {done.value} with status {st} "
+                                f"({self.status_names.get(st, 'unknown')})")
+        return EST
+
+    def rhs(self, x, y, u):
+        """Continuous-time right-hand side with the current parameters."""
+        xp = self._load("x", "x", x, self.nx)
+        yp = self._load("y", "y", y, self.ny)
+        up = self._load("u", "u", u, self.nu)
+        self._check(self._rhs(self._s, xp, yp, up, self._ptr["xdot"]), "rhs")
+        return self._buf["xdot"][: self.nx].copy()
+
+    @property
+    def state(self):
+        self._check(self._get_state(self._s, self._ptr["x"]), "get_state")
+        return self._buf["x"][: self.nx].copy()
+
+    @state.setter
+    def state(self, x):
+        self._check(self._set_state(self._s, self._load("x", "x", x, self.nx)), "set_state")
+
+    @property
+    def params(self):
+        off = 8 * max(1, self.nx)  # p follows x in the state struct (see the header)
+        return np.frombuffer(self._s, dtype=float, count=self.np, offset=off).copy()
+
+    @params.setter
+    def params(self, p):
+        self._check(self._set_params(self._s, self._load("p", "p", p, self.np)), "set_params")
+
+    def __repr__(self):
+        return f"<CompiledObserver {self.prefix} nx={self.nx} dt={self.dt}>"
+
+
+def load(target_dir, lib_path):
+    """CompiledObserver from a generated folder and its built library."""
+    target_dir = Path(target_dir)
+    meta = next(iter(sorted(target_dir.glob("*.json"))))
+    return CompiledObserver(lib_path, json.loads(meta.read_text()))
