@@ -98,7 +98,6 @@ static int parse_numbers(const char *s, double *out, size_t n, size_t *bad_col, 
         double v;
         if (!field_end) field_end = p + strlen(p);
         while (field < field_end && (*field == ' ' || *field == '\t')) ++field;
-        errno = 0;
         v = strtod(field, &end);
         if (end == field || end > field_end) goto fail;
         while (end < field_end && (*end == ' ' || *end == '\t')) ++end;
@@ -230,8 +229,8 @@ int main(int argc, char **argv)
             goto done;
         }
         if (!parse_numbers(line, vals, (size_t)N_COLS, &bad_col, bad, sizeof bad)) {
-            fprintf(stderr, "%s: %s:%ld: column %lu ('%s') is not a number\n", prog, in_path,
-                    line_no, (unsigned long)bad_col, bad);
+            fprintf(stderr, "%s: %s:%ld: column %lu ('%s') %s\n", prog, in_path, line_no,
+                    (unsigned long)bad_col, bad, is_blank(bad) ? "is empty" : "is not a number");
             goto done;
         }
         ++row;

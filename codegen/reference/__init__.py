@@ -126,6 +126,10 @@ class ReferenceObserver:
         """Copy of the observer state x (None before reset)."""
         return None if self._x is None else self._x.copy()
 
+    @state.setter
+    def state(self, x):
+        self._x = _vector(x, self.nx, "x")
+
     def reset(self, y0, est0=None, p=None):
         """x = init(y0, est0, p); est0 None -> zeros, p None -> spec.p_default."""
         y0 = _vector(y0, self.ny, "y0")

@@ -1,0 +1,191 @@
+"""`python -m codegen list | generate | build | check | simulate | bench`."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .build import BuildError, build, repo_root
+from .targets import DEFAULT_FAMILY, DEFAULT_ROBOTS, default_spec, random_inputs, relative_error
+
+
+def _progress(items, desc):
+    try:
+        from tqdm import tqdm
+        return tqdm(items, desc=desc, unit="target", file=sys.stderr, leave=False)
+    except ImportError:  # pragma: no cover
+        return items
+
+
+def cmd_list(args):
+    from models import names
+
+    from . import observers
+    print("robots:   " + ", ".join(names()))
+    print("families: " + ", ".join(observers.FAMILIES))
+    print("default targets (make generate): " + ", ".join(f"{r}_{DEFAULT_FAMILY}" for r in DEFAULT_ROBOTS))
+    return 0
+
+
+def _emit_and_build(robot_name, args):
+    from .emit import emit
+    spec = default_spec(robot_name, args.family)
+    t0 = time.perf_counter()
+    target = emit(spec, args.out, dt=args.dt, method=args.method, substeps=args.substeps)
+    t1 = time.perf_counter()
+    lib = build(target, native=args.native)
+    return spec, target, lib, t1 - t0, time.perf_counter() - t1
+
+
+def cmd_generate(args):
+    """Generate, compile, and run the C harness on the built-in trajectory per target."""
+    from . import harness
+    from .runtime import load
+    from .sim.trajectory import demo_trajectory
+
+    rows = []
+    for name in _progress(args.robots, "generate"):
+        spec, target, lib, t_gen, t_cc = _emit_and_build(name, args)
+        t, Q, QD, TAU = demo_trajectory(spec.robot, T=args.T, dt=args.dt)
+        work = repo_root() / "build" / "demo"
+        work.mkdir(parents=True, exist_ok=True)
+        csv_in, csv_out = work / f"{target.name}_in.csv", work / f"{target.name}_out.csv"
+        harness.write_csv(csv_in, t, Q, TAU)
+        harness.run_csv(target, csv_in, csv_out)
+        _, EST = harness.read_csv(csv_out)
+        obs = load(target, lib)
+        obs.reset(Q[0])
+        same = np.array_equal(obs.run(Q, TAU), EST)
+        err0, errT = (np.linalg.norm(EST[i] - QD[i]) for i in (0, -1))
+        rows.append((target.name, spec.p_default[0], t_gen, t_cc, err0, errT, same))
+        print(f"{target.name:34s} k0 = {spec.p_default[0]:8.4g}  gen {t_gen:5.1f}s  cc {t_cc:5.1f}s  "
+              f"|qd - qd_hat|: t=0 {err0:.3g} -> t={t[-1]:g}s {errT:.3g}   C harness == ctypes: {same}")
+    print(f"targets in {Path(args.out).resolve()}")
+    return 0 if all(r[-1] for r in rows) else 1
+
+
+def cmd_build(args):
+    for name in args.robots:
+        spec, target, lib, t_gen, t_cc = _emit_and_build(name, args)
+        print(f"{target.name}: {lib}  (generate {t_gen:.1f}s, compile {t_cc:.1f}s)")
+    return 0
+
+
+def cross_check(spec, count=1000, dt=1e-3, method="rk4", substeps=1, seed=0):
+    """Worst relative errors of the compiled C against the reference: single steps from random
+    (x, y, u), and a run over `count` samples. Returns a dict."""
+    from . import compile_observer
+    from .reference import reference_observer
+    from .sim.trajectory import demo_trajectory
+
+    obs = compile_observer(spec, dt=dt, method=method, substeps=substeps)
+    ref = reference_observer(spec, dt=dt, method=method, substeps=substeps)
+    X, Y, U = random_inputs(spec, count, seed)
+    worst_step = worst_next = worst_rhs = 0.0
+    for x, y, u in zip(X, Y, U):
+        obs.state = x
+        ref.reset(y)
+        ref.state = x
+        e_c, e_r = obs.step(y, u), ref.step(y, u)
+        worst_step = max(worst_step, relative_error(e_c, e_r))
+        worst_next = max(worst_next, relative_error(obs.state, ref.state))
+        worst_rhs = max(worst_rhs, relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)))
+    rng = np.random.default_rng(seed + 1)
+    t, Q, QD, TAU = demo_trajectory(spec.robot, T=(count - 1) * dt, dt=dt, seed=seed)
+    Yn = Q + 1e-3 * rng.normal(size=Q.shape)
+    Un = TAU + 1e-2 * rng.normal(size=TAU.shape)
+    obs.reset(Yn[0]), ref.reset(Yn[0])
+    worst_run = relative_error(obs.run(Yn, Un), ref.run(Yn, Un))
+    return {"step_est": worst_step, "step_state": worst_next, "rhs": worst_rhs, "run": worst_run,
+            "samples": count}
+
+
+def cmd_check(args):
+    worst = 0.0
+    for name in args.robots:
+        r = cross_check(default_spec(name, args.family), count=args.count, dt=args.dt,
+                        method=args.method, substeps=args.substeps)
+        w = max(v for k, v in r.items() if k != "samples")
+        worst = max(worst, w)
+        print(f"{name}_{args.family}: worst relative error {w:.2e}  "
+              + "  ".join(f"{k} {v:.1e}" for k, v in r.items() if k != "samples"))
+    ok = worst <= args.tol
+    print(f"{'OK' if ok else 'FAIL'}: worst {worst:.2e} (tolerance {args.tol:g})")
+    return 0 if ok else 1
+
+
+def cmd_bench(args):
+    from . import harness
+    rows = []
+    for name in args.bench_robots:
+        from models import load_robot
+        robot = load_robot(name)
+        out = repo_root() / "build" / "bench"
+        spec = default_spec(name)
+        from .emit import emit
+        target = emit(spec, out, dt=1e-3, method="rk4", substeps=1)
+        build(target, native=args.native)
+        ours = harness.time_target(target)
+        src = robot.source
+        pin = harness.time_pin(src["path"], list(src.get("locked_joints", {})))
+        rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_rk4_step": ours["ns_per_step"],
+                     "ns_pin_aba": pin["ns_aba"], "ratio_rhs_over_aba": ours["ns_per_rhs"] / pin["ns_aba"],
+                     "ratio_step_over_aba": ours["ns_per_step"] / pin["ns_aba"]})
+    print(f"{'robot':8s} {'RHS ns':>9s} {'rk4 step ns':>12s} {'pin aba ns':>11s} {'RHS/aba':>8s} {'step/aba':>9s}")
+    for r in rows:
+        print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_rk4_step']:12.1f} {r['ns_pin_aba']:11.1f} "
+              f"{r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=2))
+    return 0
+
+
+def cmd_simulate(args):
+    from .sim import scenarios
+    return scenarios.run(args.name, reference=args.reference, out=args.out)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="python -m codegen", description=__doc__)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    sub.add_parser("list", help="robots, observer families, default targets")
+
+    def common(p, robots=True):
+        if robots:
+            p.add_argument("robots", nargs="*", default=DEFAULT_ROBOTS, help="catalog names")
+        p.add_argument("--family", default=DEFAULT_FAMILY)
+        p.add_argument("--dt", type=float, default=1e-3)
+        p.add_argument("--method", default="rk4", choices=["euler", "rk4"])
+        p.add_argument("--substeps", type=int, default=1)
+        p.add_argument("--native", action="store_true", help="add -march=native")
+
+    g = sub.add_parser("generate", help="emit + compile the default targets, run the C harness")
+    common(g)
+    g.add_argument("--out", default=str(repo_root() / "generated"))
+    g.add_argument("--T", type=float, default=2.0, help="length of the built-in trajectory (s)")
+    b = sub.add_parser("build", help="emit + compile")
+    common(b)
+    b.add_argument("--out", default=str(repo_root() / "generated"))
+    c = sub.add_parser("check", help="cross-check the emitted C against the reference")
+    common(c)
+    c.add_argument("--count", type=int, default=1000)
+    c.add_argument("--tol", type=float, default=1e-9)
+    be = sub.add_parser("bench", help="ns per RHS / rk4 step vs pinocchio native aba")
+    be.add_argument("bench_robots", nargs="*", default=["ur5", "panda"])
+    be.add_argument("--native", action="store_true")
+    be.add_argument("--json", help="also write the figures to this file")
+    s = sub.add_parser("simulate", help="run a scenario of the seed papers")
+    s.add_argument("name")
+    s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
+    s.add_argument("--out", default=str(repo_root() / "build" / "sim"))
+    args = ap.parse_args(argv)
+    try:
+        return {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
+                "bench": cmd_bench, "simulate": cmd_simulate}[args.cmd](args)
+    except BuildError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2

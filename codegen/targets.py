@@ -1,0 +1,33 @@
+"""The default targets of `make generate` and the helpers the CLI and tests share."""
+from __future__ import annotations
+
+import numpy as np
+
+DEFAULT_ROBOTS = ["seed000_2r", "seed002_2r", "seed003_2r_abs", "ur5", "panda"]
+DEFAULT_FAMILY = "reduced_order"
+
+
+def default_spec(robot_name, family=DEFAULT_FAMILY):
+    from models import load_robot
+
+    from . import observers
+    return observers.build(family, load_robot(robot_name))
+
+
+def random_inputs(spec, count, seed=0):
+    """Random (X, Y, U) for cross-checks: y in the joint ranges, x and u scaled to the robot
+    (u around gravity torques, x around k0 y for the reduced-order observer)."""
+    rng = np.random.default_rng(seed)
+    robot = spec.robot
+    Y = robot.sample_configurations(count, seed)
+    gscale = np.maximum(1.0, np.abs(np.asarray(robot.g.map(count)(Y.T))).max(axis=1))
+    U = rng.normal(size=(count, spec.nu)) * gscale[: spec.nu]
+    X = rng.normal(size=(count, spec.nx)) * (1.0 + np.abs(spec.p_default).max(initial=1.0))
+    return X, Y, U
+
+
+def relative_error(a, b):
+    """max over rows of ||a - b|| / ||b|| (rows with ||b|| = 0 compare absolutely)."""
+    a, b = np.atleast_2d(a), np.atleast_2d(b)
+    nb = np.linalg.norm(b, axis=1)
+    return float(np.max(np.linalg.norm(a - b, axis=1) / np.where(nb > 0, nb, 1.0)))
