@@ -40,3 +40,11 @@ def discretize(spec, dt, method="rk4", substeps=1):
     for _ in range(substeps):
         xn = integrator_step(lambda s: spec.rhs(s, y, u, p), xn, h, method)
     return ca.Function("step", [x, y, u, p], [xn, est], ["x", "y", "u", "p"], ["x_next", "est"])
+
+
+def estimate(spec):
+    """est = output(jump(x, y, p), y, u, p): the estimate of ``step`` without advancing the state."""
+    x, y = ca.SX.sym("x", spec.nx), ca.SX.sym("y", spec.ny)
+    u, p = ca.SX.sym("u", spec.nu), ca.SX.sym("p", spec.np)
+    xj = spec.jump(x, y, p) if spec.jump is not None else x
+    return ca.Function("estimate", [x, y, u, p], [spec.output(xj, y, u, p)], ["x", "y", "u", "p"], ["est"])

@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 
 from . import __version__
-from .discretize import discretize
+from .discretize import discretize, estimate
 from .spec import sanitize
 
 STATUS = {"OK": 0, "ERR_BAD_ARG": 1, "ERR_NONFINITE_INPUT": 2, "ERR_NONFINITE_RESULT": 3,
@@ -73,7 +73,7 @@ def emit(spec, out_dir, dt=1e-3, method="rk4", substeps=1, prefix=None):
     """Write the C target of ``spec`` into ``out_dir/<prefix>/``; returns that folder (Path)."""
     prefix = sanitize(prefix or spec.target_name)
     step = discretize(spec, dt, method, substeps)
-    fns = {"step": step, "rhs": spec.rhs, "init": spec.init}
+    fns = {"step": step, "estimate": estimate(spec), "rhs": spec.rhs, "init": spec.init}
     kernels = {}
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -184,6 +184,9 @@ void {prefix}_default_params(double *p);
 int {prefix}_init({prefix}_state *s, const double *p, const double *y0, const double *est0);
 /* One sample: est[{P}_NEST] = estimate at this sample; then the state advances by {P}_DT. */
 int {prefix}_step({prefix}_state *s, const double *y, const double *u, double *est);
+/* The estimate step() would return for (y, u), without advancing the state (closed loops:
+   est first, then the control input, then step). */
+int {prefix}_estimate(const {prefix}_state *s, const double *y, const double *u, double *est);
 /* n samples, row-major Y (n x NY), U (n x NU), EST (n x NEST); *n_done = samples completed. */
 int {prefix}_run({prefix}_state *s, long n, const double *Y, const double *U, double *EST, long *n_done);
 /* Continuous-time right-hand side xdot = f(x, y, u, s->p) (uses s's work buffers only). */
@@ -264,6 +267,21 @@ int {prefix}_step({prefix}_state *s, const double *y, const double *u, double *e
     return {P}_ERR_NONFINITE_RESULT;
   {prefix}_copy(s->x, s->x_next, {P}_NX);
   {prefix}_copy(est, s->est, {P}_NEST);
+  return {P}_OK;
+}}
+
+int {prefix}_estimate(const {prefix}_state *s, const double *y, const double *u, double *est) {{
+  const double *arg[{z['SZ_ARG']}];
+  double *res[{z['SZ_RES']}];
+  double w[{P}_SZ_W];
+  int iw[{P}_SZ_IW];
+  if (!s || !y || !est || (!u && {P}_NU > 0)) return {P}_ERR_BAD_ARG;
+  if (!{prefix}_finite(y, {P}_NY) || ({P}_NU > 0 && !{prefix}_finite(u, {P}_NU)))
+    return {P}_ERR_NONFINITE_INPUT;
+  arg[0] = s->x; arg[1] = y; arg[2] = u; arg[3] = s->p;
+  res[0] = est;
+  if ({prefix}_k_estimate(arg, res, iw, w, 0)) return {P}_ERR_KERNEL;
+  if (!{prefix}_finite(est, {P}_NEST)) return {P}_ERR_NONFINITE_RESULT;
   return {P}_OK;
 }}
 

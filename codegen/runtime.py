@@ -62,6 +62,8 @@ class CompiledObserver:
         self._state_size = f("state_size")
         self._state_size.restype = ct.c_long
         self._init, self._step, self._run, self._rhs = f("init"), f("step"), f("run"), f("rhs")
+        self._estimate = f("estimate")
+        self._estimate.argtypes = [ct.c_void_p, _D, _D, _D]
         self._set_params, self._get_state, self._set_state = f("set_params"), f("get_state"), f("set_state")
         self._init.argtypes = [ct.c_void_p, _D, _D, _D]
         self._step.argtypes = [ct.c_void_p, _D, _D, _D]
@@ -106,6 +108,13 @@ class CompiledObserver:
         yp = self._load("y", "y", y, self.ny)
         up = self._load("u", "u", u, self.nu)
         self._check(self._step(self._s, yp, up, self._ptr["est"]), "step")
+        return self._buf["est"][: self.nest].copy()
+
+    def estimate(self, y, u):
+        """The estimate step(y, u) would return, without advancing the state."""
+        yp = self._load("y", "y", y, self.ny)
+        up = self._load("u", "u", u, self.nu)
+        self._check(self._estimate(self._s, yp, up, self._ptr["est"]), "estimate")
         return self._buf["est"][: self.nest].copy()
 
     def c_step(self, y, u):

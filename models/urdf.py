@@ -707,7 +707,7 @@ def aba(tree, q, v, tau):
         Uf, Un = I.column(k_S(b))
         Ui = Uf + Un
         D = _add(Ui[k_S(b)], b.armature)
-        Di = 1.0 / D
+        Di = 2.0 / (D + D) if isinstance(D, ca.SX) else 1.0 / D   # keeps x * Di a product
         ui = _sub(ts[i], _sub_S(b, *pA[i]))
         U[i], Dinv[i], u[i] = Ui, Di, ui
         if b.parent < 0:

@@ -186,3 +186,16 @@ def test_load_by_absolute_path_from_elsewhere(compiled, tmp_path, monkeypatch):
     o2 = type(obs)(copy, obs.meta)
     o2.reset([0.0, 0.0])
     assert o2.step([0.0, 0.0], [0.0, 0.0]).shape == (2,)
+
+
+def test_estimate_equals_step_without_advancing(compiled, spec_of):
+    from codegen.reference import reference_observer
+    obs, ref = compiled("ur5"), reference_observer(spec_of("ur5"))
+    y, u = np.linspace(-0.5, 0.5, 6), np.linspace(1, 6, 6)
+    obs.reset(y, est0=np.ones(6))
+    ref.reset(y, est0=np.ones(6))
+    x0 = obs.state
+    e = obs.estimate(y, u)
+    assert np.array_equal(obs.state, x0)
+    assert np.allclose(e, ref.estimate(y, u), rtol=1e-12)
+    assert np.array_equal(obs.step(y, u), e)

@@ -1,9 +1,13 @@
-"""Observer families: one module each, each with ``build(robot, **gains) -> ObserverSpec``."""
+"""Observer families: one module each, each with ``build(robot, **gains) -> ObserverSpec``.
+
+A family is any module of this package with a ``build`` function; adding a file adds a family.
+"""
 from __future__ import annotations
 
 import importlib
+import pkgutil
 
-FAMILIES = ["reduced_order"]
+FAMILIES = sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
 
 
 def build(family, robot, **gains):

@@ -16,14 +16,19 @@ observers, ``jump(robot, x, y, p)``.
 """
 from __future__ import annotations
 
+import importlib
+import pkgutil
+
 import numpy as np
 
-from . import discretize, reduced_order
+from . import discretize
 from .robots import SEED_SOURCES, reference_robot
 
-FAMILIES = {
-    "reduced_order": reduced_order,
-}
+# a family is a module of this package named like the symbolic one (codegen/observers/<family>.py)
+_NOT_FAMILIES = {"discretize", "robots"}
+FAMILIES = {m.name: importlib.import_module(f"{__name__}.{m.name}")
+            for m in pkgutil.iter_modules(__path__)
+            if m.name not in _NOT_FAMILIES and not m.name.startswith("_")}
 
 __all__ = ["reference_observer", "reference_robot", "ReferenceObserver", "FAMILIES", "SEED_SOURCES"]
 
@@ -165,6 +170,13 @@ class ReferenceObserver:
         u = _vector(u, self.nu, "u")
         est, self._x = self._advance(self._x, y, u)
         return est
+
+    def estimate(self, y, u):
+        """The estimate step(y, u) would return, without advancing the state."""
+        self._require_reset()
+        y, u = _vector(y, self.ny, "y"), _vector(u, self.nu, "u")
+        x = self.family.jump(self.robot, self._x, y, self.params) if self.hybrid else self._x
+        return np.asarray(self.family.output(self.robot, x, y, u, self.params), dtype=float).reshape(self.nest)
 
     def run(self, Y, U):
         """Repeated step: Y (N, ny), U (N, nu) -> EST (N, nest). All-or-nothing: on an

@@ -1,0 +1,35 @@
+"""Scenarios of the seed papers: `python -m codegen simulate NAME`.
+
+Each module of this package defines ``SCENARIOS = {name: function}``; a function takes
+``reference`` (bool: run observers with the numpy reference instead of the C) and ``out``
+(a folder for the CSV and PNGs), and returns a summary dict (also printed).
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import pkgutil
+from pathlib import Path
+
+
+def registry():
+    reg = {}
+    for m in pkgutil.iter_modules(__path__):
+        if not m.name.startswith("_"):
+            reg.update(getattr(importlib.import_module(f"{__name__}.{m.name}"), "SCENARIOS", {}))
+    return reg
+
+
+def run(name, reference=False, out="build/sim"):
+    reg = registry()
+    if name not in reg:
+        raise SystemExit(f"unknown scenario {name!r}; known: {', '.join(sorted(reg)) or '(none)'}")
+    out = Path(out) / name
+    out.mkdir(parents=True, exist_ok=True)
+    summary = reg[name](reference=reference, out=out)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
+    print(f"{name}:")
+    for k, v in summary.items():
+        print(f"  {k}: {v}")
+    print(f"  files in {out}")
+    return 0
