@@ -1,9 +1,10 @@
 // pin_aba: time pinocchio's own aba, rnea and crba on a URDF model.
 //
-// Usage: pin_aba [--blocks=N] [--block-ms=MS] [--seed=S] <urdf> [locked_joint_name ...]
+// Usage: pin_aba [--blocks=N] [--block-ms=MS] [--seed=S] <urdf> [locked_joint[=value] ...]
 //
 // Locked joints are removed with pinocchio::buildReducedModel and held at the
-// neutral configuration (0 for revolute and prismatic joints).  q, v, tau are
+// neutral configuration (0 for revolute and prismatic joints), or at `value` when
+// given as name=value (one-coordinate joints only).  q, v, tau are
 // drawn once from a fixed seed (q uniform in [-1, 1] then normalized, v and tau
 // uniform in [-1, 1]).  Each algorithm is timed as the median over `blocks`
 // blocks of calls, each block sized to take about `block-ms` milliseconds,
@@ -121,7 +122,7 @@ std::string json_escape(const std::string & s)
 int usage(const char * argv0)
 {
   std::fprintf(
-    stderr, "usage: %s [--blocks=N] [--block-ms=MS] [--seed=S] <urdf> [locked_joint_name ...]\n",
+    stderr, "usage: %s [--blocks=N] [--block-ms=MS] [--seed=S] <urdf> [locked_joint[=value] ...]\n",
     argv0);
   return 2;
 }
@@ -171,22 +172,56 @@ int main(int argc, char ** argv)
     return 1;
   }
 
+  // locked joints: "name" (held at the neutral configuration, 0 for revolute/prismatic)
+  // or "name=value" (a one-coordinate joint held at value)
   std::vector<pinocchio::JointIndex> locked;
+  std::vector<std::string> locked_names;
+  Eigen::VectorXd q_lock = pinocchio::neutral(full);
   for (size_t i = 1; i < positional.size(); ++i)
   {
-    if (!full.existJointName(positional[i]))
+    std::string name = positional[i];
+    const size_t eq = name.find('=');
+    double value = 0.0;
+    const bool has_value = eq != std::string::npos;
+    if (has_value)
     {
-      std::fprintf(
-        stderr, "pin_aba: no joint named '%s' in '%s'\n", positional[i].c_str(), urdf.c_str());
+      const std::string text = name.substr(eq + 1);
+      char * end = nullptr;
+      value = std::strtod(text.c_str(), &end);
+      name = name.substr(0, eq);
+      if (text.empty() || *end != '\0')
+      {
+        std::fprintf(
+          stderr, "pin_aba: locked joint '%s': value '%s' is not a number\n", name.c_str(),
+          text.c_str());
+        return 1;
+      }
+    }
+    if (!full.existJointName(name))
+    {
+      std::fprintf(stderr, "pin_aba: no joint named '%s' in '%s'\n", name.c_str(), urdf.c_str());
       return 1;
     }
-    locked.push_back(full.getJointId(positional[i]));
+    const pinocchio::JointIndex id = full.getJointId(name);
+    if (has_value)
+    {
+      if (full.nqs[id] != 1)
+      {
+        std::fprintf(
+          stderr, "pin_aba: locked joint '%s' has %d coordinates; name=value needs 1\n",
+          name.c_str(), full.nqs[id]);
+        return 1;
+      }
+      q_lock[full.idx_qs[id]] = value;
+    }
+    locked.push_back(id);
+    locked_names.push_back(name);
   }
   pinocchio::Model model;
   if (locked.empty())
     model = full;
   else
-    pinocchio::buildReducedModel(full, locked, pinocchio::neutral(full), model);
+    pinocchio::buildReducedModel(full, locked, q_lock, model);
   pinocchio::Data data(model);
 
   std::mt19937 rng(seed);
@@ -226,11 +261,11 @@ int main(int argc, char ** argv)
     blocks, block_ms);
 
   std::string locked_json = "[";
-  for (size_t i = 1; i < positional.size(); ++i)
+  for (size_t i = 0; i < locked_names.size(); ++i)
   {
-    if (i > 1)
+    if (i > 0)
       locked_json += ", ";
-    locked_json += "\"" + json_escape(positional[i]) + "\"";
+    locked_json += "\"" + json_escape(locked_names[i]) + "\"";
   }
   locked_json += "]";
 

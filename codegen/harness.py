@@ -32,6 +32,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import warnings
 from functools import lru_cache
 from pathlib import Path
 
@@ -226,7 +227,11 @@ def time_target(target_dir, blocks=51, block_ms=15.0, build_dir=None, native=Fal
     exe = build_harness(target_dir, build_dir, native=native)["time_step"]
     proc = _run_tool([exe, f"--blocks={int(blocks)}", f"--block-ms={float(block_ms)!r}"],
                      "time_step")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    res = json.loads(proc.stdout.strip().splitlines()[-1])
+    if res.get("errors"):
+        warnings.warn(f"time_step: {res['errors']} step calls of {res['target']} returned a "
+                      "non-zero status; the timing is not representative", RuntimeWarning)
+    return res
 
 
 # --------------------------------------------------------------------------------------------
@@ -323,15 +328,27 @@ def resolve_urdf(urdf):
 
 
 def time_pin(urdf, locked_joints=(), blocks=51, block_ms=15.0, build_dir=None, mode="library"):
-    """ns per pinocchio aba, rnea and crba on ``urdf`` (locked joints held at 0).
+    """ns per pinocchio aba, rnea and crba on ``urdf``.
+
+    ``locked_joints``: joint names (held at the neutral configuration, 0 for revolute and
+    prismatic joints) or a dict {name: value} (one-coordinate joints held at value); they
+    are removed with pinocchio's buildReducedModel. ``urdf`` may be a path inside
+    example-robot-data (see resolve_urdf).
 
     Returns the JSON line of pin_aba as a dict: urdf, locked_joints, nq, nv, ns_aba,
     ns_rnea, ns_crba, blocks, calls_per_block_aba, pin_mode, pinocchio_version."""
     if isinstance(locked_joints, str):
         locked_joints = (locked_joints,)
+    if isinstance(locked_joints, dict):
+        args = [f"{name}={float(v)!r}" for name, v in locked_joints.items()]
+    else:
+        args = [str(name) for name in locked_joints]
+    for a in args:
+        if a.startswith("--"):
+            raise ValueError(f"locked_joints: {a!r} is not a joint name")
     exe = build_pin_bench(build_dir, mode=mode)
     proc = _run_tool([exe, f"--blocks={int(blocks)}", f"--block-ms={float(block_ms)!r}",
-                      resolve_urdf(urdf), *locked_joints], "pin_aba")
+                      resolve_urdf(urdf), *args], "pin_aba")
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 

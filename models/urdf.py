@@ -111,16 +111,46 @@ def _snapped_model(model, tol):
         M = model.jointPlacements[i]
         out.jointPlacements[i] = pin.SE3(snap(M.rotation, tol), snap(M.translation, tol))
         Y = model.inertias[i]
-        out.inertias[i] = pin.Inertia(float(Y.mass), snap(Y.lever, tol), snap(Y.inertia, tol))
+        try:
+            out.inertias[i] = pin.Inertia(float(Y.mass), snap(Y.lever, tol), snap(Y.inertia, tol))
+        except RuntimeError as e:        # pinocchio rejects the snapped rotational inertia
+            raise ModelError(
+                f"link {_link_names(model).get(i, model.names[i])!r} (moved by joint "
+                f"{model.names[i]!r}): rotational inertia about the centre of mass is not "
+                f"positive definite after snapping entries below snap_tol={tol} ({e})") from None
         jm = model.joints[i]
         name = jm.shortname()
-        if name in ("JointModelRevoluteUnaligned", "JointModelRevoluteUnboundedUnaligned",
-                    "JointModelPrismaticUnaligned"):
-            axis = snap(jm.extract().axis, tol)
+        if name not in _SUPPORTED or _SUPPORTED[name][1] is not None:
+            continue
+        raw = _joint_axis(model, i)
+        axis = snap(raw, tol)
+        if np.array_equal(axis, raw):
+            continue
+        if name == "JointModelRevoluteUnboundedUnaligned":
+            # pin's Python bindings cannot build this joint with a given axis: use RUBX/Y/Z
+            # when the snapped axis is one, else keep the raw axis (both models agree).
+            k = [j for j in range(3) if axis[j] == 1.0]
+            if len(k) != 1 or np.count_nonzero(axis) != 1:
+                continue
+            new = getattr(pin, "JointModelRUB" + "XYZ"[k[0]])()
+        else:
             new = getattr(pin, name)(axis)
-            new.setIndexes(i, jm.idx_q, jm.idx_v, jm.idx_vExtended)
-            out.joints[i] = new
+        new.setIndexes(i, jm.idx_q, jm.idx_v, jm.idx_vExtended)
+        out.joints[i] = new
     return out
+
+
+def _joint_axis(model, i):
+    """Unit axis of a 1-DoF joint, read from its motion subspace S at the neutral q."""
+    jm = model.joints[i]
+    kind = _SUPPORTED[jm.shortname()][0]
+    try:
+        return np.array(jm.extract().axis, dtype=float)
+    except AttributeError:      # RevoluteUnboundedUnaligned has no axis binding
+        jd = jm.createData()
+        jm.calc(jd, pin.neutral(model))
+        S = np.asarray(jd.S, dtype=float).reshape(6)
+        return S[3:].copy() if kind == "R" else S[:3].copy()
 
 
 # =============================================================================================
@@ -187,7 +217,7 @@ def _joint_kind(model, i):
             f"translation, composite, helical and mimic joints are not)")
     kind, axis, continuous = _SUPPORTED[short]
     if axis is None:
-        axis = np.asarray(jm.extract().axis, dtype=float)
+        axis = _joint_axis(model, i)
         if not np.isfinite(axis).all() or abs(np.linalg.norm(axis) - 1.0) > 1e-6:
             raise ModelError(f"joint {model.names[i]!r}: axis {axis} is not a unit vector")
     return kind, np.asarray(axis, dtype=float), continuous
@@ -221,7 +251,7 @@ def _tree_from_pin(model):
         Io = Ic + m * (c.dot(c) * np.eye(3) - np.outer(c, c))   # parallel axis theorem
         bodies.append(_Body(
             joint=model.names[i], link=links.get(i, model.names[i]), parent=lam - 1,
-            kind=kind, continuous=continuous, E=_tup(snap(E, 0.0)), r=_tup(r), mass=m,
+            kind=kind, continuous=continuous, E=_tup(E), r=_tup(r), mass=m,
             h=_tup(m * c), Io=_tup(0.5 * (Io + Io.T)), com=_tup(c),
             armature=float(model.armature[model.joints[i].idx_v])))
     return SpatialTree(bodies=tuple(bodies), gravity=_tup(model.gravity.linear))
@@ -314,19 +344,34 @@ def _sym(m00, m01, m02, m11, m12, m22):
 
 # ------------------------------------------------------------------ rotation about z
 class _Rz:
-    """Rotation R_z(q) with c = cos q, s = sin q and the double angle cos 2q, sin 2q."""
+    """Rotation R_z(q): c = cos q, s = sin q and the products s^2, c s, cos 2q, sin 2q.
+
+    The 2x2 (xy) block of R X R^T is written as a correction of X:
+    with e = x00 - x11, sigma = x01 + x10 (exact algebra, 4 mul per block)
+
+        u = s^2 e + c s sigma,   x00' = x00 - u,   x11' = x11 + u,
+        w = c s e - s^2 sigma,   x01' = x01 + w,   x10' = x10 + w.
+    """
 
     def __init__(self, q):
         self.c = ca.cos(q)
         self.s = ca.sin(q)
 
     @cached_property
+    def ss(self):
+        return self.s * self.s
+
+    @cached_property
+    def cs(self):
+        return self.c * self.s
+
+    @cached_property
     def c2(self):
-        return self.c * self.c - self.s * self.s
+        return (self.c - self.s) * (self.c + self.s)
 
     @cached_property
     def s2(self):
-        return 2.0 * (self.c * self.s)
+        return self.cs + self.cs
 
     def apply(self, u):
         """R_z u."""
@@ -338,29 +383,28 @@ class _Rz:
         c, s = self.c, self.s
         return (_add(_mul(c, u[0]), _mul(s, u[1])), _sub(_mul(c, u[1]), _mul(s, u[0])), u[2])
 
-    def _sym2(self, a, b, d):
-        """R [[a, b], [b, d]] R^T by the double angle: 6 mul, 5 add."""
-        if _z(a) and _z(b) and _z(d):
-            return 0.0, 0.0, 0.0
-        sig = _mul(0.5, _add(a, d))
-        dlt = _mul(0.5, _sub(a, d))
-        t = _sub(_mul(self.c2, dlt), _mul(self.s2, b))
-        return _add(sig, t), _add(_mul(self.s2, dlt), _mul(self.c2, b)), _sub(sig, t)
-
     def sym(self, S):
-        """R_z S R_z^T for a symmetric 3x3 S."""
-        a, b, d = self._sym2(S[0][0], S[0][1], S[1][1])
+        """R_z S R_z^T for a symmetric 3x3 S (4 mul, 5 add on the xy block)."""
+        a, b, d = S[0][0], S[0][1], S[1][1]
+        if not (_z(a) and _z(b) and _z(d)):
+            e = _sub(a, d)
+            u = _add(_mul(self.ss, e), _mul(self.s2, b))
+            a, d = _sub(a, u), _add(d, u)
+            b = _add(_mul(self.cs, e), _mul(self.c2, b))
         v = self.apply((S[0][2], S[1][2], 0.0))
         return _sym(a, b, v[0], d, v[1], S[2][2])
 
     def gen(self, B):
-        """R_z B R_z^T for a general 3x3 B (antisymmetric xy part is invariant)."""
-        beta = _mul(0.5, _add(B[0][1], B[1][0]))
-        alpha = _mul(0.5, _sub(B[0][1], B[1][0]))
-        a, b, d = self._sym2(B[0][0], beta, B[1][1])
+        """R_z B R_z^T for a general 3x3 B (4 mul, 8 add on the xy block)."""
+        b00, b01, b10, b11 = B[0][0], B[0][1], B[1][0], B[1][1]
+        e, sig = _sub(b00, b11), _add(b01, b10)
+        if not (_z(e) and _z(sig)):
+            u = _add(_mul(self.ss, e), _mul(self.cs, sig))
+            w = _sub(_mul(self.cs, e), _mul(self.ss, sig))
+            b00, b11, b01, b10 = _sub(b00, u), _add(b11, u), _add(b01, w), _add(b10, w)
         col = self.apply((B[0][2], B[1][2], 0.0))
         row = self.apply((B[2][0], B[2][1], 0.0))
-        return [[a, _add(b, alpha), col[0]], [_sub(b, alpha), d, col[1]], [row[0], row[1], B[2][2]]]
+        return [[b00, b01, col[0]], [b10, b11, col[1]], [row[0], row[1], B[2][2]]]
 
 
 # ------------------------------------------------------------------ constant rotations
@@ -772,8 +816,11 @@ def com_positions(tree, q):
 # =============================================================================================
 # the robot
 # =============================================================================================
-def _check_bodies(model_raw, model):
-    """Every body moved by a joint: mass > 0 and inertia about its CoM positive definite."""
+def _check_bodies(model, model_raw=None):
+    """Every body moved by a joint: mass > 0 and inertia about its CoM positive definite.
+
+    ``model_raw`` (the unsnapped model) only adds a hint to the message when snapping is
+    what made an inertia singular."""
     links = _link_names(model)
     for i in range(1, model.njoints):
         Y = model.inertias[i]
@@ -787,8 +834,8 @@ def _check_bodies(model_raw, model):
         lam = np.linalg.eigvalsh(0.5 * (Ic + Ic.T))
         if lam[0] <= 0.0:
             note = ""
-            raw = np.asarray(model_raw.inertias[i].inertia)
-            if np.linalg.eigvalsh(0.5 * (raw + raw.T))[0] > 0.0:
+            raw = np.asarray((model_raw or model).inertias[i].inertia)
+            if model_raw is not None and np.linalg.eigvalsh(0.5 * (raw + raw.T))[0] > 0.0:
                 note = " after snapping entries below snap_tol to zero (use a smaller snap_tol)"
             raise ModelError(
                 f"link {link!r} (moved by joint {joint!r}) has a rotational inertia about its "
@@ -819,8 +866,9 @@ class UrdfRobot(RobotModel):
             raise ModelError(f"robot {self.name!r} has no moving joint")
         for i in range(1, model.njoints):
             _joint_kind(model, i)                       # unsupported joint types first
+        _check_bodies(model)
         self.pin_model = _snapped_model(model, snap_tol)
-        _check_bodies(model, self.pin_model)
+        _check_bodies(self.pin_model, model)
         self.tree = _tree_from_pin(self.pin_model)
         pm = self.pin_model
         self.n = self.tree.n

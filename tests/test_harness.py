@@ -265,6 +265,10 @@ def test_pin_bench():
                            ["panda_finger_joint1", "panda_finger_joint2"], blocks=3, block_ms=2)
     assert res["nv"] == 7 and res["locked_joints"] == ["panda_finger_joint1",
                                                        "panda_finger_joint2"]
+    res = harness.time_pin("robots/panda_description/urdf/panda.urdf",
+                           {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.02},
+                           blocks=1, block_ms=1)
+    assert res["nv"] == 7
     with pytest.raises(harness.HarnessError, match="no joint named 'nope'"):
         harness.time_pin("robots/panda_description/urdf/panda.urdf", ["nope"], blocks=1,
                          block_ms=1)

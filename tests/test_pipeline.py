@@ -199,3 +199,21 @@ def test_estimate_equals_step_without_advancing(compiled, spec_of):
     assert np.array_equal(obs.state, x0)
     assert np.allclose(e, ref.estimate(y, u), rtol=1e-12)
     assert np.array_equal(obs.step(y, u), e)
+
+
+@pytest.mark.parametrize("name", ["seed000_2r", "ur5"])
+def test_c_harness_csv_equals_ctypes(name, compiled, spec_of, tmp_path):
+    """The standalone C program (no Python) gives the same estimates, bit for bit, as ctypes."""
+    from codegen import harness
+    from codegen.sim.trajectory import demo_trajectory
+    obs = compiled(name)
+    target = emit(spec_of(name), tmp_path / "t")
+    t, Q, QD, TAU = demo_trajectory(spec_of(name).robot, T=0.5)
+    harness.write_csv(tmp_path / "in.csv", t, Q, TAU)
+    est0 = np.full(obs.nest, 0.25)
+    harness.run_csv(target, tmp_path / "in.csv", tmp_path / "out.csv", est0=est0)
+    t_out, EST = harness.read_csv(tmp_path / "out.csv")
+    obs.reset(Q[0], est0=est0)
+    assert np.array_equal(t_out, t)
+    assert np.array_equal(EST, obs.run(Q, TAU))
+

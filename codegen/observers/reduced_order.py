@@ -14,6 +14,15 @@ from ..design import reduced_order_gain
 from ..spec import ObserverSpec
 
 
+def flow(robot, z, y, tau, k):
+    """(x2hat, z') of the observer with gain k(y) = k y, k a scalar SX  [S000 (6),(9)].
+
+    Shared by the hybrid family (reduced_order_hybrid), where k is the scheduled k_r."""
+    x2hat = z + k * y                                                # [S000 (9)]
+    zdot = robot.forward_dynamics(y, x2hat, tau) - k * x2hat         # [S000 (6)] with dk/dy = k I
+    return x2hat, zdot
+
+
 def build(robot, k0=None, eta=1.0, v_max=2.0):
     """Reduced-order observer for ``robot``; k0 designed by (12) unless given."""
     design = None
@@ -23,8 +32,7 @@ def build(robot, k0=None, eta=1.0, v_max=2.0):
     n = robot.n
     z, y, tau = ca.SX.sym("z", n), ca.SX.sym("y", n), ca.SX.sym("tau", n)
     k = ca.SX.sym("k0")
-    x2hat = z + k * y                                                # [S000 (9)]
-    zdot = robot.forward_dynamics(y, x2hat, tau) - k * x2hat         # [S000 (6)] with dk/dy = k0 I
+    x2hat, zdot = flow(robot, z, y, tau, k)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     q = [f"q_{j}" for j in robot.joint_names]
     return ObserverSpec(

@@ -1,0 +1,72 @@
+"""Reduced-order observer with hybrid gain k_r (SPEC §1.2–§1.3, seed 000), numpy.
+
+    x2hat = z + k_r y,   z' = M(y)^{-1}[tau - C(y,x2hat) x2hat - F x2hat - g(y)] - k_r x2hat,  r' = 0
+                                                                          [S000 (6),(9),(16)]
+Jumps before each step [DERIVED, SPEC §1.3]: while ||x2hat|| >= r vbar - eta and r < r_max,
+r += 1; else while r >= 2 and ||x2hat|| <= (r-1) vbar - eta - delta, r -= 1; then
+z+ = z + (k_r - k_{r+}) y, so x2hat is continuous.
+
+x = [z (n); r], y = q, u = tau, p = [k_1 .. k_{r_max}, eta, vbar, delta], est = x2hat.
+r_max = len(p) - 3 (no fixed P_NAMES: the number of gains is a build choice).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import reduced_order
+
+
+def _split(p):
+    """(k_1..k_{r_max}, eta, vbar, delta)."""
+    p = np.asarray(p, dtype=float)
+    return p[:-3], p[-3], p[-2], p[-1]
+
+
+def logic_state(r, r_max):
+    """r as an integer in [1, r_max] (nearest; clamped)."""
+    return int(min(max(np.floor(r + 0.5), 1), r_max))
+
+
+def gain(x, p):
+    """k_r for the logic state stored in x."""
+    k = _split(p)[0]
+    return k[logic_state(x[-1], len(k)) - 1]
+
+
+def output(robot, x, y, u, p):
+    """x2hat = z + k_r y  [S000 (9)]."""
+    return reduced_order.output(robot, x[:-1], y, u, [gain(x, p)])
+
+
+def rhs(robot, x, y, u, p):
+    """[z'; r'] = [FD(y, x2hat, tau) - k_r x2hat; 0]  [S000 (6)]."""
+    zdot = reduced_order.rhs(robot, x[:-1], y, u, [gain(x, p)])
+    return np.append(zdot, 0.0)
+
+
+def jump(robot, x, y, p):
+    """Apply the switching rule of SPEC §1.3 (up- then down-jumps, repeated) and reset z."""
+    k, eta, vbar, delta = _split(p)
+    r_max = len(k)
+    z = np.asarray(x[:-1], dtype=float)
+    r0 = r = logic_state(x[-1], r_max)
+    x2hat = z + k[r0 - 1] * y
+    speed = np.sqrt(np.sum(x2hat * x2hat))
+    while r < r_max and speed >= r * vbar - eta:
+        r += 1
+    while r >= 2 and speed <= (r - 1) * vbar - eta - delta:
+        r -= 1
+    z_plus = z + (k[r0 - 1] - k[r - 1]) * y     # [DERIVED] x2hat continuous at the jump
+    return np.append(z_plus, float(r))
+
+
+def init(robot, y0, est0, p):
+    """z(0) = x2hat(0) - k_1 y(0), r(0) = 1  [S000 §V, CODE-KUKA]."""
+    k = _split(p)[0]
+    return np.append(np.asarray(est0, float) - k[0] * np.asarray(y0, float), 1.0)
+
+
+def sizes(robot):
+    """Vector sizes for this robot."""
+    n = robot.n
+    return {"nx": n + 1, "ny": n, "nu": n, "nest": n}
