@@ -943,14 +943,14 @@ class UrdfRobot(RobotModel):
         return self._rnea_fun(q, v, ca.DM.zeros(self.n))
 
     def forward_dynamics(self, q, v, tau):
-        """qdd = aba(q, v, tau - F v)."""
-        Fv = [float(self.F[i, i]) for i in range(self.n)]
-        if np.count_nonzero(self.F - np.diag(np.diag(self.F))):
-            return self.aba(q, v, tau - ca.mtimes(ca.DM(self.F), v))
-        if isinstance(tau, ca.SX) and isinstance(v, ca.SX):
-            t = [_sub(tau[i], _mul(Fv[i], v[i])) for i in range(self.n)]
-            return self.aba(q, v, _column(t))
-        return self.aba(q, v, tau - ca.mtimes(ca.DM(self.F), v))
+        """qdd = aba(q, v, tau - F v)  (viscous friction F from the URDF damping)."""
+        if not all(isinstance(x, ca.SX) for x in (q, v, tau)):
+            return self.fd(q, v, tau)
+        F = np.asarray(self.F, dtype=float)
+        vs = _split(v, self.n, "v")
+        ts = _split(tau, self.n, "tau")
+        t = [_sub(ts[i], _dot(tuple(float(x) for x in F[i]), vs)) for i in range(self.n)]
+        return aba(self.tree, q, vs, t)
 
     def com_positions(self, q):
         """World CoM position of the body moved by each joint, stacked (3n, 1)."""

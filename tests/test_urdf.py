@@ -280,7 +280,7 @@ def test_custom_robot_attributes(cpr):
         cpr.pin_configuration([0.0, 0.0])
 
 
-def test_custom_robot_generation_is_fast_and_lean(cpr, panda):
+def test_generation_is_fast_and_lean(panda):
     q = panda.M.sx_in()[0]
     assert panda.fd.n_instructions() < 2500
     t = time.perf_counter()
@@ -288,6 +288,56 @@ def test_custom_robot_generation_is_fast_and_lean(cpr, panda):
     M = robot.M
     assert M.n_instructions() > 0 and q.shape == (7, 1)
     assert time.perf_counter() - t < 3.0
+
+
+TREE_URDF = """<robot name="tree">
+  <link name="base"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.1" rpy="0.3 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="l1"><inertial><origin xyz="0 0.05 0.1"/><mass value="3"/>
+    <inertia ixx="0.05" ixy="0" ixz="0" iyy="0.04" iyz="0.001" izz="0.03"/></inertial></link>
+  <joint name="j2a" type="revolute"><parent link="l1"/><child link="l2a"/>
+    <origin xyz="0.2 0.1 0" rpy="0 0 0.7"/><axis xyz="1 0 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="l2a"><inertial><origin xyz="0.1 0 0"/><mass value="1"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.02"/></inertial></link>
+  <joint name="j3" type="continuous"><parent link="l2a"/><child link="l3"/>
+    <origin xyz="0.25 0 0"/><axis xyz="0 0 -1"/></joint>
+  <link name="l3"><inertial><origin xyz="0.05 0.02 0"/><mass value="0.5"/>
+    <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.003" iyz="0" izz="0.003"/></inertial></link>
+  <joint name="j2b" type="prismatic"><parent link="l1"/><child link="l2b"/>
+    <origin xyz="-0.2 0 0.1"/><axis xyz="0 0.6 0.8"/>
+    <limit lower="-0.1" upper="0.1" effort="1" velocity="1"/></joint>
+  <link name="l2b"><inertial><origin xyz="0 0 0.05"/><mass value="0.7"/>
+    <inertia ixx="0.004" ixy="0" ixz="0" iyy="0.004" iyz="0" izz="0.001"/></inertial></link>
+</robot>
+"""
+
+
+def test_branching_tree(tmp_path):
+    """Two branches off l1 (revolute, continuous about -z; prismatic): M has zeros
+    between branches and every term matches pinocchio."""
+    robot = load_urdf(_write(tmp_path, TREE_URDF))
+    assert robot.joint_names == ["j1", "j2a", "j3", "j2b"]
+    assert max(_compare_with_pinocchio(robot, 50, seed=9).values()) <= TOL
+    Mq = np.array(robot.M(robot.sample_configurations(1)[0]))
+    assert Mq[1, 3] == 0.0 and Mq[2, 3] == 0.0
+
+
+def test_locked_continuous_joint(tmp_path):
+    """Locking a continuous joint uses (cos, sin) of the value in the reference q."""
+    path = _write(tmp_path, CPR_URDF)
+    robot = load_urdf(path, locked_joints={"j_cont": 0.7})
+    assert robot.joint_names == ["j_pris", "j_rev"]
+    full = load_urdf(path)
+    rng = np.random.default_rng(8)
+    for q in robot.sample_configurations(10, seed=8):
+        v = rng.normal(size=2)
+        qf, vf = np.r_[0.7, q], np.r_[0.0, v]
+        assert _rel(robot.M(q), np.array(full.M(qf))[1:, 1:]) <= TOL
+        assert _rel(robot.g(q), np.array(full.g(qf))[1:]) <= TOL
+        assert _rel(np.array(robot.C(q, v)) @ v, (np.array(full.C(qf, vf)) @ vf)[1:]) <= TOL
 
 
 # ------------------------------------------------------------------ attributes, source
