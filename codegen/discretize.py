@@ -1,50 +1,86 @@
 """ObserverSpec -> fixed-step step Function (DESIGN §4: discretisation is a visible choice).
 
-    step(x, y, u, p) -> (x_next, est)
+    step(x, y_prev, y, u_prev, u, p, active) -> (x_next, est)
 
-  1. x <- jump(x, y, p)            hybrid observers only (the logic state lives in x)
-  2. est = output(x, y, u, p)      the estimate at this sample
-  3. x_next = x advanced by dt with y and u held (zero-order hold), in ``substeps``
-     equal sub-steps of ``method`` (explicit Euler or classical RK4).
+``hold="zoh"`` (default, DESIGN §4): y and u are held over [t_k, t_k+1]:
+  1. x <- jump(x, y, p)              hybrid observers only (the logic state lives in x)
+  2. est = output(x, y, u, p)        the estimate at this sample
+  3. x_next = x advanced by dt with y and u held, in ``substeps`` equal sub-steps of
+     ``method`` (explicit Euler or classical RK4). y_prev, u_prev and active are unused.
+
+``hold="foh"``: the state is first brought from t_k-1 to t_k with y interpolated linearly
+between y_prev and y and u_prev held (the input that was applied over that interval), then
+jump and output at t_k. Causal: it only uses samples already received. ``active`` = 0 on the
+first sample after init (nothing to integrate yet). Why: an observer with output injection
+through a gain k0 (e.g. x2hat = z + k0 y) sampled with y held settles at
+a/(1 - exp(-a)) qd with a = k0 dt, a bias of ~a/2 that the linear hold removes.
 """
 from __future__ import annotations
 
 import casadi as ca
 
 METHODS = ("euler", "rk4")
+HOLDS = ("zoh", "foh")
 
 
-def integrator_step(f, x, h, method):
-    """One explicit step of size h of x' = f(x)."""
+def integrator_step(f, x, t, h, method):
+    """One explicit step of size h of x' = f(t, x) from time t."""
     if method == "euler":
-        return x + h * f(x)
-    k1 = f(x)
-    k2 = f(x + h / 2 * k1)
-    k3 = f(x + h / 2 * k2)
-    k4 = f(x + h * k3)
+        return x + h * f(t, x)
+    k1 = f(t, x)
+    k2 = f(t + h / 2, x + h / 2 * k1)
+    k3 = f(t + h / 2, x + h / 2 * k2)
+    k4 = f(t + h, x + h * k3)
     return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
-def discretize(spec, dt, method="rk4", substeps=1):
-    """The step Function of ``spec`` for step dt (s); see the module docstring."""
+def _check(dt, method, substeps, hold):
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if hold not in HOLDS:
+        raise ValueError(f"hold must be one of {HOLDS}, got {hold!r}")
     if not (dt > 0) or not isinstance(substeps, int) or substeps < 1:
         raise ValueError(f"need dt > 0 and an integer substeps >= 1, got dt={dt!r}, substeps={substeps!r}")
-    x, y = ca.SX.sym("x", spec.nx), ca.SX.sym("y", spec.ny)
-    u, p = ca.SX.sym("u", spec.nu), ca.SX.sym("p", spec.np)
-    xj = spec.jump(x, y, p) if spec.jump is not None else x
-    est = spec.output(xj, y, u, p)
+
+
+def _symbols(spec):
+    return (ca.SX.sym("x", spec.nx), ca.SX.sym("y_prev", spec.ny), ca.SX.sym("y", spec.ny),
+            ca.SX.sym("u_prev", spec.nu), ca.SX.sym("u", spec.nu), ca.SX.sym("p", spec.np),
+            ca.SX.sym("active"))
+
+
+def _advance(spec, x, y_of_t, u, p, dt, method, substeps):
     h = dt / substeps
-    xn = xj
-    for _ in range(substeps):
-        xn = integrator_step(lambda s: spec.rhs(s, y, u, p), xn, h, method)
-    return ca.Function("step", [x, y, u, p], [xn, est], ["x", "y", "u", "p"], ["x_next", "est"])
+    for i in range(substeps):
+        x = integrator_step(lambda t, s: spec.rhs(s, y_of_t(t), u, p), x, i * h, h, method)
+    return x
 
 
-def estimate(spec):
-    """est = output(jump(x, y, p), y, u, p): the estimate of ``step`` without advancing the state."""
-    x, y = ca.SX.sym("x", spec.nx), ca.SX.sym("y", spec.ny)
-    u, p = ca.SX.sym("u", spec.nu), ca.SX.sym("p", spec.np)
-    xj = spec.jump(x, y, p) if spec.jump is not None else x
-    return ca.Function("estimate", [x, y, u, p], [spec.output(xj, y, u, p)], ["x", "y", "u", "p"], ["est"])
+def _pieces(spec, dt, method, substeps, hold):
+    x, yp, y, up, u, p, active = _symbols(spec)
+    if hold == "zoh":
+        xj = spec.jump(x, y, p) if spec.jump is not None else x
+        est = spec.output(xj, y, u, p)
+        xn = _advance(spec, xj, lambda t: y, u, p, dt, method, substeps)
+    else:
+        # linear y over the last interval; active = 0 collapses it to no step at all
+        xa = _advance(spec, x, lambda t: yp + (t / dt) * (y - yp), up, p, active * dt, method, substeps)
+        xn = spec.jump(xa, y, p) if spec.jump is not None else xa
+        est = spec.output(xn, y, u, p)
+    return [x, yp, y, up, u, p, active], xn, est
+
+
+def discretize(spec, dt, method="rk4", substeps=1, hold="zoh"):
+    """The step Function of ``spec`` for step dt (s); see the module docstring."""
+    _check(dt, method, substeps, hold)
+    ins, xn, est = _pieces(spec, dt, method, substeps, hold)
+    return ca.Function("step", ins, [xn, est],
+                       ["x", "y_prev", "y", "u_prev", "u", "p", "active"], ["x_next", "est"])
+
+
+def estimate(spec, dt, method="rk4", substeps=1, hold="zoh"):
+    """The estimate of ``step`` as its own Function (same inputs), without advancing the state."""
+    _check(dt, method, substeps, hold)
+    ins, _, est = _pieces(spec, dt, method, substeps, hold)
+    return ca.Function("estimate", ins, [est],
+                       ["x", "y_prev", "y", "u_prev", "u", "p", "active"], ["est"])

@@ -79,3 +79,143 @@ def ldl_solve(M, B):
                 z[i] = z[i] - L[k][i] * z[k]
         cols.append(ca.vertcat(*z))
     return ca.horzcat(*cols)
+
+
+def chol_lower(A):
+    """Lower-triangular L with A = L L^T (symmetric positive-definite A), entry by entry."""
+    n = A.shape[0]
+    L = [[0] * n for _ in range(n)]
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d = d - L[j][k] * L[j][k]
+        L[j][j] = ca.sqrt(d)
+        for i in range(j + 1, n):
+            s = A[i, j]
+            for k in range(j):
+                s = s - L[i][k] * L[j][k]
+            L[i][j] = s / L[j][j]
+    return ca.vertcat(*[ca.horzcat(*L[i]) for i in range(n)])
+
+
+# ============================================================================ Lie derivatives and
+# observability coordinates (Ciccarella-Germani, Spong; SPEC §8.1, §9) -- seed-004 section
+def lie_derivative(h, x, f, k=1):
+    """L_f^k h = d(L_f^{k-1} h)/dx f(x) (k >= 0) by forward-mode AD (jtimes)  [S004 (A.2)]."""
+    for _ in range(int(k)):
+        h = ca.jtimes(h, x, f)
+    return h
+
+
+def lie_chain(h, x, f, r):
+    """[h, L_f h, ..., L_f^r h]: r + 1 column vectors (each L_f^{k+1} h from L_f^k h)."""
+    out = [h]
+    for _ in range(int(r)):
+        out.append(ca.jtimes(out[-1], x, f))
+    return out
+
+
+def input_lie_derivative(h, x, G):
+    """L_G h = dh/dx G(x): the row(s) of the decoupling matrix when h = L_f^{r-1} h_i."""
+    return ca.mtimes(ca.jacobian(h, x), G)
+
+
+def observability_map(outputs, degrees, x, f):
+    """Phi(x) = [h_1, ..., L_f^{r1-1} h_1, ..., h_m, ..., L_f^{rm-1} h_m] (channel-major) and the
+    list of top derivatives [L_f^{r_i} h_i]  [S004 (3.5)-(3.8)].
+
+    outputs : list of scalar SX expressions h_i(x);  degrees : list of r_i."""
+    if len(outputs) != len(degrees):
+        raise ValueError(f"{len(outputs)} outputs but {len(degrees)} relative degrees")
+    rows, tops = [], []
+    for h, r in zip(outputs, degrees):
+        chain = lie_chain(h, x, f, r)
+        rows += chain[:r]
+        tops.append(chain[r])
+    return ca.vertcat(*rows), ca.vertcat(*tops)
+
+
+def decoupling_matrix(outputs, degrees, x, f, G):
+    """U(x) with rows L_G L_f^{r_i - 1} h_i  [S004 (A.8)]."""
+    return ca.vertcat(*[input_lie_derivative(lie_derivative(h, x, f, r - 1), x, G)
+                        for h, r in zip(outputs, degrees)])
+
+
+def check_relative_degree(outputs, degrees, x, f, G, states, tol=1e-9):
+    """Numerical check of the vector relative degree at sampled ``states`` (rows):
+    L_G L_f^k h_i = 0 for k < r_i - 1 and U(x) nonsingular. Returns the smallest singular value
+    of U seen (relative to its largest); raises ValueError naming the failing channel."""
+    worst = np.inf
+    lower = [(i, k, ca.Function("lg", [x], [input_lie_derivative(lie_derivative(h, x, f, k), x, G)]))
+             for i, (h, r) in enumerate(zip(outputs, degrees)) for k in range(r - 1)]
+    U = ca.Function("U", [x], [decoupling_matrix(outputs, degrees, x, f, G)])
+    for s in np.atleast_2d(states):
+        for i, k, fun in lower:
+            v = np.abs(np.array(fun(s))).max(initial=0.0)
+            if v > tol:
+                raise ValueError(f"output {i}: L_G L_f^{k} h = {v:.3g} != 0, relative degree < {k + 1}")
+        sv = np.linalg.svd(np.array(U(s)), compute_uv=False)
+        if sv.size == 0 or sv[-1] <= tol * max(sv[0], 1.0):
+            raise ValueError(f"decoupling matrix U(x) singular at x = {np.array2string(s, precision=3)}")
+        worst = min(worst, sv[-1] / sv[0])
+    return worst
+
+
+def lower_block_structure(Q, row_blocks, col_blocks):
+    """True when Q (rows/cols split in the given block sizes) is structurally block lower
+    triangular with square diagonal blocks (upper blocks all structural zeros)."""
+    if sum(row_blocks) != Q.shape[0] or sum(col_blocks) != Q.shape[1] or row_blocks != col_blocks:
+        return False
+    r0 = np.cumsum([0] + list(row_blocks))
+    for a in range(len(row_blocks)):
+        for b in range(a + 1, len(col_blocks)):
+            if Q[r0[a]:r0[a + 1], r0[b]:r0[b + 1]].nnz() > 0:
+                return False
+    return True
+
+
+def _is_identity(A):
+    if not A.is_constant() or A.shape[0] != A.shape[1]:
+        return False
+    return bool(np.array_equal(np.array(ca.DM(A)), np.eye(A.shape[0])))
+
+
+def qr_solve_guarded(A, b, rcond_min):
+    """x = A^{-1} b by Gram-Schmidt QR and back substitution; x is NaN when the cheap
+    conditioning estimate min|R_ii| / max|R_ii| falls below ``rcond_min`` (may be SX)."""
+    Qf, R = ca.qr(A)
+    z = ca.mtimes(Qf.T, b)
+    n = A.shape[0]
+    xs = [None] * n
+    for i in range(n - 1, -1, -1):
+        s = z[i]
+        for k in range(i + 1, n):
+            s = s - R[i, k] * xs[k]
+        xs[i] = s / R[i, i]
+    d = [ca.fabs(R[i, i]) for i in range(n)]
+    dmin, dmax = d[0], d[0]
+    for v in d[1:]:
+        dmin, dmax = ca.fmin(dmin, v), ca.fmax(dmax, v)
+    ok = dmin >= rcond_min * dmax
+    return ca.if_else(ok, ca.vertcat(*xs), ca.SX.nan(n, 1) if isinstance(A, ca.SX) else np.nan)
+
+
+def block_forward_substitution(Q, v, blocks, rcond_min):
+    """w = Q^{-1} v for a block lower-triangular Q (``blocks`` = diagonal block sizes):
+
+        w_a = Q_aa^{-1} (v_a - sum_{b<a} Q_ab w_b)
+
+    structurally-identity pivots are skipped; the others go through ``qr_solve_guarded``."""
+    r0 = np.cumsum([0] + list(blocks))
+    ws = []
+    for a in range(len(blocks)):
+        sl = slice(int(r0[a]), int(r0[a + 1]))
+        rhs = v[sl]
+        for b in range(a):
+            Qab = Q[sl, int(r0[b]):int(r0[b + 1])]
+            if Qab.nnz():
+                rhs = rhs - ca.mtimes(Qab, ws[b])
+        Qaa = Q[sl, sl]
+        ws.append(rhs if _is_identity(Qaa) else qr_solve_guarded(Qaa, rhs, rcond_min))
+    return ca.vertcat(*ws)
+

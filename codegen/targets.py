@@ -17,13 +17,21 @@ def default_spec(robot_name, family=DEFAULT_FAMILY):
 def random_inputs(spec, count, seed=0):
     """Random (X, Y, U) for cross-checks: y in the joint ranges, x and u scaled to the robot
     (u around gravity torques, x around k0 y for the reduced-order observer); state slots listed in
-    ``spec.info["integer_states"] = {name: (lo, hi)}`` get random integers in [lo, hi]."""
+    ``spec.info["integer_states"] = {name: (lo, hi)}`` get random integers in [lo, hi].
+    A family module may give its own ``random_inputs(spec, count, seed)`` (e.g. when y is not q)."""
+    from . import observers
+    if spec.family in observers.FAMILIES:
+        import importlib
+        hook = getattr(importlib.import_module(f"{observers.__name__}.{spec.family}"), "random_inputs", None)
+        if hook is not None:
+            return hook(spec, count, seed)
     rng = np.random.default_rng(seed)
     robot = spec.robot
     Y = robot.sample_configurations(count, seed)
     gscale = np.maximum(1.0, np.abs(np.asarray(robot.g.map(count)(Y.T))).max(axis=1))
     U = rng.normal(size=(count, spec.nu)) * gscale[: spec.nu]
-    X = rng.normal(size=(count, spec.nx)) * (1.0 + np.abs(spec.p_default).max(initial=1.0))
+    scale = spec.info.get("random_state_scale", 1.0 + np.abs(spec.p_default).max(initial=1.0))
+    X = rng.normal(size=(count, spec.nx)) * np.asarray(scale, dtype=float)
     for name, (lo, hi) in spec.info.get("integer_states", {}).items():  # e.g. a hybrid logic state
         X[:, spec.x_names.index(name)] = rng.integers(lo, hi + 1, size=count)
     return X, Y, U

@@ -7,10 +7,15 @@
 | seed003_2r_abs   | 2-link arm of seed 003, absolute angles (Table II)          |
 | ur5              | Universal Robots UR5, example-robot-data URDF (6 DoF)       |
 | panda            | Franka Panda, fingers locked at 0 (7 DoF), example-robot-data |
+| seed004_2r       | planar 2R of seed 004 from its DH table (rigid part)        |
+| seed004_3r       | spatial 3R elbow of seed 004 from its DH table (rigid part) |
+
+Elastic-joint robots (SPEC §6): ``load_elastic(name)`` wraps a catalog robot with the motor
+inertias J and stiffness K of ``ELASTIC`` (or given ones); e.g. ``load_elastic("seed004_2r")``.
 """
 from __future__ import annotations
 
-from . import closed_form
+from . import closed_form, dh
 
 _URDFS = {
     "ur5": ("ur_description/urdf/ur5_robot.urdf", {}),
@@ -21,6 +26,15 @@ _CLOSED = {
     "seed000_2r": closed_form.seed000_2r,
     "seed002_2r": closed_form.seed002_2r,
     "seed003_2r_abs": closed_form.seed003_2r_abs,
+    "seed004_2r": dh.seed004_2r,
+    "seed004_3r": dh.seed004_3r,
+}
+# elastic-joint defaults (J, K): [S004 (2.3), Tables 1-2] A4-1, A4-2; ur5 values are an
+# [ASSUMPTION] for the scale test (reflected motor inertia 1 kg m^2, K as in seed 004)
+ELASTIC = {
+    "seed004_2r": (37.5, 20000.0),
+    "seed004_3r": (87.5, 20000.0),
+    "ur5": (1.0, 20000.0),
 }
 _cache = {}
 
@@ -52,4 +66,16 @@ def load_robot(name=None, *, urdf=None, locked_joints=None, **kwargs):
                                     name=name, **kwargs)
         else:
             raise KeyError(f"unknown robot {name!r}; catalog: {', '.join(names())}")
+    return _cache[key]
+
+
+def load_elastic(name, J=None, K=None):
+    """ElasticRobot (SPEC §6) on catalog robot ``name``; J, K default to ``ELASTIC[name]``."""
+    from .elastic import ElasticRobot
+    if (J is None or K is None) and name not in ELASTIC:
+        raise KeyError(f"no default J, K for {name!r}; give J= and K= (defaults for: {', '.join(ELASTIC)})")
+    J0, K0 = ELASTIC.get(name, (None, None))
+    key = ("elastic", name, repr(J if J is not None else J0), repr(K if K is not None else K0))
+    if key not in _cache:
+        _cache[key] = ElasticRobot(load_robot(name), J if J is not None else J0, K if K is not None else K0)
     return _cache[key]

@@ -22,6 +22,14 @@ S = e_wz (revolute) or e_vz (prismatic), every joint rotation is R_z(q), and all
 constant data enters as python floats so that zeros and ones fold away when CasADi
 builds the expression graph. Transforms are applied as a constant rotation, a rotation
 about z and a cross product on 3-vectors, never as dense 6x6 products.
+
+pinocchio's ``model.armature`` is honoured as pinocchio does (added to diag M, to the
+RNEA torque and to the ABA pivot D). Friction F = diag(model.damping) is not part of
+these algorithms; ``forward_dynamics`` applies it as aba(q, v, tau - F v).
+
+Size of the generated ABA (``UrdfRobot.fd``): ur5 ~1.0k SX instructions, panda (7 DoF)
+~1.8k; after ``gcc -O3`` about 0.2 us and 0.34 us per call on the development VM, where
+pinocchio's C++ ``aba`` took about 1.9 us and 2.6 us.
 """
 from __future__ import annotations
 
@@ -43,7 +51,7 @@ __all__ = ["UrdfRobot", "load_urdf", "example_robot_data_dir", "snap", "SpatialT
            "rnea", "crba", "aba", "com_positions"]
 
 # pinocchio joint model short names we support: kind ('R' revolute, 'P' prismatic),
-# fixed axis (None: read joint.axis), continuous (nq = 2 in pinocchio, cos/sin).
+# fixed axis (None: read from the joint), continuous (nq = 2 in pinocchio, cos/sin).
 _SUPPORTED = {
     "JointModelRX": ("R", (1.0, 0.0, 0.0), False),
     "JointModelRY": ("R", (0.0, 1.0, 0.0), False),
@@ -61,6 +69,7 @@ _SUPPORTED = {
 _URDF_SUPPORTED = {"revolute", "continuous", "prismatic", "fixed"}
 _URDF_KNOWN = _URDF_SUPPORTED | {"floating", "planar"}
 _HUGE_LIMIT = 1e4   # a limit beyond this (or non-finite) counts as "no range given"
+_ROUND = 8 * np.finfo(float).eps   # round-off of Q^T R Q for unaligned axes, cleaned in E
 
 
 # =============================================================================================
@@ -251,7 +260,7 @@ def _tree_from_pin(model):
         Io = Ic + m * (c.dot(c) * np.eye(3) - np.outer(c, c))   # parallel axis theorem
         bodies.append(_Body(
             joint=model.names[i], link=links.get(i, model.names[i]), parent=lam - 1,
-            kind=kind, continuous=continuous, E=_tup(E), r=_tup(r), mass=m,
+            kind=kind, continuous=continuous, E=_tup(snap(E, _ROUND)), r=_tup(r), mass=m,
             h=_tup(m * c), Io=_tup(0.5 * (Io + Io.T)), com=_tup(c),
             armature=float(model.armature[model.joints[i].idx_v])))
     return SpatialTree(bodies=tuple(bodies), gravity=_tup(model.gravity.linear))
@@ -651,6 +660,14 @@ def _zero3():
     return (0.0, 0.0, 0.0)
 
 
+def _s_index(b):
+    """Index of the motion subspace S in (v, w): 5 = w_z (revolute), 2 = v_z (prismatic)."""
+    return 5 if b.kind == "R" else 2
+
+
+_UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
 # =============================================================================================
 # algorithms
 # =============================================================================================
@@ -744,20 +761,19 @@ def aba(tree, q, v, tau):
         IA.append(_Inertia6.rigid(b))
         pA.append(_cross_force(*vi, *_rigid_force(b, *vi)))
     U, Dinv, u = [None] * n, [None] * n, [None] * n
-    k_S = lambda b: 5 if b.kind == "R" else 2  # noqa: E731  index of S in (v, w)
     for i in range(n - 1, -1, -1):                                  # pass 2
         b = bodies[i]
         I = IA[i]
-        Uf, Un = I.column(k_S(b))
+        ks = _s_index(b)
+        Uf, Un = I.column(ks)
         Ui = Uf + Un
-        D = _add(Ui[k_S(b)], b.armature)
+        D = _add(Ui[ks], b.armature)
         Di = 2.0 / (D + D) if isinstance(D, ca.SX) else 1.0 / D   # keeps x * Di a product
         ui = _sub(ts[i], _sub_S(b, *pA[i]))
         U[i], Dinv[i], u[i] = Ui, Di, ui
         if b.parent < 0:
             continue
         W = tuple(_mul(x, Di) for x in Ui)
-        ks = k_S(b)
         exact = b.armature == 0.0
 
         def ent(r, c, val):          # I^a entry (r, c) of the 6x6, r, c in 0..5
@@ -765,14 +781,14 @@ def aba(tree, q, v, tau):
                 return 0.0
             return _sub(val, _mul(W[r], Ui[c]))
 
-        A = _sym(*(ent(r, c, I.A[r][c]) for r, c in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))))
-        C = _sym(*(ent(r + 3, c + 3, I.C[r][c])
-                   for r, c in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))))
+        A = _sym(*(ent(r, c, I.A[r][c]) for r, c in _UPPER))
+        C = _sym(*(ent(r + 3, c + 3, I.C[r][c]) for r, c in _UPPER))
         B = [[ent(r, c + 3, I.B[r][c]) for c in range(3)] for r in range(3)]
         Ia = _Inertia6(A, B, C)
         cf, cn = Cb[i]
         gf, gn = Ia.times(cf, cn)
-        pa = [_add(_add(x, y), _mul(w_, ui)) for x, y, w_ in zip(pA[i][0] + pA[i][1], gf + gn, W)]
+        pa = [_add(_add(x, y), _mul(w_, ui))
+              for x, y, w_ in zip(pA[i][0] + pA[i][1], gf + gn, W)]
         if exact:
             pa[ks] = ts[i]
         f, m = Xs[i].force_out(tuple(pa[:3]), tuple(pa[3:]))

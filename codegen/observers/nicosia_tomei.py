@@ -35,7 +35,8 @@ def build(robot, kd=None, kp=KP_DEFAULT, eta=1.0, v_max=2.0):
     x2hat_dot = robot.forward_dynamics(y, x1hat_dot, tau + kp_s * x1tilde)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     joints = robot.joint_names
-    info = {"kd": float(kd), "kp": float(kp)}
+    # cross-check inputs: positions within a few rad, speeds ~10 rad/s (targets.random_inputs)
+    info = {"kd": float(kd), "kp": float(kp), "random_state_scale": [3.0] * n + [10.0] * n}
     if design is not None:
         info["design"] = design.as_dict()
     return ObserverSpec(

@@ -33,9 +33,11 @@ FAMILIES = {m.name: importlib.import_module(f"{__name__}.{m.name}")
 __all__ = ["reference_observer", "reference_robot", "ReferenceObserver", "FAMILIES", "SEED_SOURCES"]
 
 
-def reference_observer(spec, dt=1e-3, method="rk4", substeps=1):
-    """The reference implementation of ``spec`` discretized with ``method`` over ``dt``."""
-    return ReferenceObserver(spec, dt=dt, method=method, substeps=substeps)
+def reference_observer(spec, dt=1e-3, method="rk4", substeps=1, hold="zoh"):
+    """The reference implementation of ``spec`` discretized with ``method`` over ``dt``;
+    ``hold`` "zoh" (y, u held over the next step) or "foh" (at each sample the state is first
+    brought from the previous sample with y linear in between and the previous u held)."""
+    return ReferenceObserver(spec, dt=dt, method=method, substeps=substeps, hold=hold)
 
 
 def _vector(value, n, name):
@@ -71,7 +73,7 @@ def _matrix(value, N, n, name, n_rows_name="N"):
 class ReferenceObserver:
     """A discretized observer in numpy: same step/run contract as the compiled one."""
 
-    def __init__(self, spec, dt=1e-3, method="rk4", substeps=1):
+    def __init__(self, spec, dt=1e-3, method="rk4", substeps=1, hold="zoh"):
         if spec.family not in FAMILIES:
             raise ValueError(f"no reference for observer family {spec.family!r}; known: {sorted(FAMILIES)}")
         if method not in discretize.METHODS:
@@ -80,6 +82,10 @@ class ReferenceObserver:
             raise ValueError(f"dt must be a positive finite number, got {dt!r}")
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+        if hold not in discretize.HOLDS:
+            raise ValueError(f"hold must be one of {discretize.HOLDS}, got {hold!r}")
+        self.hold = hold
+        self._prev = None   # (y, u) of the last sample, for the first-order hold
         self.family = FAMILIES[spec.family]
         self.robot = reference_robot(spec.robot_source)
         self.dt, self.method, self.substeps = float(dt), method, int(substeps)
@@ -143,17 +149,24 @@ class ReferenceObserver:
         x0 = np.asarray(self.family.init(self.robot, y0, est0, p), dtype=float).reshape(self.nx)
         if not np.all(np.isfinite(x0)):
             raise FloatingPointError(f"non-finite initial state {x0}")
-        self.params, self._x = p, x0
+        self.params, self._x, self._prev = p, x0, None
         return self.state
 
-    def _advance(self, x, y, u):
-        """(est, x_next) for one step from state x; raises on a non-finite result."""
+    def _flow(self, x, y_of_t, u, dt):
         p = self.params
+        return discretize.integrate(lambda t, xi: self.family.rhs(self.robot, xi, y_of_t(t), u, p),
+                                    x, dt, self.method, self.substeps)
+
+    def _advance(self, x, prev, y, u):
+        """(est, x_next) for one sample from state x; raises on a non-finite result."""
+        p = self.params
+        if self.hold == "foh" and prev is not None:
+            yp, up = prev
+            x = self._flow(x, lambda t: yp + (t / self.dt) * (y - yp), up, self.dt)
         if self.hybrid:
             x = self.family.jump(self.robot, x, y, p)
         est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)
-        x_next = discretize.integrate(lambda xi: self.family.rhs(self.robot, xi, y, u, p),
-                                      x, self.dt, self.method, self.substeps)
+        x_next = self._flow(x, lambda t: y, u, self.dt) if self.hold == "zoh" else x
         if not (np.all(np.isfinite(est)) and np.all(np.isfinite(x_next))):
             raise FloatingPointError(f"non-finite result (est={est}, x={x_next}); state unchanged")
         return est, x_next
@@ -168,15 +181,15 @@ class ReferenceObserver:
         self._require_reset()
         y = _vector(y, self.ny, "y")
         u = _vector(u, self.nu, "u")
-        est, self._x = self._advance(self._x, y, u)
+        est, self._x = self._advance(self._x, self._prev, y, u)
+        self._prev = (y, u)
         return est
 
     def estimate(self, y, u):
         """The estimate step(y, u) would return, without advancing the state."""
         self._require_reset()
         y, u = _vector(y, self.ny, "y"), _vector(u, self.nu, "u")
-        x = self.family.jump(self.robot, self._x, y, self.params) if self.hybrid else self._x
-        return np.asarray(self.family.output(self.robot, x, y, u, self.params), dtype=float).reshape(self.nest)
+        return self._advance(self._x, self._prev, y, u)[0]
 
     def run(self, Y, U):
         """Repeated step: Y (N, ny), U (N, nu) -> EST (N, nest). All-or-nothing: on an
@@ -184,9 +197,10 @@ class ReferenceObserver:
         self._require_reset()
         Y = _matrix(Y, None, self.ny, "Y")
         U = _matrix(U, Y.shape[0], self.nu, "U")
-        x = self._x
+        x, prev = self._x, self._prev
         EST = np.empty((Y.shape[0], self.nest))
         for k in range(Y.shape[0]):
-            EST[k], x = self._advance(x, Y[k], U[k])
-        self._x = x
+            EST[k], x = self._advance(x, prev, Y[k], U[k])
+            prev = (Y[k], U[k])
+        self._x, self._prev = x, prev
         return EST

@@ -1,23 +1,25 @@
-"""Fixed-step integrators of the reference (DESIGN §4: zero-order hold on y, u).
+"""Fixed-step integrators of the reference (DESIGN §4).
 
-``f`` is the flow x -> xdot with y, u, p already held constant over the step.
+``f(t, x)`` is the flow with p fixed; t is the time since the start of the interval, so a
+first-order hold can interpolate y inside the step (zero-order hold simply ignores t).
 """
 from __future__ import annotations
 
 METHODS = ("euler", "rk4")
+HOLDS = ("zoh", "foh")
 
 
-def euler_step(f, x, h):
-    """x + h f(x)."""
-    return x + h * f(x)
+def euler_step(f, t, x, h):
+    """x + h f(t, x)."""
+    return x + h * f(t, x)
 
 
-def rk4_step(f, x, h):
+def rk4_step(f, t, x, h):
     """Classical Runge-Kutta: x + h/6 (k1 + 2 k2 + 2 k3 + k4)."""
-    k1 = f(x)
-    k2 = f(x + 0.5 * h * k1)
-    k3 = f(x + 0.5 * h * k2)
-    k4 = f(x + h * k3)
+    k1 = f(t, x)
+    k2 = f(t + 0.5 * h, x + 0.5 * h * k1)
+    k3 = f(t + 0.5 * h, x + 0.5 * h * k2)
+    k4 = f(t + h, x + h * k3)
     return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
@@ -28,6 +30,6 @@ def integrate(f, x, dt, method="rk4", substeps=1):
     """Advance x over dt by ``substeps`` equal steps h = dt / substeps of ``method``."""
     step = _STEPS[method]
     h = dt / substeps
-    for _ in range(substeps):
-        x = step(f, x, h)
+    for i in range(substeps):
+        x = step(f, i * h, x, h)
     return x

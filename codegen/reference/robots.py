@@ -45,6 +45,15 @@ SEED_SOURCES = {
 
 
 def reference_robot(source):
+    """Build the reference robot described by a ``robot.source`` dict (see
+    :func:`_build_reference_robot`); the dict is kept as ``robot.source`` so that observer
+    families can read extra plain data a spec adds to it (e.g. seed 002's non-minimal rows)."""
+    robot = _build_reference_robot(source)
+    robot.source = dict(source)
+    return robot
+
+
+def _build_reference_robot(source):
     """Build the reference robot described by a ``robot.source`` dict.
 
     Parameters
@@ -122,6 +131,16 @@ class Planar2R(ReferenceRobot):
         h = -self.a2 * np.sin(q[1])
         return h * np.array([[v[1], v[0] + v[1]], [-v[0], 0.0]])             # SPEC §11.1
 
+    def dMw_dq(self, q, w):
+        """d(M(q) w)/dq (n x n, column j = dM/dq_j w) for a fixed w (closed form)."""
+        s2 = np.sin(q[1])
+        return np.array([[0.0, -self.a2 * s2 * (2 * w[0] + w[1])], [0.0, -self.a2 * s2 * w[0]]])
+
+    def dCab_dq(self, q, a, b):
+        """d(C(q, a) b)/dq (n x n) for fixed a, b (closed form)."""
+        dh = -self.a2 * np.cos(q[1])
+        return np.array([[0.0, dh * (a[1] * b[0] + (a[0] + a[1]) * b[1])], [0.0, -dh * a[0] * b[0]]])
+
     def g(self, q):
         p = self.params
         g12 = p["m2"] * p["lc2"] * p["g0"] * np.cos(q[0] + q[1])
@@ -143,6 +162,21 @@ class Planar2R(ReferenceRobot):
                          [-p["l1"] * s1 - p["lc2"] * s12, -p["lc2"] * s12],
                          [p["l1"] * c1 + p["lc2"] * c12, p["lc2"] * c12]])
 
+
+    @property
+    def gravity_vector(self):
+        """g_o = [0, -g0] (vertical plane, SPEC §11.1)."""
+        return np.array([0.0, -self.params["g0"]])
+
+    def com_bias(self, q, v):
+        """Jdot_p(q, v) v: CoM accelerations at zero joint acceleration (4,), closed form
+        p_1'' = -lc1 v1^2 [c1, s1],  p_2'' = -l1 v1^2 [c1, s1] - lc2 (v1 + v2)^2 [c12, s12]."""
+        p = self.params
+        c1, s1, c12, s12 = np.cos(q[0]), np.sin(q[0]), np.cos(q[0] + q[1]), np.sin(q[0] + q[1])
+        w1, w12 = v[0] ** 2, (v[0] + v[1]) ** 2
+        return np.array([-p["lc1"] * w1 * c1, -p["lc1"] * w1 * s1,
+                         -p["l1"] * w1 * c1 - p["lc2"] * w12 * c12,
+                         -p["l1"] * w1 * s1 - p["lc2"] * w12 * s12])
 
 class Absolute2R(ReferenceRobot):
     """Two-DoF arm in absolute angles (SPEC §4.2, seed 003), phi = y1 - y2:
@@ -169,6 +203,16 @@ class Absolute2R(ReferenceRobot):
         # physically correct Christoffel matrix, not the printed (56b) [SPEC A3-1]
         s = self.c[2] * np.sin(q[0] - q[1])
         return np.array([[0.0, s * v[1]], [-s * v[0], 0.0]])
+
+    def dMw_dq(self, q, w):
+        """d(M(q) w)/dq (n x n, column j = dM/dq_j w) for a fixed w; dM/dy2 = -dM/dy1."""
+        d1 = -self.c[2] * np.sin(q[0] - q[1]) * np.array([w[1], w[0]])
+        return np.column_stack([d1, -d1])
+
+    def dCab_dq(self, q, a, b):
+        """d(C(q, a) b)/dq (n x n) for fixed a, b; C(q, a) b = c3 sin(phi) [a2 b2; -a1 b1]."""
+        d1 = self.c[2] * np.cos(q[0] - q[1]) * np.array([a[1] * b[1], -a[0] * b[0]])
+        return np.column_stack([d1, -d1])
 
     def g(self, q):
         return self.gravity_scale * np.array([self.c[3] * np.cos(q[0]), self.c[4] * np.cos(q[1])])
@@ -278,8 +322,77 @@ class UrdfRobot(ReferenceRobot):
         return np.array(self._pin.nonLinearEffects(self.model, self.data, self.pin_q(q),
                                                    np.asarray(v, dtype=float)))
 
+    def _drnea_dq(self, q, v, a):
+        """d rnea(q, v, a)/dq by pinocchio's analytical derivatives (tangent coordinates)."""
+        return np.array(self._pin.computeRNEADerivatives(
+            self.model, self.data, self.pin_q(q), np.asarray(v, dtype=float),
+            np.asarray(a, dtype=float))[0])
+
+    def dMw_dq(self, q, w):
+        """d(M(q) w)/dq (n x n) for fixed w: d rnea(q, 0, w)/dq - d rnea(q, 0, 0)/dq (exact)."""
+        z = np.zeros(self.n)
+        return self._drnea_dq(q, z, w) - self._drnea_dq(q, z, z)
+
+    def dCab_dq(self, q, a, b):
+        """d(C(q, a) b)/dq (n x n) for fixed a, b, C the Christoffel matrix: by polarisation of
+        the symmetric form C(q, a) b = [c(a + b) - c(a - b)]/4 with c(v) = C(q, v) v, whose
+        q-derivative is d rnea(q, v, 0)/dq minus gravity's (cancels in the difference)."""
+        a, b, z = np.asarray(a, float), np.asarray(b, float), np.zeros(self.n)
+        return 0.25 * (self._drnea_dq(q, a + b, z) - self._drnea_dq(q, a - b, z))
+
     def forward_dynamics(self, q, v, tau):
         """qdd = aba(q, v, tau - F v)."""
         v = np.asarray(v, dtype=float)
         tau = np.asarray(tau, dtype=float)
         return np.array(self._pin.aba(self.model, self.data, self.pin_q(q), v, tau - self.F @ v))
+
+
+    # ------------------------------------------------------------ link CoM kinematics (seed 002)
+    dim = 3
+
+    @property
+    def masses(self):
+        """(n,) mass of the body moved by each joint."""
+        return np.array([self.model.inertias[i].mass for i in range(1, self.model.njoints)])
+
+    @property
+    def gravity_vector(self):
+        """g_o (3,), pinocchio's model gravity."""
+        return np.array(self.model.gravity.linear, dtype=float)
+
+    def com_positions(self, q):
+        """World CoM of each body moved by a joint, stacked (3n,):  oMi[i] * lever_i
+        (per link, not pin.centerOfMass, which is per subtree)."""
+        pin = self._pin
+        pin.forwardKinematics(self.model, self.data, self.pin_q(q))
+        return np.concatenate([self.data.oMi[i].act(self.model.inertias[i].lever)
+                               for i in range(1, self.model.njoints)])
+
+    def com_jacobian(self, q):
+        """J_p (3n, n): J_c^i = J_lin^i - [r_i]x J_ang^i with the joint Jacobians in
+        LOCAL_WORLD_ALIGNED (linear part = velocity of the joint origin) and r_i = oR_i lever_i."""
+        pin = self._pin
+        qp = self.pin_q(q)
+        pin.computeJointJacobians(self.model, self.data, qp)
+        rows = []
+        for i in range(1, self.model.njoints):
+            J = pin.getJointJacobian(self.model, self.data, i, pin.LOCAL_WORLD_ALIGNED)
+            r = self.data.oMi[i].rotation @ self.model.inertias[i].lever
+            rows.append(J[:3] - np.cross(r[:, None], J[3:], axis=0))   # v + w x r = v - r x w
+        return np.vstack(rows)
+
+    def com_bias(self, q, v):
+        """Jdot_p(q, v) v (3n,): classical CoM accelerations at zero joint acceleration,
+        a_c = a_o + alpha x r + w x (w x r) with the classical acceleration a_o of the joint
+        origin, alpha and w the body's angular acceleration and velocity (world axes)."""
+        pin = self._pin
+        v = np.asarray(v, dtype=float)
+        pin.forwardKinematics(self.model, self.data, self.pin_q(q), v, np.zeros(self.n))
+        out = []
+        for i in range(1, self.model.njoints):
+            a_o = pin.getClassicalAcceleration(self.model, self.data, i, pin.LOCAL_WORLD_ALIGNED).linear
+            al = pin.getAcceleration(self.model, self.data, i, pin.LOCAL_WORLD_ALIGNED).angular
+            w = pin.getVelocity(self.model, self.data, i, pin.LOCAL_WORLD_ALIGNED).angular
+            r = self.data.oMi[i].rotation @ self.model.inertias[i].lever
+            out.append(a_o + np.cross(al, r) + np.cross(w, np.cross(w, r)))
+        return np.concatenate(out)

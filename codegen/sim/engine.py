@@ -2,11 +2,16 @@
 
 At each sample k (t = k dt):
   1. y_k = sensor(q(t_k))                     measurement (noise, quantisation, hold)
-  2. est_k^i = observer_i.estimate(y_k, u_{k-1})   (our observers' outputs do not depend on u)
-  3. u_k = controller(t_k, y_k, est_k, x_k)   any callable; compiled controllers wrap a block
+  2. est_k^i = observer_i.estimate(y_k, u_{k-1})   (our observers' outputs do not depend on u);
+     only for the observers the controller reads (``controller.feedback``, default all)
+  3. u_k = controller(t_k, y_k, est_k, x_k)   any callable; compiled laws wrap a block
   4. observer_i.step(y_k, u_k); plant advances over [t_k, t_k+1] with u_k held.
 Observers are any objects with reset/estimate/step/state (CompiledObserver or the
 numpy ReferenceObserver), so the same scenario runs on the C or on the reference.
+
+Speed: compiled blocks are called through :class:`Port`, which shares preallocated y/u
+buffers between blocks and calls the C entry points without per-step allocation or
+argument checks (the C still checks finiteness and returns a status, which is checked).
 """
 from __future__ import annotations
 
@@ -63,15 +68,89 @@ class Result:
         return path
 
 
+class Port:
+    """A block (observer, law or plant) wired to shared buffers ``y`` and ``u``.
+
+    ``estimate()`` and ``step()`` write the block's output into ``self.est`` (reused, not
+    copied); ``state()`` returns the block state. A CompiledObserver is called through its C
+    entry points directly; anything else (the numpy reference) through its Python methods."""
+
+    def __init__(self, block, y, u):
+        import ctypes as ct
+
+        self.block, self.y, self.u = block, y, u
+        self.nest, self.nx = block.nest, block.nx
+        self._est = np.zeros(max(1, self.nest))   # C may touch one slot even when nest = 0
+        self.est = self._est[: self.nest]
+        self._x = np.zeros(max(1, self.nx))
+        self.compiled = hasattr(block, "_step") and hasattr(block, "_s")
+        if self.compiled:
+            D = ct.POINTER(ct.c_double)
+            ptr = lambda a: a.ctypes.data_as(D)  # noqa: E731  (arrays stay alive in self)
+            self._args = (block._s, ptr(y), ptr(u), ptr(self._est))
+            self._c_step, self._c_estimate = block._step, block._estimate
+            self._c_get, self._xp = block._get_state, ptr(self._x)
+
+    def _fail(self, what, status):
+        from ..runtime import ObserverError
+        raise ObserverError(f"{self.block.prefix}_{what} returned {status} "
+                            f"({self.block.status_names.get(status, 'unknown')}); state unchanged")
+
+    def step(self):
+        if self.compiled:
+            st = self._c_step(*self._args)
+            if st:
+                self._fail("step", st)
+        else:
+            self.est[:] = self.block.step(self.y, self.u)
+        return self.est
+
+    def estimate(self):
+        if self.compiled:
+            st = self._c_estimate(*self._args)
+            if st:
+                self._fail("estimate", st)
+        else:
+            self.est[:] = self.block.estimate(self.y, self.u)
+        return self.est
+
+    def state(self):
+        if self.compiled:
+            self._c_get(self._args[0], self._xp)
+            return self._x[: self.nx]
+        return self.block.state
+
+
+class Law:
+    """A compiled control law (a stateless block, see codegen.controllers) as a controller.
+
+    ``assemble(t, y, est, x, out)`` writes the law's measurement vector into ``out``;
+    ``feedback`` names the observers whose estimate the law reads."""
+
+    def __init__(self, block, assemble, feedback=()):
+        self.block, self.assemble, self.feedback = block, assemble, tuple(feedback)
+        self.y = np.zeros(block.ny)
+        block.reset(self.y)
+        self.port = Port(block, self.y, np.zeros(max(1, block.nu)))
+
+    def __call__(self, t, y, est, x):
+        self.assemble(t, y, est, x, self.y)
+        return self.port.step()
+
+
 def simulate(plant, q0, qd0, T, dt, controller, observers=None, sensor=None, est0=None,
              log_states=(), progress=False):
     """Run the loop of the module docstring for T seconds; returns a Result.
 
     plant       sim.plant.Plant (its dt must equal dt)
-    controller  callable(t, y, est: dict, x_true) -> u
+    controller  callable(t, y, est: dict, x_true) -> u; an optional attribute ``feedback``
+                (names of the observers it reads) spares the other observers' estimate call
     observers   dict name -> observer; each is reset with y_0 and est0.get(name) (zeros)
     sensor      sim.sensors.Sensor (default: exact, every sample)
-    log_states  names of observers whose state is recorded each sample
+    log_states  names of observers whose state is recorded each sample (before its step);
+                the state after the last step is in ``extra[name + "_state_final"]``
+
+    ``est`` passed to the controller holds buffers that are overwritten at the next sample.
     """
     from .sensors import Sensor
 
@@ -84,14 +163,21 @@ def simulate(plant, q0, qd0, T, dt, controller, observers=None, sensor=None, est
     N = int(round(T / dt)) + 1
     n = plant.n
     plant.reset(np.asarray(q0, float), np.asarray(qd0, float))
-    x = plant.state
-    y = sensor(0, x[:n])
+    ybuf, ubuf, empty = np.zeros(n), np.zeros(n), np.zeros(1)
+    sensor.measure(0, plant.state[:n], ybuf)
     for name, obs in observers.items():
-        obs.reset(y, est0=est0.get(name))
-    u_prev = np.zeros(n)
-    X, Yl, U = np.empty((N, 2 * n)), np.empty((N, len(y))), np.empty((N, n))
+        obs.reset(ybuf.copy(), est0=est0.get(name))
+    ports = {name: Port(obs, ybuf, ubuf) for name, obs in observers.items()}
+    fb = getattr(controller, "feedback", None)
+    fb_ports = [ports[name] for name in (ports if fb is None else fb)]
+    est = {name: port.est for name, port in ports.items()}
+    plant_port = Port(plant.block, empty, ubuf)
+    x = plant_port.state()
+    X, Yl, U = np.empty((N, 2 * n)), np.empty((N, n)), np.empty((N, n))
     E = {name: np.empty((N, obs.nest)) for name, obs in observers.items()}
     S = {name: np.empty((N, observers[name].nx)) for name in log_states}
+    logged = [(S[name], ports[name]) for name in log_states]
+    stepped = [(E[name], port) for name, port in ports.items()]
     steps = range(N)
     if progress:
         try:
@@ -100,20 +186,23 @@ def simulate(plant, q0, qd0, T, dt, controller, observers=None, sensor=None, est
                          miniters=max(1, N // 100))
         except ImportError:  # pragma: no cover
             pass
+    measure = sensor.measure
     for k in steps:
-        t = k * dt
-        y = sensor(k, x[:n])
-        est = {name: obs.estimate(y, u_prev) for name, obs in observers.items()}
-        u = np.asarray(controller(t, y, est, x), dtype=float)
-        for name in S:
-            S[name][k] = observers[name].state
-        for name, obs in observers.items():
-            E[name][k] = obs.step(y, u)
-        X[k], Yl[k], U[k] = x, y, u
+        measure(k, x[:n], ybuf)
+        for port in fb_ports:
+            port.estimate()                       # u_{k-1} still in ubuf
+        ubuf[:] = controller(k * dt, ybuf, est, x)
+        for Sk, port in logged:
+            Sk[k] = port.state()
+        for Ek, port in stepped:
+            Ek[k] = port.step()
+        X[k], Yl[k], U[k] = x, ybuf, ubuf
         if k < N - 1:
-            x = plant.advance(u)
-        u_prev = u
-    return Result(t=np.arange(N) * dt, x=X, y=Yl, u=U, est=E, states=S)
+            plant_port.step()
+            x = plant_port.state()
+    extra = {f"{name}_state_final": port.state().copy() for name, port in ports.items()
+             if name in S}
+    return Result(t=np.arange(N) * dt, x=X, y=Yl, u=U, est=E, states=S, extra=extra)
 
 
 def settling_time(t, err, level):

@@ -1,0 +1,158 @@
+"""Original I&I speed observer of Astolfi, Ortega & Venkatraman (CDC 2009), as reconstructed in
+SPEC §5 [DERIVED] (A3-5): the comparison observer of seed 003.
+
+Cholesky velocity: M(q)^{-1} = T T^T (T lower), pbar = T^{-1} qd, T^{-1} = T^T M.
+
+    S(q, b)   = -T^T M Tdot(b) - T^T C(q, T b) T,  Tdot(b) = sum_k dT/dq_k (T b)_k     (skew)
+    Cbar(q, a) b = S(q, b) a
+    Hbar(q, p) = (k1 I + Cbar(q, p)) T^{-1};   column i, with T T^{-1} e_i = e_i:
+    Hbar_i     = k1 T^{-1} e_i - T^T M (dT/dq_i) p - T^T C(q, e_i) T p                   [DERIVED]
+    pbarhat    = xi + beta(q, qhat, phat)        (beta as in §4, column-wise quadrature)
+    f          = S(q, pbarhat) pbarhat + T^T (u - g(q) - F T pbarhat)
+    qhat' = T pbarhat - psi1 (qhat - q);   phat' = f - psi2 (phat - pbarhat)
+    xi'   = f - dbeta/dq T pbarhat - dbeta/dqhat qhat' - dbeta/dphat phat'
+    Delta_p T = Cbar(q, pbarhat - phat);   Delta_q T = (Hbar(q, phat) - dbeta/dq) T
+    r'   = -(k1/4)(r - c_r) + (r/k1)(||Delta_q T||^2 + ||Delta_p T||^2),   c_r = 1 (original)
+    psi1 = k2 + (r^2/2)||T||^2 + (r^2/k1)||T||^2 ||Deltabar_q||^2
+    psi2 = k3 + (r^2/2)||dbeta/dq T||^2 + (r^2/k1)||T||^2 ||Deltabar_p||^2
+
+Norms are Frobenius (as in ii_speed). Bounds, computed by design.ii_aov_bounds [DERIVED]:
+Deltabar_p = max_q max_{|a|=1} ||Cbar(q, a) T^{-1}||_F and Deltabar_q,ji(phat) = k1 a_ji +
+sum_m |phat_m| b_jim from the affine split Hbar = k1 T^{-1} + sum_m p_m Cbar(q, e_m) T^{-1}.
+
+State x = [xi; qhat; phat; r] (3n+1), est = [T(y) phat; T(y) pbarhat] (filtered and unfiltered
+speed estimates). init(y0, est0 = [qd_f0; qd_hat0]): qhat = y0, phat = T(y0)^{-1} qd_f0,
+xi = T(y0)^{-1} qd_hat0 - beta(y0, y0, phat), r = r0.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..design import ii_aov_bounds
+from ..spec import ObserverSpec
+from ..symbolic import chol_lower, ldl_solve
+from ._ii_common import DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq, quadrature_beta
+
+SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
+
+
+def p_names(n):
+    """The scalars, then a_ji (row-major j, i), then b_jim (C order j, i, m)."""
+    return (list(SCALARS) + [f"dq_k1_{j}_{i}" for j in range(n) for i in range(n)]
+            + [f"dq_p_{j}_{i}_{m}" for j in range(n) for i in range(n) for m in range(n)])
+
+
+def cholesky_velocity(robot, q):
+    """(M, T, T^{-1}) at q: M^{-1} = T T^T with T lower-triangular, T^{-1} = T^T M."""
+    Mq = robot.mass_matrix(q)
+    T = chol_lower(ldl_solve(Mq, ca.DM.eye(robot.n)))
+    return Mq, T, ca.mtimes(T.T, Mq)
+
+
+_FUNS = {}
+
+
+def _aov_functions(robot):
+    """CasADi Functions of pure symbols (AD needs them): Hbar columns and S, cached per robot."""
+    key = id(robot)
+    if key not in _FUNS:
+        n = robot.n
+        q, v, k1 = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("k1")
+        Mq, T, Tinv = cholesky_velocity(robot, q)
+        cols = []
+        for i in range(n):
+            e = ca.DM.zeros(n, 1)
+            e[i] = 1.0
+            dT = ca.jtimes(T, q, e)
+            h = (k1 * Tinv[:, i] - ca.mtimes(ca.mtimes(T.T, Mq), ca.mtimes(dT, v))
+                 - ca.mtimes(T.T, ca.mtimes(christoffel_column_matrix(robot, q, i), ca.mtimes(T, v))))
+            cols.append(ca.Function(f"hbar{i}", [q, v, k1], [h]))
+        Tb = ca.mtimes(T, v)
+        S = (-ca.mtimes(ca.mtimes(T.T, Mq), ca.jtimes(T, q, Tb))
+             - ca.mtimes(ca.mtimes(T.T, robot.coriolis(q, Tb)), T))
+        _FUNS[key] = (robot, cols, ca.Function("S", [q, v], [S]))
+    return _FUNS[key]
+
+
+def hbar_column(robot, q, p, k1, i):
+    """Hbar_i(q, p) = k1 T^{-1} e_i - T^T M (dT/dq_i) p - T^T C(q, e_i) T p  [DERIVED, SPEC §5]."""
+    return _aov_functions(robot)[1][i](q, p, k1)
+
+
+def skew_S(robot, q, b):
+    """S(q, b) = -T^T M Tdot(b) - T^T C(q, T b) T  (skew-symmetric) [DERIVED, SPEC §5]."""
+    return _aov_functions(robot)[2](q, b)
+
+
+def split_params(p, n):
+    s = {k: p[i] for i, k in enumerate(SCALARS)}
+    o = len(SCALARS)
+    a = ca.reshape(p[o:o + n * n], n, n).T
+    o += n * n
+    flat = p[o:o + n ** 3]
+    b = [ca.vertcat(*[ca.horzcat(*[flat[j * n * n + i * n + m] for i in range(n)])
+                      for j in range(n)]) for m in range(n)]
+    return s, a, b
+
+
+def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=None,
+          samples=2000, refine=True):
+    """AOV observer for ``robot`` (defaults: seed-003 comparison k1 = 10, SPEC §5 item 5)."""
+    if not k1 > 4:
+        raise ValueError(f"k1 must be > 4, got {k1}")
+    if not (r0 >= c_r > 0):
+        raise ValueError(f"need r0 >= c_r > 0, got r0={r0}, c_r={c_r}")
+    design = bounds if bounds is not None else ii_aov_bounds(robot, samples=samples, refine=refine)
+    n = robot.n
+    pn = p_names(n)
+    p_default = ([k1, k2, k3, c_r, design.deltabar_p, r0] + list(np.asarray(design.dq_k1).reshape(-1))
+                 + list(np.asarray(design.dq_p).reshape(-1)))
+    x = ca.SX.sym("x", 3 * n + 1)
+    y, u, p = ca.SX.sym("y", n), ca.SX.sym("tau", n), ca.SX.sym("p", len(pn))
+    s, a, b = split_params(p, n)
+    xi, qhat, phat, r = x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n]
+    K1 = s["k1"]
+
+    def col(i, q, v):
+        return hbar_column(robot, q, v, K1, i)
+
+    beta, dbdq = quadrature_beta(col, y, qhat, phat, N)
+    pbh = xi + beta
+    My, T, Tinv = cholesky_velocity(robot, y)
+    qd_hat = ca.mtimes(T, pbh)
+    f = (ca.mtimes(skew_S(robot, y, pbh), pbh)
+         + ca.mtimes(T.T, u - robot.gravity(y) - ca.mtimes(ca.DM(robot.F), qd_hat)))
+    Hb_phat = ca.horzcat(*[col(i, y, phat) for i in range(n)])
+    DpT = ca.horzcat(*[ca.mtimes(skew_S(robot, y, T[:, k]), pbh - phat) for k in range(n)])  # Cbar(y, pbh - phat)
+    DqT = ca.mtimes(Hb_phat - dbdq, T)
+    dbar_q = K1 * a
+    for m in range(n):
+        dbar_q = dbar_q + ca.fabs(phat[m]) * b[m]
+    T2 = frobenius_sq(T)
+    psi1 = s["k2"] + r ** 2 / 2 * T2 + r ** 2 / K1 * T2 * frobenius_sq(dbar_q)
+    psi2 = s["k3"] + r ** 2 / 2 * frobenius_sq(ca.mtimes(dbdq, T)) + r ** 2 / K1 * T2 * s["deltabar_p"] ** 2
+    qhat_dot = qd_hat - psi1 * (qhat - y)
+    phat_dot = f - psi2 * (phat - pbh)
+    xi_dot = f - ca.mtimes(dbdq, qd_hat) - beta_directional(beta, qhat, phat, qhat_dot, phat_dot)
+    rdot = -(K1 / 4) * (r - s["c_r"]) + r / K1 * (frobenius_sq(DqT) + frobenius_sq(DpT))
+    xdot = ca.vertcat(xi_dot, qhat_dot, phat_dot, rdot)
+
+    y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", 2 * n)
+    _, _, Tinv0 = cholesky_velocity(robot, y0)
+    phat0 = ca.mtimes(Tinv0, est0[:n])
+    beta0, _ = quadrature_beta(col, y0, y0, phat0, N)
+    x0 = ca.vertcat(ca.mtimes(Tinv0, est0[n:]) - beta0, y0, phat0, s["r0"])
+
+    j = list(robot.joint_names)
+    return ObserverSpec(
+        family="ii_aov", robot=robot,
+        x_names=[f"xi_{q}" for q in j] + [f"qhat_{q}" for q in j] + [f"phat_{q}" for q in j] + ["r"],
+        y_names=[f"q_{q}" for q in j], u_names=[f"tau_{q}" for q in j], p_names=pn,
+        est_names=[f"qd_f_{q}" for q in j] + [f"qd_hat_{q}" for q in j], p_default=p_default,
+        rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
+        output=ca.Function("output", [x, y, u, p], [ca.vertcat(ca.mtimes(T, phat), qd_hat)]),
+        init=ca.Function("init", [y0, est0, p], [x0]),
+        info={"design": design.as_dict(), "N": int(N), "quadrature": "gauss-legendre",
+              "norms": "frobenius", "estimate": "[T(y) phat; T(y) pbarhat]"},
+    )

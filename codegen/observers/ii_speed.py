@@ -1,0 +1,134 @@
+"""I&I globally exponentially convergent speed observer, Arbo, Grotli & Gravdahl (seed 003, SPEC §4.1).
+
+    H(q, x)   = M(q)^{-1} (k1 I - C(q, x))        Christoffel C (A3-1)                  [S003 (11)]
+    beta      = sum_i int_0^{y_i} H_i([s_y with sigma in place i], s_x) d sigma          [S003 (12)]
+    xhat      = xi + beta                                                                [S003 (3b)]
+    e_y = s_y - y,   e_x = s_x - xhat                                                    [S003 (17),(18)]
+    M Delta_x = C(y, e_x),   M Delta_y = k1 I - C(y, s_x) - M dbeta/dy                   [S003 (16),(22)]
+    psi1 = k2 + r^2/2 + r^2 k_M^2/(k1 k_m) ||Deltabar_y||^2                               [S003 (53)]
+    psi2 = k3 + r^2/2 ||dbeta/dy||^2 + r^2 k_M^2/(k1 k_m) ||Deltabar_x||^2                [S003 (54)]
+    s_y' = alpha2 = xhat - psi1 e_y                                                      [S003 (44)]
+    s_x' = alpha3 = FD(y, xhat, u) - psi2 e_x                                            [S003 (45)]
+    xi'  = alpha1 = FD(y, xhat, u) - dbeta/dy xhat - dbeta/ds_y alpha2 - dbeta/ds_x alpha3   [S003 (6)]
+    r'   = -(k1/(4 k_m))(r - c_r) + r/(k1 k_m) (||M Delta_y||^2 + ||M Delta_x||^2)      [S003 (38)]
+
+with FD(y, v, u) = M(y)^{-1}(u - C(y, v) v - F v - g(y)) the robot's forward dynamics (F = 0 in
+the seed; a robot with friction keeps its F [ASSUMPTION]).
+
+Implementation choices:
+- H_i(q, x) = M(q)^{-1}(k1 e_i - C(q, e_i) x) (symmetry P2): one Christoffel matrix and one
+  unpivoted LDL^T solve per quadrature node, no symbolic inverse.
+- beta by N-node Gauss-Legendre (``N``, a generation parameter); dbeta/dy exact (13);
+  dbeta/ds_y alpha2 + dbeta/ds_x alpha3 by one forward AD sweep of the quadrature (14),(15).
+- Norms of matrices in (38), (53), (54) are Frobenius norms [DERIVED]: an upper bound of the
+  spectral norm (so (37) still holds) that is smooth and cheap in C; Lemma 2 bounds exactly
+  the Frobenius norm, and Deltabar_x = max(k_c/k_m, k_cF/k_M) keeps (54) dominating
+  ||M Delta_x||_F (= k_c/k_m of Lemma 1 whenever k_M k_c/k_m >= k_cF, e.g. the seed's arm).
+- Deltabar_y(s_x) = k1 a + sum_m |s_x,m| b^(m) entrywise, a and b designed offline (design.py).
+
+State x = [xi; s_y; s_x; r] (3n+1), y = q, u = tau, estimate est = [s_x; xhat]: the first n
+entries are the observer's output s_x (seed 003 §II-B), the last n the unfiltered xhat.
+init(y0, est0 = [s_x0; xhat0]) sets s_y = y0, s_x = s_x0, xi = xhat0 - beta(y0, y0, s_x0) and
+r = r0 (a parameter). A filter state with s_y(0) != y(0) (Table I) is set through ``state``.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..design import ii_speed_bounds
+from ..spec import ObserverSpec
+from ..symbolic import ldl_solve
+from ._ii_common import DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq, quadrature_beta
+
+SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
+
+
+def p_names(n):
+    """Parameter names: the scalars, then a_ji (row-major j, i), then b_jim (C order j, i, m)."""
+    return (list(SCALARS) + [f"dy_k1_{j}_{i}" for j in range(n) for i in range(n)]
+            + [f"dy_sx_{j}_{i}_{m}" for j in range(n) for i in range(n) for m in range(n)])
+
+
+def h_column(robot, q, x, k1, i):
+    """H_i(q, x) = M(q)^{-1} (k1 e_i - C(q, e_i) x)  [S003 (11)], column i."""
+    n = robot.n
+    e = ca.DM.zeros(n, 1)
+    e[i] = 1.0
+    return ldl_solve(robot.mass_matrix(q), k1 * e - ca.mtimes(christoffel_column_matrix(robot, q, i), x))
+
+
+def split_params(p, n):
+    """(dict of scalars, a (n x n), b list of n (n x n) matrices b[m][j, i]) from the flat p."""
+    s = {k: p[i] for i, k in enumerate(SCALARS)}
+    o = len(SCALARS)
+    a = ca.reshape(p[o:o + n * n], n, n).T                              # row-major -> [j, i]
+    o += n * n
+    flat = p[o:o + n ** 3]                                              # index j n^2 + i n + m
+    b = [ca.vertcat(*[ca.horzcat(*[flat[j * n * n + i * n + m] for i in range(n)])
+                      for j in range(n)]) for m in range(n)]
+    return s, a, b
+
+
+def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=None,
+          samples=2000, refine=True):
+    """I&I speed observer for ``robot`` (defaults: seed 003 Table II gains, r(0) = 0.1).
+
+    ``bounds`` is an IISpeedDesign (design.ii_speed_bounds(robot) when None); ``N`` is the
+    number of Gauss-Legendre nodes per integral. Requires k1 > 4 and r0 > c_r > 0 [S003 (55),(38)]."""
+    if not k1 > 4:
+        raise ValueError(f"k1 must be > 4 [S003 (55)], got {k1}")
+    if not (r0 > c_r > 0):
+        raise ValueError(f"need r0 > c_r > 0 [S003 (38)], got r0={r0}, c_r={c_r}")
+    design = bounds if bounds is not None else ii_speed_bounds(robot, samples=samples, refine=refine)
+    n = robot.n
+    pn = p_names(n)
+    p_default = ([k1, k2, k3, c_r, design.k_m, design.k_M, design.deltabar_x, r0]
+                 + list(np.asarray(design.dy_k1).reshape(-1))
+                 + list(np.asarray(design.dy_sx).reshape(-1)))
+    x = ca.SX.sym("x", 3 * n + 1)
+    y, u, p = ca.SX.sym("y", n), ca.SX.sym("tau", n), ca.SX.sym("p", len(pn))
+    s, a, b = split_params(p, n)
+    xi, s_y, s_x, r = x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n]
+    K1 = s["k1"]
+
+    def col(i, q, v):
+        return h_column(robot, q, v, K1, i)
+
+    beta, dbdy = quadrature_beta(col, y, s_y, s_x, N)                   # [S003 (12),(13)]
+    xhat = xi + beta                                                    # [S003 (3b)]
+    e_y, e_x = s_y - y, s_x - xhat                                      # [S003 (17),(18)]
+    fd = robot.forward_dynamics(y, xhat, u)
+    My = robot.mass_matrix(y)
+    MDx = robot.coriolis(y, e_x)                                        # M Delta_x [S003 (22)]
+    MDy = K1 * ca.DM.eye(n) - robot.coriolis(y, s_x) - ca.mtimes(My, dbdy)   # M Delta_y [S003 (16)]
+    dbar_y = K1 * a
+    for m in range(n):
+        dbar_y = dbar_y + ca.fabs(s_x[m]) * b[m]                        # Lemma 2 [DERIVED]
+    g = r ** 2 * s["k_M"] ** 2 / (K1 * s["k_m"])
+    psi1 = s["k2"] + r ** 2 / 2 + g * frobenius_sq(dbar_y)              # [S003 (53)]
+    psi2 = s["k3"] + r ** 2 / 2 * frobenius_sq(dbdy) + g * s["deltabar_x"] ** 2   # [S003 (54)]
+    alpha2 = xhat - psi1 * e_y                                          # [S003 (44)]
+    alpha3 = fd - psi2 * e_x                                            # [S003 (45)]
+    alpha1 = fd - ca.mtimes(dbdy, xhat) - beta_directional(beta, s_y, s_x, alpha2, alpha3)  # (6)
+    rdot = (-(K1 / (4 * s["k_m"])) * (r - s["c_r"])
+            + r / (K1 * s["k_m"]) * (frobenius_sq(MDy) + frobenius_sq(MDx)))          # [S003 (38)]
+    xdot = ca.vertcat(alpha1, alpha2, alpha3, rdot)
+
+    y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", 2 * n)
+    sx0, xhat0 = est0[:n], est0[n:]
+    beta0, _ = quadrature_beta(col, y0, y0, sx0, N)
+    x0 = ca.vertcat(xhat0 - beta0, y0, sx0, s["r0"])
+
+    j = list(robot.joint_names)
+    return ObserverSpec(
+        family="ii_speed", robot=robot,
+        x_names=[f"xi_{q}" for q in j] + [f"s_y_{q}" for q in j] + [f"s_x_{q}" for q in j] + ["r"],
+        y_names=[f"q_{q}" for q in j], u_names=[f"tau_{q}" for q in j], p_names=pn,
+        est_names=[f"s_x_{q}" for q in j] + [f"qd_hat_{q}" for q in j], p_default=p_default,
+        rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
+        output=ca.Function("output", [x, y, u, p], [ca.vertcat(s_x, xhat)]),
+        init=ca.Function("init", [y0, est0, p], [x0]),
+        info={"design": design.as_dict(), "N": int(N), "quadrature": "gauss-legendre",
+              "norms": "frobenius", "estimate": "[s_x; xhat]"},
+    )

@@ -1,0 +1,162 @@
+"""Reconstructed Astolfi-Ortega-Venkatraman I&I observer (SPEC §5 [DERIVED]), numpy only.
+
+    M^{-1} = T T^T (T lower),  T^{-1} = T^T M,  dT/dq_k = T Phi(T^{-1} d(M^{-1})/dq_k T^{-T})
+        (Phi: lower triangle with half diagonal; from d(T T^T) = d(M^{-1}), [DERIVED])
+    S(q, b)  = -T^T M sum_k dT/dq_k (T b)_k - T^T C(q, T b) T
+    Hbar_i(q, p) = k1 T^{-1} e_i - T^T M dT/dq_i p - T^T C(q, e_i) T p
+    beta = sum_i int_0^{y_i} Hbar_i([qhat with sigma at i], phat) d sigma (Gauss-Legendre, N nodes)
+    dbeta/dq exact; dbeta/dphat: Hbar is linear in p; dbeta/dqhat: dHbar_i/dq_j by the
+    complex step Im(Hbar_i(q + 1e-30 i e_j)) / 1e-30 (exact to round-off, no subtraction), which
+    needs a robot whose M, C, dMw_dq accept complex q: the closed-form robots. A pinocchio robot
+    would need second derivatives of M, which pinocchio's Python API does not give: not supported.
+
+    f     = S(y, pbh) pbh + T^T (u - g(y) - F T pbh),   pbh = xi + beta
+    qhat' = T pbh - psi1 (qhat - y);   phat' = f - psi2 (phat - pbh)
+    xi'   = f - dbeta/dq T pbh - dbeta/dqhat qhat' - dbeta/dphat phat'
+    r'    = -(k1/4)(r - c_r) + (r/k1)(||Delta_q T||_F^2 + ||Delta_p T||_F^2)
+    Delta_p T = Cbar(y, pbh - phat) (column k = S(y, T e_k)(pbh - phat)); Delta_q T = (Hbar(y, phat) - dbeta/dq) T
+    psi1 = k2 + (r^2/2)||T||^2 + (r^2/k1)||T||^2 ||Deltabar_q||^2
+    psi2 = k3 + (r^2/2)||dbeta/dq T||^2 + (r^2/k1)||T||^2 deltabar_p^2
+    Deltabar_q,ji = k1 a_ji + sum_m |phat_m| b_jim
+p = [k1, k2, k3, c_r, deltabar_p, r0, a (n^2 row-major), b (n^3, j,i,m)]; est = [T phat; T pbh].
+"""
+from __future__ import annotations
+
+from functools import partial
+from types import SimpleNamespace
+
+import numpy as np
+
+SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
+DEFAULT_N = 8
+_H = 1e-30
+
+
+def params(p, n):
+    s = dict(zip(SCALARS, p[:len(SCALARS)]))
+    o = len(SCALARS)
+    return s, np.asarray(p[o:o + n * n]).reshape(n, n), np.asarray(p[o + n * n:o + n * n + n ** 3]).reshape(n, n, n)
+
+
+def _chol_lower(A):
+    """Cholesky without conjugation (analytic in the entries, so complex steps pass through)."""
+    n = A.shape[0]
+    L = np.zeros_like(A)
+    for j in range(n):
+        L[j, j] = np.sqrt(A[j, j] - np.sum(L[j, :j] * L[j, :j]))
+        for i in range(j + 1, n):
+            L[i, j] = (A[i, j] - np.sum(L[i, :j] * L[j, :j])) / L[j, j]
+    return L
+
+
+def _phi(X):
+    return np.tril(X, -1) + 0.5 * np.diag(np.diag(X))
+
+
+def kinematics(robot, q):
+    """(M, T, T^{-1}, [dT/dq_k]) at q."""
+    if not hasattr(robot, "dMw_dq") or robot.__class__.__name__ == "UrdfRobot":
+        raise NotImplementedError("the AOV reference needs closed-form (complex-capable) M and C; "
+                                  "pinocchio robots are not supported (no second derivatives of M)")
+    n = robot.n
+    Mq = robot.M(q)
+    Minv = np.linalg.inv(Mq)
+    T = _chol_lower(Minv)
+    Tinv = T.T @ Mq
+    E = np.eye(n)
+    dT = []
+    for k in range(n):
+        dM = np.column_stack([robot.dMw_dq(q, E[c])[:, k] for c in range(n)])
+        dT.append(T @ _phi(Tinv @ (-Minv @ dM @ Minv) @ Tinv.T))
+    return Mq, T, Tinv, dT
+
+
+def S(robot, q, b):
+    Mq, T, _, dT = kinematics(robot, q)
+    Tb = T @ b
+    return -T.T @ Mq @ sum(dT[k] * Tb[k] for k in range(robot.n)) - T.T @ robot.C(q, Tb) @ T
+
+
+def hbar_column(robot, q, p, k1, i):
+    Mq, T, Tinv, dT = kinematics(robot, q)
+    e = np.zeros(robot.n)
+    e[i] = 1.0
+    return k1 * Tinv[:, i] - T.T @ Mq @ dT[i] @ p - T.T @ robot.C(q, e) @ T @ p
+
+
+def beta_and_derivatives(robot, y, qhat, phat, k1, N, derivatives=True):
+    n = robot.n
+    t, w = np.polynomial.legendre.leggauss(int(N))
+    beta = np.zeros(n)
+    dqh, dph, dy = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
+    for i in range(n):
+        z = np.array(qhat, dtype=float)
+        for tk, wk in zip(t, w):
+            z[i] = 0.5 * y[i] * (1.0 + tk)
+            h = 0.5 * y[i] * wk
+            beta += h * hbar_column(robot, z, phat, k1, i)
+            if derivatives:
+                for j in range(n):
+                    if j != i:
+                        zc = z.astype(complex)
+                        zc[j] += 1j * _H
+                        dqh[:, j] += h * np.imag(hbar_column(robot, zc, phat, k1, i)) / _H
+                Mq, T, _, dT = kinematics(robot, z)
+                e = np.zeros(n)
+                e[i] = 1.0
+                dph += h * (-T.T @ Mq @ dT[i] - T.T @ robot.C(z, e) @ T)
+        z[i] = y[i]
+        dy[:, i] = hbar_column(robot, z, phat, k1, i)
+    return beta, dy, dqh, dph
+
+
+def rhs(robot, x, y, u, p, N=None):
+    n = robot.n
+    s, a, b = params(p, n)
+    k1 = s["k1"]
+    xi, qhat, phat, r = x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n]
+    beta, dbdq, dqh, dph = beta_and_derivatives(robot, y, qhat, phat, k1, N or DEFAULT_N)
+    pbh = xi + beta
+    _, T, _, _ = kinematics(robot, y)
+    qd_hat = T @ pbh
+    f = S(robot, y, pbh) @ pbh + T.T @ (u - robot.g(y) - robot.F @ qd_hat)
+    Hb = np.column_stack([hbar_column(robot, y, phat, k1, i) for i in range(n)])
+    DpT = np.column_stack([S(robot, y, T[:, k]) @ (pbh - phat) for k in range(n)])
+    DqT = (Hb - dbdq) @ T
+    dbar_q = k1 * a + np.einsum("jim,m->ji", b, np.abs(phat))
+    T2 = np.sum(T ** 2)
+    psi1 = s["k2"] + r ** 2 / 2 * T2 + r ** 2 / k1 * T2 * np.sum(dbar_q ** 2)
+    psi2 = s["k3"] + r ** 2 / 2 * np.sum((dbdq @ T) ** 2) + r ** 2 / k1 * T2 * s["deltabar_p"] ** 2
+    qhat_dot = qd_hat - psi1 * (qhat - y)
+    phat_dot = f - psi2 * (phat - pbh)
+    xi_dot = f - dbdq @ qd_hat - dqh @ qhat_dot - dph @ phat_dot
+    rdot = -(k1 / 4) * (r - s["c_r"]) + r / k1 * (np.sum(DqT ** 2) + np.sum(DpT ** 2))
+    return np.concatenate([xi_dot, qhat_dot, phat_dot, [rdot]])
+
+
+def output(robot, x, y, u, p, N=None):
+    n = robot.n
+    xi, qhat, phat = x[:n], x[n:2 * n], x[2 * n:3 * n]
+    beta, *_ = beta_and_derivatives(robot, y, qhat, phat, params(p, n)[0]["k1"], N or DEFAULT_N, False)
+    T = kinematics(robot, y)[1]
+    return np.concatenate([T @ phat, T @ (xi + beta)])
+
+
+def init(robot, y0, est0, p, N=None):
+    n = robot.n
+    s = params(p, n)[0]
+    Tinv = kinematics(robot, y0)[2]
+    phat0 = Tinv @ est0[:n]
+    beta, *_ = beta_and_derivatives(robot, y0, y0, phat0, s["k1"], N or DEFAULT_N, False)
+    return np.concatenate([Tinv @ est0[n:] - beta, y0, phat0, [s["r0"]]])
+
+
+def sizes(robot):
+    n = robot.n
+    return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
+
+
+def bound(N):
+    """This family with quadrature order N fixed (see reference/ii_speed.py ``bound``)."""
+    return SimpleNamespace(rhs=partial(rhs, N=N), output=partial(output, N=N),
+                           init=partial(init, N=N), sizes=sizes, N=N)

@@ -1,0 +1,151 @@
+"""I&I speed observer of Arbo, Grotli & Gravdahl (seed 003), numpy + pin, from SPEC §4.1.
+
+    H(q, x)  = M(q)^{-1}(k1 I - C(q, x))                                    [S003 (11)], A3-1
+    beta     = sum_i int_0^{y_i} H_i(z_i(sigma), s_x) d sigma,  z_i = s_y with sigma at i   (12)
+    dbeta/dy = [H_i(z_i(y_i), s_x)]_i                                                  (13)
+    dbeta/ds_y,j = sum_{i != j} int_0^{y_i} dH_i/dq_j (z_i(sigma), s_x) d sigma        (14)
+    dbeta/ds_x   = sum_i int_0^{y_i} -M^{-1} C(z_i(sigma), e_i) d sigma                (15)
+    dH_i/dq_j = -M^{-1} (dM/dq_j H_i + d(C(q, x) e_i)/dq_j)    (d M^{-1} = -M^{-1} dM M^{-1})
+
+The integrals are N-node Gauss-Legendre sums (numpy leggauss); the q-derivatives come from the
+reference robot's exact dMw_dq / dCab_dq (closed forms, or pinocchio's analytical RNEA
+derivatives), never from finite differences. The rest (alpha1..3, r', psi1, psi2 with Frobenius
+norms, est = [s_x; xhat], init) follows the module docstring of the symbolic family, written
+again here from SPEC §4.1:
+
+    xhat = xi + beta; e_y = s_y - y; e_x = s_x - xhat
+    M Delta_x = C(y, e_x); M Delta_y = k1 I - C(y, s_x) - M dbeta/dy
+    Deltabar_y,ji = k1 a_ji + sum_m |s_x,m| b_jim
+    psi1 = k2 + r^2/2 + r^2 k_M^2/(k1 k_m) ||Deltabar_y||_F^2                           (53)
+    psi2 = k3 + r^2/2 ||dbeta/dy||_F^2 + r^2 k_M^2/(k1 k_m) deltabar_x^2               (54)
+    s_y' = xhat - psi1 e_y;  s_x' = FD(y, xhat, u) - psi2 e_x                           (44),(45)
+    xi'  = FD - dbeta/dy xhat - dbeta/ds_y s_y' - dbeta/ds_x s_x'                       (6)
+    r'   = -(k1/(4 k_m))(r - c_r) + r/(k1 k_m)(||M Delta_y||_F^2 + ||M Delta_x||_F^2)  (38)
+
+Parameters p = [k1, k2, k3, c_r, k_m, k_M, deltabar_x, r0, a (n^2, row-major j,i),
+b (n^3, C order j,i,m)].
+"""
+from __future__ import annotations
+
+import numpy as np
+
+SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
+DEFAULT_N = 8
+
+
+def quadrature_nodes(N):
+    """Gauss-Legendre nodes and weights on [-1, 1]."""
+    return np.polynomial.legendre.leggauss(int(N))
+
+
+def params(p, n):
+    """(scalars dict, a (n, n), b (n, n, n) [j, i, m]) from the flat parameter vector."""
+    s = dict(zip(SCALARS, p[:len(SCALARS)]))
+    o = len(SCALARS)
+    a = np.asarray(p[o:o + n * n]).reshape(n, n)
+    b = np.asarray(p[o + n * n:o + n * n + n ** 3]).reshape(n, n, n)
+    return s, a, b
+
+
+def h_column(robot, q, x, k1, i):
+    """H_i(q, x) = M(q)^{-1}(k1 e_i - C(q, x) e_i)."""
+    rhs = -robot.C(q, x)[:, i]
+    rhs[i] += k1
+    return np.linalg.solve(robot.M(q), rhs)
+
+
+def h_column_derivatives(robot, q, x, k1, i):
+    """(H_i, dH_i/dq (n x n), dH_i/dx (n x n)) at (q, x), all exact."""
+    Mq = robot.M(q)
+    e = np.zeros(robot.n)
+    e[i] = 1.0
+    Hi = np.linalg.solve(Mq, k1 * e - robot.C(q, x) @ e)
+    dq = -np.linalg.solve(Mq, robot.dMw_dq(q, Hi) + robot.dCab_dq(q, x, e))
+    dx = -np.linalg.solve(Mq, robot.C(q, e))            # C(q, x) e_i = C(q, e_i) x
+    return Hi, dq, dx
+
+
+def beta_and_derivatives(robot, y, s_y, s_x, k1, N, derivatives=True):
+    """beta (12), dbeta/dy (13), dbeta/ds_y (14), dbeta/ds_x (15)."""
+    n = robot.n
+    t, w = quadrature_nodes(N)
+    beta = np.zeros(n)
+    dsy, dsx = np.zeros((n, n)), np.zeros((n, n))
+    dy = np.zeros((n, n))
+    for i in range(n):
+        z = np.array(s_y, dtype=float)
+        for tk, wk in zip(t, w):
+            z[i] = 0.5 * y[i] * (1.0 + tk)
+            h = 0.5 * y[i] * wk
+            if derivatives:
+                Hi, dq, dx = h_column_derivatives(robot, z, s_x, k1, i)
+                dq[:, i] = 0.0                          # z_i(sigma) does not depend on s_y,i
+                dsy += h * dq
+                dsx += h * dx
+            else:
+                Hi = h_column(robot, z, s_x, k1, i)
+            beta += h * Hi
+        z[i] = y[i]
+        dy[:, i] = h_column(robot, z, s_x, k1, i)
+    return beta, dy, dsy, dsx
+
+
+def _split(x, n):
+    return x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n]
+
+
+def rhs(robot, x, y, u, p, N=None):
+    n = robot.n
+    N = N or DEFAULT_N
+    s, a, b = params(p, n)
+    k1 = s["k1"]
+    xi, s_y, s_x, r = _split(x, n)
+    beta, dbdy, dsy, dsx = beta_and_derivatives(robot, y, s_y, s_x, k1, N)
+    xhat = xi + beta
+    e_y, e_x = s_y - y, s_x - xhat
+    fd = robot.forward_dynamics(y, xhat, u)
+    My = robot.M(y)
+    MDx = robot.C(y, e_x)
+    MDy = k1 * np.eye(n) - robot.C(y, s_x) - My @ dbdy
+    dbar_y = k1 * a + np.einsum("jim,m->ji", b, np.abs(s_x))
+    g = r ** 2 * s["k_M"] ** 2 / (k1 * s["k_m"])
+    psi1 = s["k2"] + r ** 2 / 2 + g * np.sum(dbar_y ** 2)
+    psi2 = s["k3"] + r ** 2 / 2 * np.sum(dbdy ** 2) + g * s["deltabar_x"] ** 2
+    alpha2 = xhat - psi1 * e_y
+    alpha3 = fd - psi2 * e_x
+    alpha1 = fd - dbdy @ xhat - dsy @ alpha2 - dsx @ alpha3
+    rdot = -(k1 / (4 * s["k_m"])) * (r - s["c_r"]) + r / (k1 * s["k_m"]) * (np.sum(MDy ** 2) + np.sum(MDx ** 2))
+    return np.concatenate([alpha1, alpha2, alpha3, [rdot]])
+
+
+def output(robot, x, y, u, p, N=None):
+    """est = [s_x; xhat]."""
+    n = robot.n
+    xi, s_y, s_x, _ = _split(x, n)
+    beta, *_ = beta_and_derivatives(robot, y, s_y, s_x, params(p, n)[0]["k1"], N or DEFAULT_N,
+                                    derivatives=False)
+    return np.concatenate([s_x, xi + beta])
+
+
+def init(robot, y0, est0, p, N=None):
+    """s_y = y0, s_x = est0[:n], xi = est0[n:] - beta(y0, y0, s_x), r = r0."""
+    n = robot.n
+    s = params(p, n)[0]
+    sx0, xhat0 = est0[:n], est0[n:]
+    beta, *_ = beta_and_derivatives(robot, y0, y0, sx0, s["k1"], N or DEFAULT_N, derivatives=False)
+    return np.concatenate([xhat0 - beta, y0, sx0, [s["r0"]]])
+
+
+def sizes(robot):
+    n = robot.n
+    return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
+
+
+def bound(N):
+    """This family with the quadrature order N fixed (the spec's generation parameter
+    ``spec.info["N"]``, which ReferenceObserver does not pass to families): assign to
+    ``ReferenceObserver.family`` when N differs from DEFAULT_N."""
+    from functools import partial
+    from types import SimpleNamespace
+    return SimpleNamespace(rhs=partial(rhs, N=N), output=partial(output, N=N),
+                           init=partial(init, N=N), sizes=sizes, N=N)

@@ -1,0 +1,56 @@
+"""Su–Müller–Zheng non-smooth observer, numpy reference (SPEC §3.3, seed 002 (35)).
+
+e = qhat - q;  sg = sign (sgn_eps = 0) or tanh(e / sgn_eps)
+literal (xian = 0):  qhat' = w,  w' = -K0 sg(e) - (K1 + 1) w - K2 e,  qd_hat = w    [S002 (35)]
+Xian    (xian = 1):  qhat' = w + (K1 + 1)(q - qhat),  w' = K0 sg(q - qhat) + K2 (q - qhat),
+                     qd_hat = qhat'                                                  [DERIVED]
+x = [qhat, w], y = q, u = tau (unused), est = [qd_hat, qhat],
+p = [K0 (n), K1 (n), K2 (n), xian, sgn_eps]; init from est0 = [qd_hat(0), qhat(0)],
+w(0) = qd_hat(0) (literal) or qd_hat(0) - (K1 + 1)(q(0) - qhat(0)) (Xian).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _sg(e, eps):
+    return np.tanh(e / eps) if eps > 0 else np.sign(e)
+
+
+def _parts(robot, x, y, p):
+    n = robot.n
+    return n, x[:n], x[n:], p[:n], p[n:2 * n], p[2 * n:3 * n], p[3 * n], p[3 * n + 1]
+
+
+def output(robot, x, y, u, p):
+    n, qhat, w, K0, K1, K2, xian, eps = _parts(robot, x, y, p)
+    if xian == 1.0:
+        qd_hat = w + (K1 + 1.0) * (y - qhat)
+    elif xian == 0.0:
+        qd_hat = w
+    else:
+        raise ValueError(f"xian must be 0 (literal form) or 1 (Xian form), got {xian}")
+    return np.concatenate([qd_hat, qhat])
+
+
+def rhs(robot, x, y, u, p):
+    n, qhat, w, K0, K1, K2, xian, eps = _parts(robot, x, y, p)
+    qd_hat = output(robot, x, y, u, p)[:n]
+    if xian == 1.0:
+        wdot = K0 * _sg(y - qhat, eps) + K2 * (y - qhat)
+    else:
+        wdot = -K0 * _sg(qhat - y, eps) - (K1 + 1.0) * w - K2 * (qhat - y)
+    return np.concatenate([qd_hat, wdot])
+
+
+def init(robot, y0, est0, p):
+    n = robot.n
+    qd0, qhat0 = est0[:n], est0[n:]
+    K1, xian = p[n:2 * n], p[3 * n]
+    w0 = qd0 - (K1 + 1.0) * (y0 - qhat0) if xian == 1.0 else qd0
+    return np.concatenate([qhat0, w0])
+
+
+def sizes(robot):
+    n = robot.n
+    return {"nx": 2 * n, "ny": n, "nu": n, "nest": 2 * n}

@@ -1,0 +1,51 @@
+"""Reference Tomei observer (SPEC §7) in numpy; same equations as codegen/observers/tomei.py,
+written from SPEC §7 on the reference elastic robot (S(q1, q1') qhat1' by polarisation of the
+Newton-Euler c(q, v) = C(q, v) v, see christoffel_times).
+
+    M(q1) qhat1'' = -S(q1,q1') qhat1' - F qhat1' - K(qhat1 - qhat2) - g(q1) + Ka(q1 - qhat1) - v1
+    J qhat2'' = K(qhat1 - qhat2) + u,   z' = -A z + (q1' - qhat1'),   v1 = -K1 z - K2 (q1' - qhat1')
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+
+def christoffel_times(rigid, q, v, w):
+    """C(q, v) w for the Christoffel C without forming C. With c(q, a) = C(q, a) a (Newton-Euler
+    with zero acceleration, gravity removed) and the symmetry C(q, a) b = C(q, b) a [SPEC §0]:
+
+        C(q, v) w = 1/2 [c(q, v + w) - c(q, v) - c(q, w)]   (polarisation)  [DERIVED]"""
+    if hasattr(rigid, "C"):
+        return rigid.C(q, v) @ w
+    z = np.zeros_like(q)
+    c = lambda a: rigid.nle(q, a) - rigid.nle(q, z)           # noqa: E731
+    return 0.5 * (c(v + w) - c(v) - c(w))
+
+
+def rhs(robot, x, y, u, p):
+    n = robot.n
+    qh1, vh1, qh2, vh2, z = (x[i * n:(i + 1) * n] for i in range(5))
+    q1, v1m = y[:n], y[n:]
+    A, K1, K2, Ka = (p[i * n:(i + 1) * n] for i in range(4))
+    rigid, K = robot.rigid, robot.K
+    ev = v1m - vh1
+    v1 = -K1 * z - K2 * ev
+    rhs1 = (-christoffel_times(rigid, q1, v1m, vh1) - rigid.F @ vh1 - K @ (qh1 - qh2)
+            - rigid.g(q1) + Ka * (q1 - qh1) - v1)
+    acc1 = np.linalg.solve(robot.M(q1), rhs1)
+    acc2 = robot.Jinv @ (K @ (qh1 - qh2) + u)
+    return np.concatenate([vh1, acc1, vh2, acc2, -A * z + ev])
+
+
+def output(robot, x, y, u, p):
+    return np.array(x[:4 * robot.n], dtype=float)
+
+
+def init(robot, y0, est0, p):
+    return np.concatenate([est0, np.zeros(robot.n)])
+
+
+def sizes(robot):
+    n = robot.n
+    return {"nx": 5 * n, "ny": 2 * n, "nu": n, "nest": 4 * n}

@@ -1,0 +1,273 @@
+"""Seed 002 (Lotfi & Namvar) §V reproduced, and the adaptive observer on ur5 (SPEC §12.2).
+
+Plant: the robot under computed-torque tracking with the *true* state [ASSUMPTION, SPEC §12.2]
+
+    tau = M(q) (qdd_d + 40 (qd_d - qd) + 400 (q_d - q)) + C(q, qd) qd + F qd + g(q),
+    q_d = [sin 10 t, cos 10 t],  q(0) = q_d(0),  qd(0) = qd_d(0),
+
+integrated in C (RK4, torque held over a step). Because the controller uses the true state, the
+plant does not depend on the observers: the loop runs the plant first, then every observer over
+the recorded samples with ``run`` (the loop in C, or the numpy reference with reference=True).
+
+Measurements: y = (q_s, f_f) for the adaptive observer, y = q_s for the non-smooth one, with
+q_s = q + white Gaussian noise sampled at 1 kHz and held (std = 0.3 RMS(q_i) "30 %", A2-3, or
+a fixed std), and the CoM forces f_{f,i} = m_i (J_p^i qdd + Jdot_p^i qd - g_o) of SPEC §3.1
+computed from the true state and the applied torque (no force noise, SPEC §12.2).
+
+Step: dt = 1e-4 s for everything (SPEC §3.3: the sign of (35) is integrated literally, no
+smoothing; RK4 with the measurement held over the step).
+
+Scenarios: ``seed002`` (noise-free, Figs. 1–2 plus the comparison), ``seed002-noisy``
+(std = 0.3 RMS(q_i), Figs. 3–4), ``seed002-noise-3mrad`` (std = 0.003 rad), ``seed002-ur5``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+KP, KD = 400.0, 40.0                     # computed-torque gains, SPEC §12.2
+SU_INIT = np.array([2.0, 2.0, -1.0, -1.0])   # est0 = [qd_hat(0), qhat(0)], [S002 §V-B]
+
+
+# ---------------------------------------------------------------------------- plant side
+def seed002_reference(t):
+    """q_d, qd_d, qdd_d of q_d = [sin 10 t, cos 10 t]  [S002 §V]."""
+    w = 10.0
+    return (np.array([np.sin(w * t), np.cos(w * t)]), w * np.array([np.cos(w * t), -np.sin(w * t)]),
+            -w * w * np.array([np.sin(w * t), np.cos(w * t)]))
+
+
+def sinusoid_reference(robot, amplitude=0.6, omega=1.5, seed=3):
+    """q_d = q_c + A sin(w_i t + phi_i) per joint, inside the joint ranges (ur5 run)."""
+    rng = np.random.default_rng(seed)
+    n = robot.n
+    lo, hi = np.maximum(robot.q_lower, -np.pi), np.minimum(robot.q_upper, np.pi)
+    qc = 0.5 * (lo + hi) + rng.uniform(-0.5, 0.5, n)
+    w = omega * (1.0 + 0.3 * np.arange(n))
+    phi = rng.uniform(0, 2 * np.pi, n)
+
+    def ref(t):
+        s, c = np.sin(w * t + phi), np.cos(w * t + phi)
+        return qc + amplitude * s, amplitude * w * c, -amplitude * w * w * s
+    return ref
+
+
+def computed_torque_function(robot):
+    """Function (q, qd, a) -> M(q) a + C(q, qd) qd + F qd + g(q)."""
+    q, v, a = ca.SX.sym("q", robot.n), ca.SX.sym("v", robot.n), ca.SX.sym("a", robot.n)
+    tau = ca.mtimes(robot.mass_matrix(q), a) + robot.nle(q, v) + ca.mtimes(ca.DM(robot.F), v)
+    return ca.Function("ct", [q, v, a], [tau])
+
+
+def track(robot, reference, T, dt, substeps=1):
+    """Closed-loop tracking with the true state; returns t, Q, QD, TAU (N rows)."""
+    from ..plant import Plant
+    N = int(round(T / dt)) + 1
+    plant = Plant(robot, dt, substeps=substeps)
+    ct = computed_torque_function(robot)
+    qd0, vd0, _ = reference(0.0)
+    plant.reset(qd0, vd0)
+    n = robot.n
+    X, TAU = np.empty((N, 2 * n)), np.empty((N, n))
+    x = plant.state
+    for k in range(N):
+        q_d, v_d, a_d = reference(k * dt)
+        q, v = x[:n], x[n:]
+        tau = np.asarray(ct(q, v, a_d + KD * (v_d - v) + KP * (q_d - q))).reshape(-1)
+        X[k], TAU[k] = x, tau
+        if k < N - 1:
+            x = plant.advance(tau)
+    return np.arange(N) * dt, X[:, :n], X[:, n:], TAU
+
+
+def noisy(Q, std, dt, rate=1e3, seed=0):
+    """q_s = q + n, n ~ N(0, std^2) drawn at ``rate`` Hz and held (A2-3)."""
+    std = np.broadcast_to(np.asarray(std, float), (Q.shape[1],))
+    if not np.any(std > 0):
+        return Q.copy()
+    every = max(1, int(round(1.0 / (rate * dt))))
+    rng = np.random.default_rng(seed)
+    draws = rng.normal(size=((len(Q) + every - 1) // every, Q.shape[1])) * std
+    return Q + np.repeat(draws, every, axis=0)[: len(Q)]
+
+
+# ---------------------------------------------------------------------------- observers
+def _runner(spec, dt, reference):
+    if reference:
+        from ...reference import reference_observer
+        return reference_observer(spec, dt=dt, method="rk4")
+    from ... import compile_observer
+    return compile_observer(spec, dt=dt, method="rk4")
+
+
+def run_observer(spec, Y, U, dt, reference=False, est0=None):
+    """EST (N, nest) of ``spec`` over the samples (C, or the numpy reference)."""
+    obs = _runner(spec, dt, reference)
+    obs.reset(Y[0], est0=est0)
+    return obs.run(Y, U)
+
+
+def _window(t, T_ss):
+    return t >= t[-1] - T_ss
+
+
+def _rms(E):
+    return float(np.sqrt(np.mean(np.sum(E ** 2, axis=1))))
+
+
+_TRACKS = {}
+
+
+def experiment(robot_name="seed002_2r", T=5.0, dt=1e-4, noise=0.0, reference=False,
+               su=True, reference_traj=None, substeps=1, T_ss=1.0, seed=0, rows="all"):
+    """Run the plant and the observers; returns a dict of arrays (see ``summarize``).
+
+    noise  0 (none), "rms30" (std = 0.3 RMS(q_i), A2-3) or a std in rad."""
+    from models import load_robot
+
+    from ...observers import build
+    from ...observers._nonminimal import nonminimal
+    robot = load_robot(robot_name)
+    ref = reference_traj or (seed002_reference if robot_name == "seed002_2r" else sinusoid_reference(robot))
+    key = (robot_name, T, dt, substeps) if reference_traj is None else None
+    if key is None or key not in _TRACKS:
+        run = track(robot, ref, T, dt, substeps)
+        if key is not None:
+            _TRACKS.clear()                    # keep one plant run: tests reuse it across noise levels
+            _TRACKS[key] = run
+    t, Q, QD, TAU = _TRACKS[key] if key is not None else run
+    if isinstance(noise, str):
+        if noise != "rms30":
+            raise ValueError(f"noise must be a number or 'rms30', got {noise!r}")
+        std = 0.3 * np.sqrt(np.mean(Q ** 2, axis=0))
+    else:
+        std = np.full(robot.n, float(noise))
+    Qs = noisy(Q, std, dt, seed=seed)
+    spec = build("lotfi_namvar", robot, rows=rows)
+    nm = nonminimal(robot, rows)
+    N = len(t)
+    FF = np.asarray(nm.force_function().map(N)(Q.T, QD.T, TAU.T)).T            # SPEC §3.1
+    qs = ca.SX.sym("q", robot.n)
+    J_fun = ca.Function("J_n", [qs], [nm.jacobian(qs)])
+    Jall = np.asarray(J_fun.map(N)(Q.T)).reshape(nm.r, N, len(nm.joints))
+    NU = np.einsum("rkj,kj->kr", Jall, QD[:, nm.joints])                        # [S002 (9)]
+    EST = run_observer(spec, np.hstack([Qs, FF]), TAU, dt, reference)
+    no, r = len(nm.joints), nm.r
+    out = {"robot": robot_name, "t": t, "q": Q, "qd": QD, "tau": TAU, "q_s": Qs, "std": std,
+           "f_f": FF, "nu": NU, "joints": nm.joints, "row_names": nm.row_names,
+           "theta": nm.theta, "qd_hat": EST[:, :no], "nu_hat": EST[:, no:no + r],
+           "theta_hat": EST[:, no + r:], "T_ss": T_ss, "dt": dt, "reference": reference}
+    if su:
+        sspec = build("su_nonsmooth", robot)
+        est0 = SU_INIT if robot.n == 2 else None
+        out["su_est"] = run_observer(sspec, Qs, TAU, dt, reference, est0=est0)
+        out["qd_hat_su"] = out["su_est"][:, :robot.n]
+    return out
+
+
+def summarize(d):
+    """Figures of merit: thetahat at the end, nu and qd errors at the end and their RMS over
+    the steady-state window [T - T_ss, T]."""
+    t, J = d["t"], d["joints"]
+    ss = _window(t, d["T_ss"])
+    e_qd = d["qd_hat"] - d["qd"][:, J]
+    e_nu = d["nu_hat"] - d["nu"]
+    s = {"robot": d["robot"], "T": float(t[-1]), "dt": d["dt"],
+         "noise_std": [float(x) for x in d["std"]],
+         "observable_joints": [int(j) for j in J],
+         "theta_true": [float(x) for x in d["theta"]],
+         "thetahat_final": [float(x) for x in d["theta_hat"][-1]],
+         "nu_err_final_max": float(np.abs(e_nu[-1]).max()),
+         "qd_err_final_max": float(np.abs(e_qd[-1]).max()),
+         "qd_err_rms_ss_adaptive": _rms(e_qd[ss]),
+         "nu_err_rms_ss": _rms(e_nu[ss])}
+    if "qd_hat_su" in d:
+        e_su = d["qd_hat_su"] - d["qd"]
+        s["qd_err_final_max_su"] = float(np.abs(e_su[-1]).max())
+        s["qd_err_rms_ss_su"] = _rms(e_su[ss])
+    s["observers"] = "numpy reference" if d["reference"] else "compiled C"
+    return s
+
+
+def plot(d, out, tag):
+    """Figures in the spirit of [S002 Figs. 1–4]."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out)
+    t, J = d["t"], d["joints"]
+    e_nu = d["nu_hat"] - d["nu"]
+    r = e_nu.shape[1]
+    cols = min(r, 4)
+    rows_ = (r + cols - 1) // cols
+    fig, ax = plt.subplots(rows_, cols, figsize=(3.2 * cols, 2.4 * rows_), squeeze=False, sharex=True)
+    for j in range(r):
+        a = ax[j // cols][j % cols]
+        a.plot(t, e_nu[:, j], lw=0.8)
+        a.set_title(f"nu~ {d['row_names'][j]}", fontsize=8)
+        a.grid(alpha=0.3)
+    fig.suptitle(f"{tag}: link velocity estimation error (cf. Fig. 1)")
+    fig.tight_layout()
+    fig.savefig(out / "fig1_nu_error.png", dpi=110)
+    plt.close(fig)
+
+    fig, a = plt.subplots(figsize=(6, 3.5))
+    for j in range(r):
+        a.plot(t, d["theta_hat"][:, j], lw=0.9, label=f"thetahat {d['row_names'][j]}" if r <= 6 else None)
+    for th in np.unique(np.round(d["theta"], 12)):
+        a.axhline(th, color="k", ls=":", lw=0.8)
+    a.set_xlabel("t [s]")
+    a.set_title(f"{tag}: parameter estimates (cf. Fig. 2)")
+    if r <= 6:
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "fig2_thetahat.png", dpi=110)
+    plt.close(fig)
+
+    ss = _window(t, d["T_ss"])
+    for name, sel, title in (("fig3_qd_error.png", slice(None), "joint velocity error (cf. Fig. 3)"),
+                             ("fig4_qd_error_steady.png", ss, "steady state (cf. Fig. 4)")):
+        n_panels = 2 if "qd_hat_su" in d else 1
+        fig, ax = plt.subplots(n_panels, 1, figsize=(7, 2.6 * n_panels), squeeze=False, sharex=True)
+        e = d["qd_hat"] - d["qd"][:, J]
+        for k, j in enumerate(J):
+            ax[0][0].plot(t[sel], e[sel, k], lw=0.7, ls="-" if k == 0 else "--", label=f"qd~_{j + 1}")
+        ax[0][0].set_title("adaptive observer (13)", fontsize=9)
+        if n_panels == 2:
+            e = d["qd_hat_su"] - d["qd"]
+            for k in range(e.shape[1]):
+                ax[1][0].plot(t[sel], e[sel, k], lw=0.7, ls="-" if k == 0 else "--", label=f"qd~_{k + 1}")
+            ax[1][0].set_title("non-smooth observer (35)", fontsize=9)
+        for a in ax[:, 0]:
+            a.grid(alpha=0.3)
+            a.legend(fontsize=7, loc="upper right")
+        ax[-1][0].set_xlabel("t [s]")
+        fig.suptitle(f"{tag}: {title}", fontsize=10)
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=110)
+        plt.close(fig)
+
+
+def _scenario(tag, **kw):
+    def run(reference=False, out=Path("build/sim") / tag):
+        d = experiment(reference=reference, **kw)
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        plot(d, out, tag)
+        s = summarize(d)
+        s["noise"] = kw.get("noise", 0.0)
+        return s
+    run.__doc__ = f"Scenario {tag}: experiment({kw})."
+    return run
+
+
+SCENARIOS = {
+    "seed002": _scenario("seed002", noise=0.0),
+    "seed002-noisy": _scenario("seed002-noisy", noise="rms30"),
+    "seed002-noise-3mrad": _scenario("seed002-noise-3mrad", noise=0.003),
+    "seed002-ur5": _scenario("seed002-ur5", robot_name="ur5", T=20.0, dt=1e-3, su=False,
+                             substeps=2, T_ss=2.0),
+}

@@ -1,0 +1,310 @@
+"""Seed 003 (Arbo, Grotli & Gravdahl): the I&I speed observer on the two-link arm (SPEC §12.3),
+compared with the reconstructed Astolfi-Ortega-Venkatraman observer (SPEC §5); plus the
+quadrature study (docs/quadrature.md) and the ur5 benchmark.
+
+Scenario ``seed003``: plant at y(0) = [0, 0], x(0) = [-0.29, 6.66] (Table I), u = 0 [ASSUMPTION
+A3-4], horizon 2 s. I&I observer (k1, k2, k3, c_r) = (40, 8, 2.5, 0.001) with state
+xi(0) = [-8.45, 68.33], s_y(0) = [1, 2], s_x(0) = [10, 20], r(0) = 0.1 (Table I), set through
+``obs.state`` since s_y(0) != y(0). AOV observer: k1 = 10, k2 = 8, k3 = 2.5, c_r = 1, r(0) = 1 and
+the same filter states taken literally (qhat(0) = s_y(0), phat(0) = s_x(0), xi(0) = Table I)
+[ASSUMPTION, SPEC §5 item 5].
+
+Sample time: dt = 1e-4 s, RK4, one sub-step, for the plant (10 RK4 sub-steps) and both observers.
+The observer's fastest mode is about k1/k_m = 505 1/s plus psi2 ~ r^2/2 ||dbeta/dy||^2, both far
+inside RK4's stability interval at this dt while r stays below ~1 (it does here: Fig. 5 shows
+the RHS norm growing like r^2 beyond r ~ 1).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+Y0 = np.array([0.0, 0.0])
+X0 = np.array([-0.29, 6.66])
+XI0 = np.array([-8.45, 68.33])
+SY0 = np.array([1.0, 2.0])
+SX0 = np.array([10.0, 20.0])
+R0 = 0.1
+DT = 1e-4
+HORIZON = 2.0
+
+
+def specs(N=None):
+    """(ii_speed spec, ii_aov spec) of the seed-003 arm with the seed's gains."""
+    from models import load_robot
+
+    from ...observers import build
+    from ...observers._ii_common import DEFAULT_N
+    robot = load_robot("seed003_2r_abs")
+    N = N or DEFAULT_N
+    return (build("ii_speed", robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=R0, N=N),
+            build("ii_aov", robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=N))
+
+
+def _observer(spec, reference, dt):
+    if reference:
+        from ...reference import reference_observer
+        from ...reference import ii_aov as ref_aov
+        from ...reference import ii_speed as ref_ii
+        obs = reference_observer(spec, dt=dt, method="rk4")
+        obs.family = (ref_ii if spec.family == "ii_speed" else ref_aov).bound(spec.info["N"])
+        return obs
+    from ... import compile_observer
+    return compile_observer(spec, dt=dt, method="rk4")
+
+
+def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True):
+    """Closed loop of SPEC §12.3 with both observers; returns (summary, traces dict)."""
+    from ..plant import Plant
+    sp_ii, sp_aov = specs()
+    robot = sp_ii.robot
+    n = robot.n
+    plant = Plant(robot, dt, substeps=10)
+    obs = {"ii": _observer(sp_ii, reference, dt), "aov": _observer(sp_aov, reference, dt)}
+    x0 = {"ii": np.concatenate([XI0, SY0, SX0, [R0]]),
+          "aov": np.concatenate([XI0, SY0, SX0, [1.0]])}
+    for k, o in obs.items():
+        o.reset(Y0, np.zeros(2 * n))
+        o.state = x0[k]
+    plant.reset(Y0, X0)
+    N = int(round(T / dt)) + 1
+    X = np.empty((N, 2 * n))
+    S = {k: np.empty((N, 3 * n + 1)) for k in obs}
+    E = {k: np.empty((N, 2 * n)) for k in obs}
+    u = np.zeros(n)                                            # [ASSUMPTION A3-4] u = 0
+    x = plant.state
+    t0 = time.perf_counter()
+    for k in range(N):
+        X[k] = x
+        for name, o in obs.items():
+            S[name][k] = o.state
+            E[name][k] = o.step(x[:n], u)
+        if k < N - 1:
+            x = plant.advance(u)
+    wall = time.perf_counter() - t0
+    t = np.arange(N) * dt
+    tr = {"t": t, "x": X, "states": S, "est": E}
+    summary = summarize(tr, n)
+    summary.update({"dt": dt, "T": T, "method": "rk4", "plant_substeps": 10, "N_quadrature": sp_ii.info["N"],
+                    "reference": bool(reference), "wall_s": round(wall, 3),
+                    "k_m": sp_ii.info["design"]["k_m"], "k_M": sp_ii.info["design"]["k_M"],
+                    "k_c": sp_ii.info["design"]["k_c"]})
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        sweep = stiffness_sweep(obs["ii"])
+        summary["fig5_rhs_norm_at_r"] = {f"{r:g}": float(v) for r, v in zip(sweep[0][::10], sweep[1][::10])}
+        np.savez(out / "seed003.npz", t=t, x=X, **{f"state_{k}": v for k, v in S.items()},
+                 **{f"est_{k}": v for k, v in E.items()}, sweep_r=sweep[0], sweep_norm=sweep[1])
+        if plots:
+            plot(tr, sweep, out, n)
+    return summary, tr
+
+
+def summarize(tr, n):
+    """Convergence figures of both observers (SPEC §12.3 'Expected')."""
+    t, X = tr["t"], tr["x"]
+    q, qd = X[:, :n], X[:, n:]
+    res = {}
+    for name in ("ii", "aov"):
+        St, Et = tr["states"][name], tr["est"][name]
+        ey = np.linalg.norm(St[:, n:2 * n] - q, axis=1)
+        ex = np.linalg.norm(Et[:, :n] - qd, axis=1)            # filtered speed estimate
+        exh = np.linalg.norm(Et[:, n:] - qd, axis=1)           # unfiltered xhat
+        r = St[:, -1]
+
+        def settle(err, level):
+            above = np.nonzero(err >= level)[0]
+            return 0.0 if len(above) == 0 else (float(t[above[-1] + 1]) if above[-1] + 1 < len(t) else float("inf"))
+
+        res[name] = {"|s_y-y| t=0": float(ey[0]), "|s_y-y| final": float(ey[-1]),
+                     "t(|s_y-y|<1e-2)": settle(ey, 1e-2),
+                     "|s_x-x| t=0": float(ex[0]), "|s_x-x| t=0.5": float(ex[np.searchsorted(t, 0.5)]),
+                     "|s_x-x| final": float(ex[-1]), "t(|s_x-x|<1e-2)": settle(ex, 1e-2),
+                     "|xhat-x| final": float(exh[-1]),
+                     "r max": float(r.max()), "r final": float(r[-1])}
+    return res
+
+
+def stiffness_sweep(obs, r_grid=None):
+    """Fig. 5: ||[xi'; s_y'; s_x'; r']|| at the Table-I state for r on a log grid 1e-3..1e2."""
+    r_grid = np.logspace(-3, 2, 51) if r_grid is None else np.asarray(r_grid)
+    vals = [np.linalg.norm(obs.rhs(np.concatenate([XI0, SY0, SX0, [r]]), Y0, np.zeros(2))) for r in r_grid]
+    return r_grid, np.array(vals)
+
+
+def plot(tr, sweep, out, n):
+    """Figs. 2-5 of the seed (PNG, matplotlib Agg)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    t, X = tr["t"], tr["x"]
+    Si, Sa = tr["states"]["ii"], tr["states"]["aov"]
+    Ei, Ea = tr["est"]["ii"], tr["est"]["aov"]
+    w = t <= 0.2
+    fig, ax = plt.subplots(n, 1, figsize=(6, 5), sharex=True)
+    for i in range(n):
+        ax[i].plot(t[w], X[w, i], "b-", label="y")
+        ax[i].plot(t[w], Si[w, n + i], "g--", label="s_y (I&I, seed 003)")
+        ax[i].plot(t[w], Sa[w, n + i], "r:", label="qhat (AOV)")
+        ax[i].set_ylabel(f"y{i + 1} [rad]")
+    ax[0].legend(fontsize=8)
+    ax[-1].set_xlabel("t [s]")
+    fig.suptitle("Fig. 2: joint angles")
+    fig.savefig(out / "fig2_angles.png", dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(n, 1, figsize=(6, 5), sharex=True)
+    for i in range(n):
+        ax[i].plot(t, X[:, n + i], "b-", label="x")
+        ax[i].plot(t, Ei[:, i], "g--", label="s_x (I&I)")
+        ax[i].plot(t, Ea[:, i], "r:", label="T phat (AOV)")
+        ax[i].set_ylabel(f"x{i + 1} [rad/s]")
+    ax[0].legend(fontsize=8)
+    ax[-1].set_xlabel("t [s]")
+    fig.suptitle("Fig. 3: joint speeds")
+    fig.savefig(out / "fig3_speeds.png", dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    ax[0].semilogy(t, np.sum((Ei[:, :n] - X[:, n:]) ** 2, axis=1), "g", label="I&I ||s_x - x||^2")
+    ax[0].semilogy(t, np.sum((Ea[:, :n] - X[:, n:]) ** 2, axis=1), "r", label="AOV")
+    ax[0].set_xlabel("t [s]")
+    ax[0].legend()
+    ax[0].set_title("Fig. 4: ||s_x - x||^2")
+    ax[1].plot(t, Si[:, -1], "g", label="r (I&I)")
+    ax[1].plot(t, Sa[:, -1], "r", label="r (AOV)")
+    ax[1].set_xlabel("t [s]")
+    ax[1].legend()
+    ax[1].set_title("dynamic scaling r(t)")
+    fig.tight_layout()
+    fig.savefig(out / "fig4_error_and_r.png", dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.loglog(*sweep, "k.-")
+    ax.set_xlabel("r")
+    ax.set_ylabel("||[xi'; s_y'; s_x'; r']||")
+    ax.set_title("Fig. 5: RHS norm at the Table-I state")
+    fig.tight_layout()
+    fig.savefig(out / "fig5_stiffness.png", dpi=110)
+    plt.close(fig)
+
+
+def seed003(reference, out):
+    """Registry entry (python -m codegen simulate seed003)."""
+    summary, _ = run_seed003(reference=reference, out=out)
+    return summary
+
+
+SCENARIOS = {"seed003": seed003}
+
+
+# ============================================================================ quadrature study
+def quadrature_study(robots=("seed003_2r_abs", "ur5"), Ns=range(2, 17), samples=4, seed=0,
+                     write=None):
+    """Gauss-Legendre beta, dbeta/ds_y, dbeta/ds_x (reference formulas, N nodes) against an
+    adaptive reference (scipy.integrate.quad_vec, epsabs 1e-14, epsrel 1e-13) of the same
+    integrands. Returns {robot: {N: (err_beta, err_dsy, err_dsx)}}, worst relative errors over
+    ``samples`` random (y, s_y, s_x); with ``write`` a path, writes the markdown table there."""
+    from scipy.integrate import quad_vec
+
+    from models import load_robot
+
+    from ...reference import reference_robot
+    from ...reference import ii_speed as ref
+    rng = np.random.default_rng(seed)
+    k1 = 40.0
+    table = {}
+    for name in robots:
+        robot = reference_robot(load_robot(name).source)
+        n = robot.n
+        rows = {N: [0.0, 0.0, 0.0] for N in Ns}
+        for _ in range(samples):
+            y = rng.uniform(-np.pi, np.pi, n)
+            s_y = y + rng.normal(scale=0.5, size=n)
+            s_x = rng.normal(scale=2.0, size=n)
+
+            def integrand(sig, i):
+                z = s_y.copy()
+                z[i] = sig
+                Hi, dq, dx = ref.h_column_derivatives(robot, z, s_x, k1, i)
+                dq[:, i] = 0.0
+                return np.concatenate([Hi, dq.ravel(), dx.ravel()])
+
+            exact = sum(quad_vec(lambda s, i=i: integrand(s, i), 0.0, y[i], epsabs=1e-14,
+                                 epsrel=1e-13, limit=400)[0] for i in range(n))
+            eb, esy, esx = exact[:n], exact[n:n + n * n].reshape(n, n), exact[n + n * n:].reshape(n, n)
+            for N in Ns:
+                b, _, dsy, dsx = ref.beta_and_derivatives(robot, y, s_y, s_x, k1, N)
+                for k, (a, e) in enumerate(((b, eb), (dsy, esy), (dsx, esx))):
+                    rows[N][k] = max(rows[N][k], float(np.linalg.norm(a - e) / np.linalg.norm(e)))
+        table[name] = rows
+    if write is not None:
+        write_quadrature_doc(table, write, samples)
+    return table
+
+
+def write_quadrature_doc(table, path, samples):
+    lines = ["# Quadrature order of the I&I speed observer (seed 003)", "",
+             "beta (12) and its derivatives (14), (15) are N-node Gauss-Legendre sums on each "
+             "[0, y_i]. The table gives the worst relative error (2-norm, Frobenius for matrices) "
+             f"over {samples} random (y in [-pi, pi]^n, s_y = y + N(0, 0.5^2), s_x ~ N(0, 2^2)), "
+             "k1 = 40, against scipy.integrate.quad_vec (adaptive, epsabs 1e-14, epsrel 1e-13) "
+             "of the same exact integrands. Generated by "
+             "`codegen.sim.scenarios.seed003.quadrature_study(write='docs/quadrature.md')`.", ""]
+    for name, rows in table.items():
+        lines += [f"## {name}", "", "| N | beta | dbeta/ds_y | dbeta/ds_x |", "|---:|---:|---:|---:|"]
+        for N, (a, b, c) in rows.items():
+            lines.append(f"| {N} | {a:.2e} | {b:.2e} | {c:.2e} |")
+        lines.append("")
+    lines += ["## Default N = 8", "",
+              "The integrands are analytic in sigma (trigonometric polynomials over a positive "
+              "denominator det M), so Gauss-Legendre converges geometrically. At N = 8 the error "
+              "on the 2-DoF arm is below 1e-10 over full-range angles, far below what an observer "
+              "fed with encoder measurements needs, while the cost of the RHS grows linearly with "
+              "N (2 n N configurations per evaluation). N = 8 is the default "
+              "(`codegen.observers._ii_common.DEFAULT_N`); pass N to build() for more.", ""]
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_text("\n".join(lines))
+    return path
+
+
+# ============================================================================ benchmark
+def bench(robot="ur5", N=8, native=False, blocks=51):
+    """ur5 I&I RHS in C (codegen.harness.time_target) vs the numpy/pin reference (timeit).
+    Returns a dict with generation, emit, compile times, C size and ns per RHS / step."""
+    import timeit
+
+    from models import load_robot
+
+    from ...build import build, repo_root
+    from ...emit import emit
+    from ...harness import time_target
+    from ...observers import build as build_observer
+    from ...reference import reference_observer
+    from ...reference import ii_speed as ref_ii
+    rb = load_robot(robot)
+    t0 = time.perf_counter()
+    spec = build_observer("ii_speed", rb, N=N)
+    t_gen = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    target = emit(spec, repo_root() / "build" / "bench", dt=1e-3, method="rk4", substeps=1)
+    t_emit = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    build(target, native=native)
+    t_cc = time.perf_counter() - t0
+    c_bytes = sum(f.stat().st_size for f in target.glob("*.c"))
+    ours = time_target(target, blocks=blocks)
+    ref = reference_observer(spec)
+    ref.family = ref_ii.bound(N)
+    rng = np.random.default_rng(0)
+    y = rb.sample_configurations(1, 1)[0]
+    x = np.concatenate([rng.normal(size=rb.n), y + 0.1, rng.normal(size=rb.n), [0.1]])
+    u = np.zeros(rb.n)
+    reps = 20
+    t_ref = min(timeit.repeat(lambda: ref.rhs(x, y, u), number=reps, repeat=3)) / reps
+    return {"robot": robot, "N": N, "rhs_instructions": int(spec.rhs.n_instructions()),
+            "generate_s": round(t_gen, 2), "emit_s": round(t_emit, 2), "compile_s": round(t_cc, 2),
+            "c_bytes": int(c_bytes), "ns_per_rhs": ours["ns_per_rhs"], "ns_per_rk4_step": ours["ns_per_step"],
+            "ns_per_rhs_reference": t_ref * 1e9, "speedup": t_ref * 1e9 / ours["ns_per_rhs"],
+            "gate_1ms": ours["ns_per_rhs"] <= 1e6}
