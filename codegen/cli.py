@@ -14,11 +14,13 @@ from .targets import DEFAULT_FAMILY, DEFAULT_ROBOTS, default_spec, random_inputs
 
 
 def _progress(items, desc):
+    """(iterable with a progress bar on stderr, print function that does not break the bar)."""
     try:
         from tqdm import tqdm
-        return tqdm(items, desc=desc, unit="target", file=sys.stderr, leave=False)
+        return (tqdm(items, desc=desc, unit="target", file=sys.stderr, leave=False),
+                lambda s: tqdm.write(s, file=sys.stdout))
     except ImportError:  # pragma: no cover
-        return items
+        return items, print
 
 
 def cmd_list(args):
@@ -49,7 +51,8 @@ def cmd_generate(args):
     from .sim.trajectory import demo_trajectory
 
     rows = []
-    for name in _progress(args.robots, "generate"):
+    items, say = _progress(args.robots, "generate")
+    for name in items:
         spec, target, lib, t_gen, t_cc = _emit_and_build(name, args)
         t, Q, QD, TAU = demo_trajectory(spec.robot, T=args.T, dt=args.dt)
         work = repo_root() / "build" / "demo"
@@ -63,7 +66,7 @@ def cmd_generate(args):
         same = np.array_equal(obs.run(Q, TAU), EST)
         err0, errT = (np.linalg.norm(EST[i] - QD[i]) for i in (0, -1))
         rows.append((target.name, spec.p_default[0], t_gen, t_cc, err0, errT, same))
-        print(f"{target.name:30s} k0 = {spec.p_default[0]:7.4g}  gen {t_gen:4.1f}s  cc {t_cc:4.1f}s  "
+        say(f"{target.name:30s} k0 = {spec.p_default[0]:7.4g}  gen {t_gen:4.1f}s  cc {t_cc:4.1f}s  "
               f"|qd - qd_hat|: t=0 {err0:.3g} -> t={t[-1]:g}s {errT:.2g}   C harness == ctypes: {same}")
     print(f"{len(rows)} targets ({args.method}, dt = {args.dt:g} s, {args.hold} hold) in {Path(args.out).resolve()}")
     return 0 if all(r[-1] for r in rows) else 1
