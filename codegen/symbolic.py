@@ -219,3 +219,34 @@ def block_forward_substitution(Q, v, blocks, rcond_min):
         ws.append(rhs if _is_identity(Qaa) else qr_solve_guarded(Qaa, rhs, rcond_min))
     return ca.vertcat(*ws)
 
+
+
+def block_forward_substitution_jvp(phi_blocks, x, col_blocks, v_blocks, rcond_min):
+    """w = Q^{-1} v for Q = dPhi/dx block lower triangular (Phi split in ``phi_blocks``, x in
+    ``col_blocks`` of the same sizes), without forming the off-diagonal blocks:
+
+        w_a = Q_aa^{-1} (v_a - dPhi_a/dx [w_1; ...; w_{a-1}; 0])
+
+    the bracket is one forward-mode directional derivative (jtimes); Q_aa = dPhi_a/dx_a is
+    skipped when structurally the identity and otherwise solved by ``qr_solve_guarded``."""
+    c0 = np.cumsum([0] + list(col_blocks))
+    ws = []
+    for a, (phi, v) in enumerate(zip(phi_blocks, v_blocks)):
+        rhs = v
+        if a:
+            seed = ca.vertcat(*ws, ca.SX.zeros(int(c0[-1] - c0[a]), 1))
+            rhs = rhs - ca.jtimes(phi, x, seed)
+        xa = x[int(c0[a]):int(c0[a + 1])]
+        Qaa = ca.jacobian(phi, xa)
+        ws.append(rhs if _is_identity(Qaa) else qr_solve_guarded(Qaa, rhs, rcond_min))
+    return ca.vertcat(*ws)
+
+
+def block_lower_by_dependence(phi_blocks, x, col_blocks):
+    """True when block a of Phi does not depend on the x blocks after a (block lower triangular
+    dPhi/dx) and every diagonal block is square."""
+    if [b.numel() for b in phi_blocks] != list(col_blocks) or sum(col_blocks) != x.numel():
+        return False
+    c0 = np.cumsum([0] + list(col_blocks))
+    return not any(ca.depends_on(phi, x[int(c0[a + 1]):]) for a, phi in enumerate(phi_blocks)
+                   if c0[a + 1] < c0[-1])

@@ -18,8 +18,9 @@ component). The variants of the seed-004 experiments (SPEC §8.4):
 
 Q^{-1} v is a structured solve when Phi, reordered by derivative level, has a block
 lower-triangular Jacobian in the natural state order (O1, O2: [[I,0,0,0],[0,I,0,0],[*,*,M^-1K,0],
-[*,*,*,M^-1K]] [DERIVED], SPEC §8.3): forward substitution by blocks, identity pivots skipped,
-the others by a guarded QR solve. Otherwise (O3, O4, whose Q is constant) a general ca.solve.
+[*,*,*,M^-1K]] [DERIVED], SPEC §8.3): forward substitution by blocks, the off-diagonal
+products as forward-mode directional derivatives of Phi (Q itself is never formed), identity
+pivots skipped, the others (M^-1 K) by a guarded QR solve. Otherwise (O3, O4, whose Q is constant) a general ca.solve.
 
 Ill-conditioned pivot: when min|R_ii|/max|R_ii| of a pivot's QR falls below the runtime
 parameter ``rcond_min`` the right-hand side is NaN, so the C step reports a non-finite result
@@ -72,19 +73,23 @@ def variant_structure(robot, variant, x):
     raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
 
 
-def correction(Q, v, degrees, rcond_min):
-    """(Q^{-1} v, structured?) by block forward substitution over derivative levels when Q,
-    rows reordered level-major, is block lower triangular; ca.solve otherwise."""
+def correction(Phi, x, v, degrees, rcond_min):
+    """(Q^{-1} v, structured?) with Q = dPhi/dx: block forward substitution over derivative
+    levels (symbolic.block_forward_substitution_jvp) when Phi, rows reordered level-major, has a
+    block lower-triangular Jacobian in the natural state order; ca.solve (general) otherwise."""
     offsets = np.cumsum([0] + list(degrees))
     perm, blocks = [], []
     for level in range(max(degrees)):
         rows = [int(offsets[i]) + level for i, r in enumerate(degrees) if r > level]
         perm += rows
         blocks.append(len(rows))
-    Qp, vp = Q[perm, :], v[perm]
-    if sym.lower_block_structure(Qp, blocks, blocks):
-        return sym.block_forward_substitution(Qp, vp, blocks, rcond_min), True
-    return ca.solve(Q, v), False
+    b0 = np.cumsum([0] + blocks)
+    phi_blocks = [Phi[perm[b0[a]:b0[a + 1]]] for a in range(len(blocks))]
+    if sym.block_lower_by_dependence(phi_blocks, x, blocks):
+        v_blocks = [v[perm[b0[a]:b0[a + 1]]] for a in range(len(blocks))]
+        w = sym.block_forward_substitution_jvp(phi_blocks, x, blocks, v_blocks, rcond_min)
+        return w, True
+    return ca.solve(ca.jacobian(Phi, x), v), False
 
 
 def build(robot, variant="O1", eigenvalues=None, gains=None, rcond_min=1e-12):
@@ -105,13 +110,12 @@ def build(robot, variant="O1", eigenvalues=None, gains=None, rcond_min=1e-12):
     f = robot.drift(x)
     gens, degs, rows, H, y_names, row_error = variant_structure(robot, variant, x)
     Phi, _ = sym.observability_map(gens, degs, x, f)                       # [S004 (3.5)]
-    Q = ca.jacobian(Phi, x)                                                  # [S004 (A.24)]
     y = ca.SX.sym("y", len(y_names))
     k, rc = ca.SX.sym("k", nx), ca.SX.sym("rcond_min")
     e = y - H
     v = ca.vertcat(*[k[j] * e[row_error[j]] for j in range(nx)])             # Kg (y - H(xhat))
-    corr, structured = correction(Q, v, degs, rc)
-    xdot = robot.dynamics(x, u) + corr                                       # [S004 (3.10)]
+    corr, structured = correction(Phi, x, v, degs, rc)                      # Q^{-1} v, Q = dPhi/dx (A.24)
+    xdot = ca.cse(robot.dynamics(x, u) + corr)                               # [S004 (3.10)]
     p = ca.vertcat(k, rc)
     y0, est0 = ca.SX.sym("y0", len(y_names)), ca.SX.sym("est0", nx)
     return ObserverSpec(

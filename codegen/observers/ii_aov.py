@@ -97,12 +97,13 @@ def split_params(p, n):
 
 
 def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=None,
-          samples=2000, refine=True):
+          samples=None, refine=True):
     """AOV observer for ``robot`` (defaults: seed-003 comparison k1 = 10, SPEC §5 item 5)."""
     if not k1 > 4:
         raise ValueError(f"k1 must be > 4, got {k1}")
     if not (r0 >= c_r > 0):
         raise ValueError(f"need r0 >= c_r > 0, got r0={r0}, c_r={c_r}")
+    samples = samples or (2000 if robot.n <= 3 else 300)    # offline sups: sampled + refined
     design = bounds if bounds is not None else ii_aov_bounds(robot, samples=samples, refine=refine)
     n = robot.n
     pn = p_names(n)

@@ -71,7 +71,7 @@ def split_params(p, n):
 
 
 def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=None,
-          samples=2000, refine=True):
+          samples=None, refine=True):
     """I&I speed observer for ``robot`` (defaults: seed 003 Table II gains, r(0) = 0.1).
 
     ``bounds`` is an IISpeedDesign (design.ii_speed_bounds(robot) when None); ``N`` is the
@@ -80,6 +80,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
         raise ValueError(f"k1 must be > 4 [S003 (55)], got {k1}")
     if not (r0 > c_r > 0):
         raise ValueError(f"need r0 > c_r > 0 [S003 (38)], got r0={r0}, c_r={c_r}")
+    samples = samples or (2000 if robot.n <= 3 else 300)    # offline sups: sampled + refined
     design = bounds if bounds is not None else ii_speed_bounds(robot, samples=samples, refine=refine)
     n = robot.n
     pn = p_names(n)

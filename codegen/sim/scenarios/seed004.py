@@ -1,0 +1,283 @@
+"""Seed 004 (Caciolai & Pustina): elastic-joint robots, Tomei and Ciccarella-Germani observers,
+Spong's controllers. Simulations 1-10 of SPEC §12.4: ``python -m codegen simulate seed004-simK``.
+
+Discretisation (stated, SPEC §12.4 uses ode15s): every block is sampled at dt = 1e-4 s. The
+plant is RK4 with 2 substeps (h = 5e-5 s; fastest plant mode ~ sqrt(K (M^-1 + J^-1)) ~ 260 rad/s,
+h |lambda| ~ 0.013), observers RK4 with one step per sample (fastest observer eigenvalue -1000:
+h |lambda| = 0.1, well inside RK4's stability region), controllers evaluated once per sample
+(zero-order hold). ``dt_check`` in Sim 1's summary compares with dt = 5e-5.
+
+When the controller uses the true state, the plant/controller loop runs first and the observers
+then run over the recorded (y, u) in C (``obs.run``): they do not act on the loop. With an
+estimated state (Sim 2) the observer is stepped inside the loop.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+DT = 1e-4
+PLANT_SUBSTEPS = 2
+T_SIM, T_TRAJ = 10.0, 5.0
+THRESHOLD = 0.02                  # convergence: ||e(t)|| < 2 % of ||e(0)|| from then on
+
+
+# ---------------------------------------------------------------------------- building blocks
+def _robot(name):
+    from models.catalog import load_elastic
+    return load_elastic(name)
+
+
+def _compile(spec, dt=DT, method="rk4", substeps=1):
+    from ... import compile_observer
+    return compile_observer(spec, dt=dt, method=method, substeps=substeps)
+
+
+def observer(robot, kind, eigenvalues=None, reference=False, dt=DT):
+    """A stepped observer: kind 'tomei' or 'O1'..'O4' (C, or the numpy reference)."""
+    from ...observers import ciccarella_germani, tomei
+    spec = tomei.build(robot) if kind == "tomei" else \
+        ciccarella_germani.build(robot, kind, eigenvalues=eigenvalues)
+    if reference:
+        from ...reference.elastic import reference_observer
+        return spec, reference_observer(spec, dt=dt, method="rk4")
+    return spec, _compile(spec, dt)
+
+
+def measurement(spec, X):
+    """The observer's measurement rows for true states X (N, 4n)."""
+    n = X.shape[1] // 4
+    x1, x2, x3 = X[:, :n], X[:, n:2 * n], X[:, 2 * n:3 * n]
+    names = spec.y_names
+    if spec.family == "tomei":
+        return np.hstack([x1, x2])
+    v = spec.info["variant"]
+    if v == "O1":
+        return x1
+    if v == "O4":
+        return x3
+    if v == "O2":
+        return np.stack([x1, x2], axis=2).reshape(len(X), 2 * n)
+    K = np.diag(spec.robot.K)
+    assert len(names) == 2 * n
+    return np.hstack([x3, (x1 - x3) * K])
+
+
+def controller(robot, kind):
+    from ...controllers import spong
+    spec = spong.feedback_linearization(robot) if kind == "fl" else spong.integral_manifold(robot)
+    return _compile(spec)
+
+
+def closed_loop(robot, ctrl, x0, qf, T=T_SIM, dt=DT, est_observer=None, est0=None):
+    """Plant + controller (+ observer feeding the controller). Returns t, X, U (and EST)."""
+    from ...controllers.spong import cubic_reference
+    from ..elastic_plant import ElasticPlant
+    plant = ElasticPlant(robot, dt, substeps=PLANT_SUBSTEPS)
+    x0 = np.asarray(x0, dtype=float)
+    plant.reset(x0)
+    N = int(round(T / dt)) + 1
+    X, U = np.empty((N, robot.nx)), np.empty((N, robot.n))
+    EST = np.empty((N, robot.nx)) if est_observer else None
+    q0 = x0[:robot.n]
+    x = x0
+    none = np.zeros(0)
+    if est_observer:
+        spec, obs = est_observer
+        y_of = lambda xx: measurement(spec, xx[None])[0]  # noqa: E731
+        obs.reset(y_of(x), est0)
+    for k in range(N):
+        t = k * dt
+        r = cubic_reference(t, q0, qf, T_TRAJ).ravel()
+        X[k] = x
+        if est_observer:
+            y = y_of(x)
+            EST[k] = obs.estimate(y, np.zeros(robot.n))
+            u = ctrl.estimate(np.r_[EST[k], r], none)
+            obs.step(y, u)
+        else:
+            u = ctrl.estimate(np.r_[x, r], none)
+        U[k] = u
+        x = plant.advance(u)
+    t = np.arange(N) * dt
+    return (t, X, U, EST) if est_observer else (t, X, U)
+
+
+def run_observer(spec, obs, X, U, est0):
+    """Observer over recorded true states/inputs: EST (N, 4n), estimate at each sample."""
+    Y = measurement(spec, X)
+    obs.reset(Y[0], est0)
+    return obs.run(Y, U)
+
+
+def convergence_time(t, E, threshold=THRESHOLD):
+    """First t after which ||E(t)|| < threshold ||E(0)|| for good (inf if never)."""
+    nrm = np.linalg.norm(E, axis=1)
+    bad = np.flatnonzero(~(nrm < threshold * nrm[0]))
+    if bad.size == 0:
+        return 0.0
+    return float(t[bad[-1] + 1]) if bad[-1] + 1 < len(t) else float("inf")
+
+
+def _safe_run(spec, obs, X, U, est0):
+    """run_observer, or (None, reason) when the observer blows up (non-finite state)."""
+    try:
+        return run_observer(spec, obs, X, U, est0), None
+    except Exception as exc:  # ObserverError / FloatingPointError: the observer diverged
+        return None, f"{type(exc).__name__}: {str(exc)[:120]}"
+
+
+def _plot(out, name, t, curves, ylabel, log=True, title=None):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for label, y in curves.items():
+        (ax.semilogy if log else ax.plot)(t[:len(y)], y, label=label)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    path = Path(out) / f"{name}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return str(path)
+
+
+# ---------------------------------------------------------------------------- Sim 1
+SIM1_X0 = np.array([-np.pi / 2, 0, 0, 0, -np.pi / 2, 0, 0, 0])
+SIM1_XHAT0 = np.array([-np.pi / 2, 0, 0, 0, 0, 0, 0, 0])
+
+
+def sim1(reference=False, out="build/sim/seed004-sim1", T=T_SIM, dt=DT, dt_check=True):
+    """2R: Tomei (A = K2 = Q = 2000 I, Ka_eff = 10000 I) vs CG O1 (-100{3..10}); true-state FL
+    controller (A4-10) on the swing-up reference."""
+    robot = _robot("seed004_2r")
+    t0 = time.perf_counter()
+    t, X, U = closed_loop(robot, controller(robot, "fl"), SIM1_X0, [np.pi / 2, 0], T=T, dt=dt)
+    summary = {"dt": dt, "plant_substeps": PLANT_SUBSTEPS, "controller": "feedback linearisation (true state)"}
+    curves = {}
+    for kind, eig in (("tomei", None), ("O1", -100.0 * np.arange(3, 11))):
+        spec, obs = observer(robot, kind, eig, reference=reference, dt=dt)
+        EST = run_observer(spec, obs, X, U, SIM1_XHAT0)
+        E = X - EST
+        curves[kind] = np.linalg.norm(E, axis=1)
+        summary[f"{kind}_t_2pct_s"] = convergence_time(t, E)
+        summary[f"{kind}_max_motor_velocity_error"] = float(np.abs(E[:, 6:]).max())
+        if kind == "O1":
+            summary["O1_final_error"] = float(curves[kind][-1])
+    if dt_check:   # the same O1 run at half the sample time: the figure must not move
+        spec, obs = observer(robot, "O1", -100.0 * np.arange(3, 11), reference=reference, dt=dt / 2)
+        th, Xh, Uh = closed_loop(robot, controller_at(robot, "fl", dt / 2), SIM1_X0, [np.pi / 2, 0],
+                                 T=0.2, dt=dt / 2)
+        Eh = Xh - run_observer(spec, obs, Xh, Uh, SIM1_XHAT0)
+        summary["O1_t_2pct_s_half_dt_0.2s"] = convergence_time(th, Eh)
+    summary["max_|u|"] = float(np.abs(U).max())
+    summary["tracking_rms_rad"] = float(np.sqrt(np.mean((X[:, :2] - _ref_path(t, SIM1_X0[:2], [np.pi / 2, 0])) ** 2)))
+    summary["plot"] = _plot(out, "sim1_error_norm", t, curves, "||x - xhat||",
+                            title="Sim 1 (2R): Tomei vs Ciccarella-Germani O1")
+    summary["wall_s"] = time.perf_counter() - t0
+    return summary
+
+
+def controller_at(robot, kind, dt):
+    from ...controllers import spong
+    spec = spong.feedback_linearization(robot) if kind == "fl" else spong.integral_manifold(robot)
+    return _compile(spec, dt)
+
+
+def _ref_path(t, q0, qf):
+    from ...controllers.spong import cubic_reference
+    return np.array([cubic_reference(tk, q0, qf, T_TRAJ)[0] for tk in t])
+
+
+# ---------------------------------------------------------------------------- Sim 2
+def sim2(reference=False, out="build/sim/seed004-sim2", T=T_SIM, dt=DT):
+    """2R: FL vs integral-manifold controller, each with the true state and with the CG-O1
+    estimate (initial estimate as Sim 1)."""
+    robot = _robot("seed004_2r")
+    t0 = time.perf_counter()
+    qf = [np.pi / 2, 0]
+    summary, curves = {"dt": dt}, {}
+    for kind in ("fl", "manifold"):
+        ctrl = controller(robot, kind)
+        t, X, U = closed_loop(robot, ctrl, SIM1_X0, qf, T=T, dt=dt)
+        R = _ref_path(t, SIM1_X0[:2], qf)
+        summary[f"{kind}_true_rms_rad"] = float(np.sqrt(np.mean((X[:, :2] - R) ** 2)))
+        curves[f"{kind} true"] = np.linalg.norm(X[:, :2] - R, axis=1)
+        obs = observer(robot, "O1", -100.0 * np.arange(3, 11), reference=reference, dt=dt)
+        try:
+            t, X, U, _ = closed_loop(robot, ctrl, SIM1_X0, qf, T=T, dt=dt, est_observer=obs,
+                                     est0=SIM1_XHAT0)
+            summary[f"{kind}_estimated_rms_rad"] = float(np.sqrt(np.mean((X[:, :2] - R) ** 2)))
+            curves[f"{kind} estimated"] = np.linalg.norm(X[:, :2] - R, axis=1)
+        except Exception as exc:
+            summary[f"{kind}_estimated_rms_rad"] = float("inf")
+            summary[f"{kind}_estimated_failure"] = str(exc)[:120]
+    summary["plot"] = _plot(out, "sim2_tracking", t, curves, "||q1 - q_d|| (rad)",
+                            title="Sim 2 (2R): FL vs integral manifold")
+    summary["wall_s"] = time.perf_counter() - t0
+    return summary
+
+
+# ---------------------------------------------------------------------------- Sims 3-10 (3R)
+Q3_REST = np.array([0, np.pi / 2, 0])
+X0_SIM3 = np.r_[Q3_REST, 0, 0, 0, Q3_REST, 0, 0, 0]
+X0_SIM5 = np.r_[-np.pi, np.pi, -np.pi, 0, 0, 0, -np.pi, np.pi, -np.pi, 0, 0, 0]         # (5.4)
+X0_SIM6 = np.r_[-np.pi, np.pi, -np.pi, -4, 5, 10, -1.5 * np.pi, 0.5 * np.pi, -np.pi, 6, 10, -20]  # (5.8)
+QF_3R = [np.pi / 2, np.pi, 0]                                                             # (5.5)
+STUDIES = {
+    # sim: (observers, x0, initial estimate, eigenvalue range)
+    3: (("O1", "O2"), X0_SIM3, np.r_[Q3_REST, np.zeros(9)], (-250, -260)),
+    4: (("O1",), X0_SIM3, np.r_[Q3_REST, np.zeros(9)], (-500, -510)),
+    5: (("O1", "O2"), X0_SIM5, np.zeros(12), (-85, -90)),
+    6: (("O2",), X0_SIM6, np.zeros(12), (-250, -260)),
+    7: (("O3",), X0_SIM3, np.zeros(12), (-250, -260)),
+    8: (("O3",), X0_SIM6, np.zeros(12), (-250, -260)),
+    9: (("O4",), X0_SIM3, np.zeros(12), (-250, -260)),
+    10: (("O4",), X0_SIM6, np.zeros(12), (-250, -260)),
+}
+
+
+def study_3r(k, reference=False, out=None, T=T_SIM, dt=DT):
+    """3R study k (SPEC §12.4 table): manifold controller on the true state to [pi/2, pi, 0]."""
+    observers_, x0, xhat0, (e0, e1) = STUDIES[k]
+    robot = _robot("seed004_3r")
+    t0 = time.perf_counter()
+    t, X, U = closed_loop(robot, controller(robot, "manifold"), x0, QF_3R, T=T, dt=dt)
+    eig = np.linspace(e0, e1, 12)
+    summary, curves = {"dt": dt, "eigenvalues": [e0, e1], "max_|u|": float(np.abs(U).max())}, {}
+    for kind in observers_:
+        spec, obs = observer(robot, kind, eig, reference=reference, dt=dt)
+        EST, fail = _safe_run(spec, obs, X, U, xhat0)
+        if EST is None or not np.all(np.isfinite(EST)):
+            summary[f"{kind}_converged"] = False
+            summary[f"{kind}_failure"] = fail
+            continue
+        E = X - EST
+        nrm = np.linalg.norm(E, axis=1)
+        curves[kind] = nrm
+        tc = convergence_time(t, E)
+        summary[f"{kind}_converged"] = bool(nrm[-1] < THRESHOLD * nrm[0])
+        summary[f"{kind}_t_2pct_s"] = tc
+        summary[f"{kind}_peak_error"] = float(nrm.max())
+        summary[f"{kind}_peak_velocity_error"] = float(np.abs(E[:, [3, 4, 5, 9, 10, 11]]).max())
+        summary[f"{kind}_final_error"] = float(nrm[-1])
+    if curves and out is not None:
+        summary["plot"] = _plot(out, f"sim{k}_error_norm", t, curves, "||x - xhat||",
+                                title=f"Sim {k} (3R)")
+    summary["wall_s"] = time.perf_counter() - t0
+    return summary
+
+
+def _study(k):
+    return lambda reference=False, out=None: study_3r(k, reference=reference, out=out)
+
+
+SCENARIOS = {"seed004-sim1": sim1, "seed004-sim2": sim2,
+             **{f"seed004-sim{k}": _study(k) for k in STUDIES}}

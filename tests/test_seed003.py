@@ -1,0 +1,154 @@
+"""Seed 003: I&I speed observer (SPEC §4) and the reconstructed AOV observer (SPEC §5)."""
+import casadi as ca
+import numpy as np
+import pytest
+
+from codegen import compile_observer, observers
+from codegen.design import ii_speed_bounds
+from codegen.reference import reference_observer
+from codegen.reference import ii_aov as ref_aov
+from codegen.reference import ii_speed as ref_ii
+from codegen.targets import relative_error
+from models import load_robot
+
+TOL = 1e-9
+RNG = np.random.default_rng(3)
+
+
+def _reference(spec, dt, hold="zoh"):
+    ref = reference_observer(spec, dt=dt, method="rk4", hold=hold)
+    ref.family = (ref_ii if spec.family == "ii_speed" else ref_aov).bound(spec.info["N"])
+    return ref
+
+
+def _random_state(robot, y, scale=1.0, r=(0.05, 0.5)):
+    n = robot.n
+    return np.concatenate([RNG.normal(size=n) * 5 * scale, y + 0.3 * RNG.normal(size=n),
+                           RNG.normal(size=n) * 3 * scale, [RNG.uniform(*r)]])
+
+
+def test_eq59_is_transposed_christoffel_symbolic():
+    """SPEC §4.2 / A3-1: (59) = M^{-1}(k1 I - C^T) with the models' Christoffel C (CasADi side)."""
+    robot = load_robot("seed003_2r_abs")
+    c1, c2, c3 = 0.9698, 0.1575, 0.264
+    y, x, k1 = ca.SX.sym("y", 2), ca.SX.sym("x", 2), ca.SX.sym("k1")
+    H = ca.Function("H", [y, x, k1], [ca.solve(robot.mass_matrix(y), k1 * ca.DM.eye(2) - robot.coriolis(y, x).T)])
+    Hc = ca.Function("Hc", [y, x, k1], [ca.solve(robot.mass_matrix(y), k1 * ca.DM.eye(2) - robot.coriolis(y, x))])
+    for _ in range(20):
+        yv, xv, kv = RNG.uniform(-np.pi, np.pi, 2), RNG.uniform(-10, 10, 2), RNG.uniform(5, 50)
+        phi = yv[0] - yv[1]
+        s, c = np.sin(phi), np.cos(phi)
+        D = c1 * c2 - c3 ** 2 * c ** 2
+        H59 = np.array([[c2 * kv + c3 ** 2 * xv[1] * s * c, c3 * (c2 * xv[0] * s - kv * c)],
+                        [-c3 * (c1 * xv[1] * s + kv * c), c1 * kv - c3 ** 2 * xv[0] * s * c]]) / D
+        np.testing.assert_allclose(np.array(H(yv, xv, kv)), H59, rtol=1e-12, atol=1e-12)
+        if abs(s) > 0.1 and np.linalg.norm(xv) > 1:      # the Christoffel H really differs from (59)
+            assert np.abs(np.array(Hc(yv, xv, kv)) - H59).max() > 1e-3
+
+
+def test_design_reproduces_seed_constants():
+    """k_m, k_M, k_c of SPEC §4.2 / [S003 (58)] and Deltabar_x = k_c/k_m (Lemma 1)."""
+    d = ii_speed_bounds(load_robot("seed003_2r_abs"))
+    assert abs(d.k_m - 0.079239) < 5e-7
+    assert abs(d.k_M - 1.048061) < 5e-7
+    assert abs(d.k_c - 0.264) < 1e-9
+    assert d.deltabar_x == pytest.approx(d.k_c / d.k_m, rel=1e-12)
+
+
+def test_lemma2_coefficients_match_closed_form():
+    """a_ji = sup_phi |dH0_ij/dphi| (SPEC §4.2 closed form of H0) to 1e-6 relative."""
+    d = ii_speed_bounds(load_robot("seed003_2r_abs"))
+    c1, c2, c3 = 0.9698, 0.1575, 0.264
+    phi = np.linspace(-np.pi, np.pi, 400001)
+    c, s = np.cos(phi), np.sin(phi)
+    D = c1 * c2 - c3 ** 2 * c ** 2
+    dD = 2 * c3 ** 2 * c * s
+    # H0 = [[c2, -c3 c], [-c3 c, c1]] / D; derivative in closed form
+    d11 = -c2 * dD / D ** 2
+    d12 = (c3 * s * D + c3 * c * dD) / D ** 2
+    d22 = -c1 * dD / D ** 2
+    want = np.array([[np.abs(d11).max(), np.abs(d12).max()], [np.abs(d12).max(), np.abs(d22).max()]])
+    np.testing.assert_allclose(d.dy_k1, want, rtol=1e-6)
+
+
+@pytest.mark.parametrize("family", ["ii_speed", "ii_aov"])
+def test_emitted_c_equals_reference_2dof(family):
+    """RHS, init, estimate, single steps and a run: C against numpy reference, <= 1e-9 relative."""
+    robot = load_robot("seed003_2r_abs")
+    spec = observers.build(family, robot)
+    dt = 1e-4
+    obs = compile_observer(spec, dt=dt, method="rk4")
+    ref = _reference(spec, dt)
+    worst = 0.0
+    for k in range(60):
+        y = robot.sample_configurations(1, 100 + k)[0]
+        x = _random_state(robot, y, r=(1.0, 1.5) if family == "ii_aov" else (0.05, 0.5))
+        u = RNG.normal(size=2)
+        worst = max(worst, relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)))
+        est0 = RNG.normal(size=4) * 3
+        obs.reset(y, est0)
+        ref.reset(y, est0)
+        worst = max(worst, relative_error(obs.state, ref.state))
+        obs.state = x
+        ref.state = x
+        worst = max(worst, relative_error(obs.step(y, u), ref.step(y, u)))
+        worst = max(worst, relative_error(obs.state, ref.state))
+    assert worst <= TOL, worst
+
+
+def test_symbolic_equals_reference_ur5():
+    """ur5: the CasADi RHS (quadrature + AD) against the reference (quadrature + pinocchio's
+    analytical RNEA derivatives), <= 1e-9 relative; fast (no C)."""
+    robot = load_robot("ur5")
+    spec = observers.build("ii_speed", robot, bounds=ii_speed_bounds(robot, samples=50, refine=False))
+    ref = _reference(spec, 1e-3)
+    for k in range(3):
+        y = robot.sample_configurations(1, k)[0]
+        x = _random_state(robot, y)
+        u = RNG.normal(size=robot.n) * 10
+        a = np.array(spec.rhs(x, y, u, spec.p_default)).ravel()
+        assert relative_error(a, ref.rhs(x, y, u)) <= TOL
+        e = RNG.normal(size=2 * robot.n)
+        assert relative_error(np.array(spec.init(y, e, spec.p_default)).ravel(),
+                              ref.family.init(ref.robot, y, e, spec.p_default)) <= TOL
+
+
+def test_emitted_c_equals_reference_ur5():
+    """ur5: emitted C RHS against the reference on random inputs, <= 1e-9 relative
+    (the library comes from the build cache after the first compile)."""
+    robot = load_robot("ur5")
+    spec = observers.build("ii_speed", robot, bounds=ii_speed_bounds(robot, samples=50, refine=False))
+    obs = compile_observer(spec, dt=1e-3, method="rk4")
+    ref = _reference(spec, 1e-3)
+    for k in range(3):
+        y = robot.sample_configurations(1, 10 + k)[0]
+        x = _random_state(robot, y)
+        u = RNG.normal(size=robot.n) * 10
+        assert relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)) <= TOL
+
+
+def test_seed003_scenario_converges():
+    """SPEC §12.3 (0.6 s): s_y -> y, xhat and s_x -> x, r bounded, for the I&I observer; the
+    AOV comparison is in the same summary."""
+    from codegen.sim.scenarios.seed003 import run_seed003
+    s, tr = run_seed003(T=0.6, plots=False)
+    ii, aov = s["ii"], s["aov"]
+    assert ii["|s_y-y| final"] < 1e-2 < ii["|s_y-y| t=0"]
+    assert ii["|xhat-x| final"] < 1e-2
+    # e_x' = -psi2 e_x once xhat = x, psi2 >= k3 = 2.5: e^{-2.5 * 0.6} = 0.22
+    assert ii["|s_x-x| final"] < 0.15 * ii["|s_x-x| t=0"]
+    assert ii["r max"] <= 0.2 and ii["r final"] >= 1e-3 - 1e-12     # r > c_r, bounded
+    assert aov["|s_y-y| final"] < ii["|s_y-y| t=0"] and aov["r max"] < 10
+    n = 2
+    ex = np.linalg.norm(tr["est"]["ii"][:, :n] - tr["x"][:, n:], axis=1)
+    assert ex[-1] < ex[len(ex) // 2] < ex[len(ex) // 4]
+
+
+def test_quadrature_converges():
+    """beta and its derivatives converge with N to the adaptive value; < 1e-10 at N = 8 (2-DoF)."""
+    from codegen.sim.scenarios.seed003 import quadrature_study
+    t = quadrature_study(robots=("seed003_2r_abs",), Ns=(2, 4, 8, 16), samples=2)["seed003_2r_abs"]
+    for k in range(3):
+        assert t[2][k] > t[4][k] > t[8][k]
+        assert t[8][k] < 1e-10
+        assert t[16][k] < 1e-10

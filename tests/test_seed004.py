@@ -1,0 +1,237 @@
+"""Seed 004: DH/elastic models, symbolic Lie tools, CG O1-O4 and Tomei against the reference,
+the generated C against the reference, and a short Sim-1 run (SPEC §6-§10, §11.3-§11.4, §12.4)."""
+import casadi as ca
+import numpy as np
+import pytest
+
+from codegen.reference.elastic import reference_observer
+from models.catalog import load_elastic, load_robot
+
+TOL = 1e-9
+
+
+def _rel(a, b):
+    a, b = np.ravel(a), np.ravel(b)
+    return np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300)
+
+
+@pytest.fixture(scope="module")
+def qs():
+    return np.random.default_rng(4).uniform(-np.pi, np.pi, size=(25, 3))
+
+
+# ---------------------------------------------------------------- models (SPEC §11.3, §11.4)
+def test_2r_mass_matrix_and_gravity(qs):
+    r = load_robot("seed004_2r")
+    for q in qs[:, :2]:
+        c2, c1, c12 = np.cos(q[1]), np.cos(q[0]), np.cos(q[0] + q[1])
+        M = np.array([[1.52 + 0.32 * c2, 0.44 + 0.16 * c2], [0.44 + 0.16 * c2, 0.44]])
+        assert np.abs(np.array(r.M(q)) - M).max() < 1e-13
+        assert np.abs(np.ravel(r.g(q)) - [19.62 * c1 + 3.924 * c12, 3.924 * c12]).max() < 1e-12
+        s = -0.16 * np.sin(q[1])
+        v = np.array([0.7, -1.3])
+        S = s * np.array([[v[1], v[0] + v[1]], [-v[0], 0]])
+        assert np.abs(np.array(r.C(q, v)) - S).max() < 1e-13
+
+
+def test_3r_mass_matrix_det_and_gravity(qs):
+    r = load_robot("seed004_3r")
+    for q in qs:
+        _, q2, q3 = q
+        M = np.array(r.M(q))
+        M11 = (39 / 25 + 17 / 50 * np.cos(2 * q2) + 4 / 25 * np.cos(q3) + 4 / 25 * np.cos(2 * q2 + q3)
+               + 1 / 50 * np.cos(2 * q2 + 2 * q3))
+        want = np.array([[M11, 0, 0], [0, 38 / 25 + 8 / 25 * np.cos(q3), 11 / 25 + 4 / 25 * np.cos(q3)],
+                         [0, 11 / 25 + 4 / 25 * np.cos(q3), 11 / 25]])
+        assert np.abs(M - want).max() < 1e-13
+        c23, c2 = np.cos(q2 + q3), np.cos(q2)
+        detM = 6.4e-5 * (297 - 16 * np.cos(q3) ** 2) * (c23 ** 2 + 8 * c23 * c2 + 17 * c2 ** 2 + 30)
+        assert abs(np.linalg.det(M) - detM) < 1e-12 * detM
+        assert np.abs(np.ravel(r.g(q)) - [0, 19.62 * c2 + 3.924 * c23, 3.924 * c23]).max() < 1e-12
+
+
+def test_3r_det_Q_formula(qs):
+    """SPEC §8.3 / report (5.7): det Q = 1.5625e34 / [(16 cos^2 q3 - 297)^2 (...)^2], for the
+    symbolic Q = dPhi/dx (AD) and for the reference's hyper-dual Q."""
+    from codegen import symbolic as sym
+    e = load_elastic("seed004_3r")
+    x = ca.SX.sym("x", 12)
+    Phi, _ = sym.observability_map([x[i] for i in range(3)], [4] * 3, x, e.drift(x))
+    Qf = ca.Function("Q", [x], [ca.jacobian(Phi, x)])
+    from codegen.reference.elastic import ElasticRobot
+    ref = ElasticRobot(e.source)
+    for xs in e.sample_states(10, seed=3):
+        q2, q3 = xs[1], xs[2]
+        c23, c2 = np.cos(q2 + q3), np.cos(q2)
+        want = 1.5625e34 / ((16 * np.cos(q3) ** 2 - 297) ** 2 * (c23 ** 2 + 8 * c23 * c2 + 17 * c2 ** 2 + 30) ** 2)
+        assert abs(abs(np.linalg.det(np.array(Qf(xs)))) - want) < 1e-9 * want
+        assert abs(abs(np.linalg.det(ref.spong_jacobian(xs)[1])) - want) < 1e-9 * want
+
+
+def test_dh_reference_matches_symbolic_model():
+    """Newton-Euler numpy DH reference vs the CasADi CoM-Jacobian model: M, C v + g, f(x)."""
+    from codegen.reference.elastic import ElasticRobot
+    for name in ("seed004_2r", "seed004_3r"):
+        e = load_elastic(name)
+        ref = ElasticRobot(e.source)
+        for xs in e.sample_states(10, seed=1):
+            q, v = xs[:e.n], xs[e.n:2 * e.n]
+            assert _rel(ref.M(q), np.array(e.rigid.M(q))) < 1e-13
+            nle = np.array(e.rigid.C(q, v)) @ v + np.ravel(e.rigid.g(q))
+            assert _rel(ref.rigid.nle(q, v), nle) < 1e-13
+            assert _rel(ref.f(xs), np.array(e.f(xs))) < 1e-13
+
+
+def test_elastic_robot_shape_and_source():
+    e = load_elastic("seed004_2r")
+    assert (e.n, e.nx) == (2, 8)
+    assert e.source["kind"] == "elastic" and e.source["rigid"]["kind"] == "dh"
+    assert np.allclose(np.diag(e.J), 37.5) and np.allclose(np.diag(e.K), 20000)
+    assert np.allclose(np.diag(load_elastic("seed004_3r").J), 87.5)
+    x, u = e.sample_states(1, seed=2)[0], np.array([3.0, -4.0])
+    xd = np.ravel(e.xdot(x, u))
+    assert np.allclose(xd[6:], (20000 * (x[:2] - x[4:6]) + u) / 37.5)      # J q2'' = K(q1-q2) + u
+    M = np.array(e.rigid.M(x[:2]))
+    lhs = M @ xd[2:4] + np.array(e.rigid.C(x[:2], x[2:4])) @ x[2:4] + np.ravel(e.rigid.g(x[:2]))
+    assert np.allclose(lhs + 20000 * (x[:2] - x[4:6]), 0, atol=1e-9)       # link equation
+
+
+# ---------------------------------------------------------------- symbolic tools (SPEC §8.1)
+def test_relative_degree_and_decoupling_matrix():
+    from codegen import symbolic as sym
+    e = load_elastic("seed004_2r")
+    x = ca.SX.sym("x", 8)
+    f, G = e.drift(x), e.input_matrix(x)
+    X = e.sample_states(5, seed=5)
+    link = [x[0], x[1]]
+    assert sym.check_relative_degree(link, [4, 4], x, f, G, X) > 0
+    U = ca.Function("U", [x], [sym.decoupling_matrix(link, [4, 4], x, f, G)])
+    for xs in X:     # U = M^{-1} K J^{-1}  (A.43)
+        want = np.linalg.solve(np.array(e.rigid.M(xs[:2])), e.K) @ np.linalg.inv(e.J)
+        assert _rel(np.array(U(xs)), want) < 1e-12
+    with pytest.raises(ValueError, match="relative degree"):   # O4: q2 has relative degree 2
+        sym.check_relative_degree([x[4], x[5]], [4, 4], x, f, G, X)
+    assert sym.check_relative_degree([x[4], x[5]], [2, 2], x, f, G, X) > 0
+
+
+def test_gains_from_eigenvalues():
+    from codegen.design import ciccarella_germani_gains, spong_fl_gains, tomei_K1
+    k = ciccarella_germani_gains("O1", 2, -100.0 * np.arange(3, 11))
+    assert np.allclose(k, [1800, 1.19e6, 3.42e8, 3.6e10, 3400, 4.31e6, 2.414e9, 5.04e11], rtol=1e-12)
+    k2 = ciccarella_germani_gains("O2", 1, [-300, -400, -500, -600])
+    assert np.allclose(k2, [300, 1500, 7.4e5, 1.2e8])
+    Kc = spong_fl_gains(2, -5.0 * np.arange(1, 9))
+    assert np.allclose(Kc, [-15000, -6250, -875, -50, -1.05e6, -1.3325e5, -6275, -130])
+    assert np.allclose(tomei_K1(2000 * np.eye(2), 2000 * np.eye(2)), 0.5 * np.eye(2))
+
+
+def test_o2_error_dynamics_have_assigned_eigenvalues():
+    """Per joint, A - K C with C = [e1; e2] (position, velocity) has the 4 assigned eigenvalues."""
+    from codegen.design import ciccarella_germani_gains
+    p = np.array([-300.0, -400, -500, -600])
+    k = ciccarella_germani_gains("O2", 1, p)
+    A = np.diag(np.ones(3), 1)
+    KC = np.zeros((4, 4))
+    KC[0, 0] = k[0]
+    KC[1:, 1] = k[1:]
+    assert np.allclose(np.sort(np.linalg.eigvals(A - KC).real), np.sort(p))
+
+
+# ---------------------------------------------------------------- observers vs reference
+def _random_case(spec, rng, xs):
+    n = spec.robot.n
+    x = np.r_[xs, rng.normal(size=spec.nx - xs.size)] if spec.nx > xs.size else xs
+    y = rng.normal(size=spec.ny)
+    return x, y, 50 * rng.normal(size=n)
+
+
+@pytest.mark.parametrize("robot", ["seed004_2r", "seed004_3r"])
+@pytest.mark.parametrize("kind", ["O1", "O2", "O3", "O4", "tomei"])
+def test_observer_rhs_against_reference(robot, kind):
+    from codegen.observers import ciccarella_germani, tomei
+    e = load_elastic(robot)
+    spec = tomei.build(e) if kind == "tomei" else ciccarella_germani.build(e, kind)
+    if kind in ("O1", "O2"):
+        assert spec.info["structured_solve"]
+    ref = reference_observer(spec)
+    rng = np.random.default_rng(7)
+    p0 = spec.p_default.copy()
+    for xs in e.sample_states(10, seed=11):
+        x, y, u = _random_case(spec, rng, xs)
+        got = np.ravel(spec.rhs(x, y, u, spec.p_default))
+        assert _rel(got, ref.rhs(x, y, u)) < TOL
+        if kind != "tomei":      # the correction term matters (not a test of f alone)
+            p0[:-1] = 0
+            assert _rel(np.ravel(spec.rhs(x, y, u, p0)), got) > 1e-3
+
+
+@pytest.mark.parametrize("robot,kind", [("seed004_2r", k) for k in ("O1", "O2", "O3", "O4", "tomei")]
+                         + [("seed004_3r", k) for k in ("O3", "O4", "tomei", "O1", "O2")])
+def test_emitted_c_against_reference(robot, kind):
+    """Generated C (explicit Euler, dt = 1e-5, to keep the 3R kernels small) against the numpy
+    reference: rhs and one step from random states, and a 200-step run (relative 1e-9)."""
+    from codegen import compile_observer
+    from codegen.observers import ciccarella_germani, tomei
+    e = load_elastic(robot)
+    spec = tomei.build(e) if kind == "tomei" else ciccarella_germani.build(e, kind)
+    dt = 1e-5
+    obs = compile_observer(spec, dt=dt, method="euler")
+    ref = reference_observer(spec, dt=dt, method="euler")
+    rng = np.random.default_rng(3)
+    for xs in e.sample_states(10, seed=2):
+        x, y, u = _random_case(spec, rng, xs)
+        assert _rel(obs.rhs(x, y, u), ref.rhs(x, y, u)) < TOL
+        obs.reset(y)
+        obs.state = x
+        ref.reset(y)
+        ref.state = x
+        assert _rel(obs.step(y, u), ref.step(y, u)) < TOL
+        assert _rel(obs.state, ref.state) < TOL
+    # a run along a smooth measurement near the first state
+    x0 = e.sample_states(1, seed=9)[0]
+    N = 200
+    t = np.arange(N)[:, None] * dt
+    y0 = _random_case(spec, rng, x0)[1]
+    Y = y0 + 0.01 * np.sin(50 * t + np.arange(spec.ny))
+    U = 20 * np.cos(30 * t + np.arange(e.n))
+    est0 = x0
+    obs.reset(Y[0], est0)
+    ref.reset(Y[0], est0)
+    assert _rel(obs.run(Y, U), ref.run(Y, U)) < TOL
+
+
+def test_ill_conditioned_pivot_gives_nonfinite_status():
+    """rcond_min above 1 makes every pivot 'ill-conditioned': the C step reports a non-finite
+    result and the state stays unchanged."""
+    from codegen import compile_observer
+    from codegen.observers import ciccarella_germani
+    from codegen.runtime import ObserverError
+    e = load_elastic("seed004_2r")
+    spec = ciccarella_germani.build(e, "O1")
+    obs = compile_observer(spec, dt=1e-5, method="euler")
+    x = e.sample_states(1, seed=4)[0]
+    p = spec.p_default.copy()
+    p[-1] = 2.0
+    obs.reset(x[:2], x, p)
+    before = obs.state
+    with pytest.raises(ObserverError, match="(?i)finite"):
+        obs.step(x[:2] + 0.01, np.zeros(2))
+    assert np.array_equal(obs.state, before)
+    obs.params = spec.p_default
+    obs.step(x[:2] + 0.01, np.zeros(2))
+    assert np.all(np.isfinite(obs.state)) and not np.array_equal(obs.state, before)
+
+
+# ---------------------------------------------------------------- Sim 1, short horizon
+def test_sim1_o1_converges_within_50ms():
+    """Sim 1 (2R, CG O1 with -100{3..10}, true-state FL): ||x - xhat|| < 2 % of its initial
+    value from t = 0.05 s on (0.1 s horizon); Tomei has not converged by then."""
+    from codegen.sim.scenarios import seed004 as s
+    robot = load_elastic("seed004_2r")
+    t, X, U = s.closed_loop(robot, s.controller(robot, "fl"), s.SIM1_X0, [np.pi / 2, 0], T=0.1)
+    spec, obs = s.observer(robot, "O1", -100.0 * np.arange(3, 11))
+    E = X - s.run_observer(spec, obs, X, U, s.SIM1_XHAT0)
+    tc = s.convergence_time(t, E)
+    assert 0.02 < tc < 0.05
+    spec, obs = s.observer(robot, "tomei")
+    assert s.convergence_time(t, X - s.run_observer(spec, obs, X, U, s.SIM1_XHAT0)) == np.inf
