@@ -14,7 +14,9 @@ import tempfile
 from functools import lru_cache
 from pathlib import Path
 
-BASE_FLAGS = ["-O3", "-std=c99", "-fPIC", "-shared", "-Wall", "-Wextra", "-pedantic"]
+# -fno-semantic-interposition: let gcc inline CasADi's non-static helpers (casadi_sq) under -fPIC
+BASE_FLAGS = ["-O3", "-std=c99", "-fPIC", "-shared", "-fno-semantic-interposition", "-Wall", "-Wextra",
+              "-pedantic"]
 STRICT_FLAGS = ["-Werror"]
 
 

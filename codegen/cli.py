@@ -148,8 +148,16 @@ def cmd_bench(args):
     for r in rows:
         print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_rk4_step']:12.1f} {r['ns_pin_aba']:11.1f} "
               f"{r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f}")
+    extra = {}
+    if not args.no_scenarios:
+        from .sim.scenarios import benches
+        for name, fn in benches().items():
+            print(f"\n{name}: ", end="", flush=True)
+            extra[name] = fn()
+            print("  ".join(f"{k} = {v}" for k, v in extra[name].items()))
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=2))
+        Path(args.json).write_text(json.dumps({"observer_rhs": rows, "scenarios": extra}, indent=2,
+                                              default=float))
     return 0
 
 
@@ -190,6 +198,7 @@ def main(argv=None):
     be.add_argument("bench_robots", nargs="*", default=["ur5", "panda"])
     be.add_argument("--native", action="store_true")
     be.add_argument("--json", help="also write the figures to this file")
+    be.add_argument("--no-scenarios", action="store_true", help="only the observer RHS table")
     s = sub.add_parser("simulate", help="run a scenario of the seed papers")
     s.add_argument("name")
     s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")

@@ -20,6 +20,17 @@ def registry():
     return reg
 
 
+def benches():
+    """name -> bench() of every scenario module that has one (timings for `make bench`)."""
+    out = {}
+    for m in pkgutil.iter_modules(__path__):
+        if not m.name.startswith("_"):
+            fn = getattr(importlib.import_module(f"{__name__}.{m.name}"), "bench", None)
+            if fn is not None:
+                out[m.name] = fn
+    return out
+
+
 def run(name, reference=False, out="build/sim"):
     reg = registry()
     if name not in reg:
