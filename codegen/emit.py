@@ -267,9 +267,13 @@ int {prefix}_init({prefix}_state *s, const double *p, const double *y0, const do
   return {P}_OK;
 }}
 
-/* The 7 kernel arguments (x, y_prev, y, u_prev, u, p, active) of step and estimate. */
-static void {prefix}_args(const {prefix}_state *s, const double *y, const double *u, const double *active,
-                          const double **arg) {{
+/* Check the arguments of step/estimate; fill the 7 kernel arguments (x, y_prev, y, u_prev, u, p, active). */
+static int {prefix}_prepare(const {prefix}_state *s, const double *y, const double *u, const double *est,
+                            double *active, const double **arg) {{
+  if (!s || !y || !est || (!u && {P}_NU > 0)) return {P}_ERR_BAD_ARG;
+  if (!{prefix}_finite(y, {P}_NY) || ({P}_NU > 0 && !{prefix}_finite(u, {P}_NU)))
+    return {P}_ERR_NONFINITE_INPUT;
+  *active = s->primed ? 1.0 : 0.0;
   arg[0] = s->x;
   arg[1] = s->primed ? s->y_prev : y;
   arg[2] = y;
@@ -277,17 +281,15 @@ static void {prefix}_args(const {prefix}_state *s, const double *y, const double
   arg[4] = u;
   arg[5] = s->p;
   arg[6] = active;
+  return {P}_OK;
 }}
 
 int {prefix}_step({prefix}_state *s, const double *y, const double *u, double *est) {{
   const double *arg[{z['SZ_ARG']}];
   double *res[{z['SZ_RES']}];
   double active;
-  if (!s || !y || !est || (!u && {P}_NU > 0)) return {P}_ERR_BAD_ARG;
-  if (!{prefix}_finite(y, {P}_NY) || ({P}_NU > 0 && !{prefix}_finite(u, {P}_NU)))
-    return {P}_ERR_NONFINITE_INPUT;
-  active = s->primed ? 1.0 : 0.0;
-  {prefix}_args(s, y, u, &active, arg);
+  int status = {prefix}_prepare(s, y, u, est, &active, arg);
+  if (status != {P}_OK) return status;
   res[0] = s->x_next; res[1] = s->est;
   if ({prefix}_k_step(arg, res, s->iw, s->w, 0)) return {P}_ERR_KERNEL;
   if (!{prefix}_finite(s->x_next, {P}_NX) || !{prefix}_finite(s->est, {P}_NEST))
@@ -306,11 +308,8 @@ int {prefix}_estimate(const {prefix}_state *s, const double *y, const double *u,
   double w[{P}_SZ_W];
   int iw[{P}_SZ_IW];
   double active;
-  if (!s || !y || !est || (!u && {P}_NU > 0)) return {P}_ERR_BAD_ARG;
-  if (!{prefix}_finite(y, {P}_NY) || ({P}_NU > 0 && !{prefix}_finite(u, {P}_NU)))
-    return {P}_ERR_NONFINITE_INPUT;
-  active = s->primed ? 1.0 : 0.0;
-  {prefix}_args(s, y, u, &active, arg);
+  int status = {prefix}_prepare(s, y, u, est, &active, arg);
+  if (status != {P}_OK) return status;
   res[0] = est;
   if ({prefix}_k_estimate(arg, res, iw, w, 0)) return {P}_ERR_KERNEL;
   if (!{prefix}_finite(est, {P}_NEST)) return {P}_ERR_NONFINITE_RESULT;

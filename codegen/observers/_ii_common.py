@@ -21,7 +21,7 @@ import casadi as ca
 
 from ..symbolic import integrate
 
-DEFAULT_N = 8          # Gauss-Legendre nodes per integral (docs/quadrature.md)
+DEFAULT_N = 16         # Gauss-Legendre nodes per integral (docs/quadrature.md)
 
 
 def substitute_entry(v, i, value):

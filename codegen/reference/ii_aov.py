@@ -28,7 +28,7 @@ from types import SimpleNamespace
 import numpy as np
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
-DEFAULT_N = 8
+DEFAULT_N = 16
 _H = 1e-30
 
 

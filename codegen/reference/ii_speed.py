@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
-DEFAULT_N = 8
+DEFAULT_N = 16
 
 
 def quadrature_nodes(N):
