@@ -117,6 +117,30 @@ class CompiledObserver:
         self._check(self._estimate(self._s, yp, up, self._ptr["est"]), "estimate")
         return self._buf["est"][: self.nest].copy()
 
+    def bind(self, y, u, est):
+        """Zero-copy calls on caller-owned C-contiguous float64 buffers (for simulation loops).
+
+        Returns (step, estimate): functions of no argument that run the C on the buffers' current
+        contents, write into ``est`` and raise ObserverError on a non-zero status. Python checks
+        nothing (the C still rejects non-finite input); keep the buffers alive while bound."""
+        for name, a, size in (("y", y, self.ny), ("u", u, self.nu), ("est", est, self.nest)):
+            if not (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous
+                    and a.size >= max(1, size)):
+                raise ValueError(f"{name}: need a C-contiguous float64 array of at least {max(1, size)} entries")
+        args = (self._s, y.ctypes.data_as(_D), u.ctypes.data_as(_D), est.ctypes.data_as(_D))
+        c_step, c_est, check = self._step, self._estimate, self._check
+
+        def step():
+            st = c_step(*args)
+            if st:
+                check(st, "step")
+
+        def estimate():
+            st = c_est(*args)
+            if st:
+                check(st, "estimate")
+        return step, estimate
+
     def c_step(self, y, u):
         """The raw C step, no Python-side checks: returns (status, est). For tests of the C."""
         self._buf["y"][: self.ny] = np.asarray(y, float).reshape(-1)[: self.ny]

@@ -76,48 +76,29 @@ class Port:
     entry points directly; anything else (the numpy reference) through its Python methods."""
 
     def __init__(self, block, y, u):
-        import ctypes as ct
-
         self.block, self.y, self.u = block, y, u
         self.nest, self.nx = block.nest, block.nx
         self._est = np.zeros(max(1, self.nest))   # C may touch one slot even when nest = 0
         self.est = self._est[: self.nest]
-        self._x = np.zeros(max(1, self.nx))
-        self.compiled = hasattr(block, "_step") and hasattr(block, "_s")
+        self.compiled = hasattr(block, "bind")
         if self.compiled:
-            D = ct.POINTER(ct.c_double)
-            ptr = lambda a: a.ctypes.data_as(D)  # noqa: E731  (arrays stay alive in self)
-            self._args = (block._s, ptr(y), ptr(u), ptr(self._est))
-            self._c_step, self._c_estimate = block._step, block._estimate
-            self._c_get, self._xp = block._get_state, ptr(self._x)
-
-    def _fail(self, what, status):
-        from ..runtime import ObserverError
-        raise ObserverError(f"{self.block.prefix}_{what} returned {status} "
-                            f"({self.block.status_names.get(status, 'unknown')}); state unchanged")
+            self._c_step, self._c_estimate = block.bind(y, u, self._est)
 
     def step(self):
         if self.compiled:
-            st = self._c_step(*self._args)
-            if st:
-                self._fail("step", st)
+            self._c_step()
         else:
             self.est[:] = self.block.step(self.y, self.u)
         return self.est
 
     def estimate(self):
         if self.compiled:
-            st = self._c_estimate(*self._args)
-            if st:
-                self._fail("estimate", st)
+            self._c_estimate()
         else:
             self.est[:] = self.block.estimate(self.y, self.u)
         return self.est
 
     def state(self):
-        if self.compiled:
-            self._c_get(self._args[0], self._xp)
-            return self._x[: self.nx]
         return self.block.state
 
 
