@@ -237,3 +237,18 @@ def test_first_order_hold_removes_the_sampling_bias(name, spec_of):
     a = spec.p_default[0] * 1e-3
     assert err["zoh"] > 0.5 * (a / (1 - np.exp(-a)) - 1) * np.abs(QD).max()
     assert err["foh"] < 2e-3
+
+
+def test_generated_folder_builds_standalone(spec_of, tmp_path):
+    """What an embedded user does: no Python, just the folder's Makefile or CMakeLists.txt."""
+    import subprocess
+    target = emit(spec_of("seed000_2r"), tmp_path)
+    r = subprocess.run(["make", "-C", str(target)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert (target / f"lib{target.name}.a").exists() and (target / f"lib{target.name}.so").exists()
+    if shutil.which("cmake"):
+        b = tmp_path / "cmake-build"
+        for cmd in (["cmake", "-S", str(target), "-B", str(b)], ["cmake", "--build", str(b)]):
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            assert r.returncode == 0, r.stdout + r.stderr
+        assert (b / f"lib{target.name}.a").exists()

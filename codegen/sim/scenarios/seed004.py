@@ -281,3 +281,53 @@ def _study(k):
 
 SCENARIOS = {"seed004-sim1": sim1, "seed004-sim2": sim2,
              **{f"seed004-sim{k}": _study(k) for k in STUDIES}}
+
+
+# ---------------------------------------------------------------------------- scale / bench
+def _time_rhs(fn, args, repeat=2000):
+    t0 = time.perf_counter()
+    for _ in range(repeat):
+        fn(*args)
+    return (time.perf_counter() - t0) / repeat * 1e9
+
+
+def bench(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
+    """O1 on elastic robots: generation time, C size, compile time, a cross-check of the C rhs
+    against the reference (exact hyper-duals for DH robots; for URDF robots pinocchio's
+    first-order ABA derivatives with central differences for the y4 rows of Q), and ns per rhs
+    call through ctypes (C) and per reference rhs (numpy). Returns a list of dicts."""
+    from ...build import build
+    from ...emit import emit
+    from ...build import repo_root
+    from ...observers import ciccarella_germani
+    from ...reference.elastic import reference_observer
+    from ...runtime import load
+    rows = []
+    for name in robots:
+        robot = _robot(name)
+        t0 = time.perf_counter()
+        spec = ciccarella_germani.build(robot, "O1")
+        t_spec = time.perf_counter() - t0
+        target = emit(spec, repo_root() / "build" / "bench", dt=dt, method=method)
+        t_gen = time.perf_counter() - t0
+        c_bytes = sum(p.stat().st_size for p in Path(target).glob("*.c"))
+        t1 = time.perf_counter()
+        lib = build(target)
+        t_cc = time.perf_counter() - t1
+        obs = load(target, lib)
+        ref = reference_observer(spec, dt=dt)
+        rng = np.random.default_rng(0)
+        worst = 0.0
+        X = robot.sample_states(checks, seed=1)
+        for x in X:
+            y, u = x[:robot.n] + 0.01 * rng.normal(size=robot.n), 10 * rng.normal(size=robot.n)
+            worst = max(worst, float(np.linalg.norm(obs.rhs(x, y, u) - ref.rhs(x, y, u))
+                                     / np.linalg.norm(ref.rhs(x, y, u))))
+        args = (X[0], X[0][:robot.n], np.zeros(robot.n))
+        rows.append({"robot": robot.name, "nx": robot.nx, "instructions_rhs": spec.rhs.n_instructions(),
+                     "spec_s": t_spec, "generate_s": t_gen, "c_bytes": c_bytes, "compile_s": t_cc,
+                     "rhs_rel_err_vs_reference": worst, "reference_exact": ref.robot.exact,
+                     "ns_rhs_c_ctypes": _time_rhs(obs.rhs, args),
+                     "ns_rhs_reference": _time_rhs(ref.rhs, args, repeat=20)})
+        print(rows[-1])
+    return rows
