@@ -10,7 +10,7 @@ __version__ = "0.1.0"
 
 
 def compile_observer(spec, dt=1e-3, method="rk4", substeps=1, out_dir=None, prefix=None,
-                     native=False, hold="zoh"):
+                     native=False, hold="zoh", inline="auto"):
     """Emit, build and load ``spec`` as C; returns a CompiledObserver.
 
     The target goes to ``out_dir`` (default <repo>/build/targets) and the library to the
@@ -20,5 +20,6 @@ def compile_observer(spec, dt=1e-3, method="rk4", substeps=1, out_dir=None, pref
     from .runtime import load
 
     out_dir = out_dir or (repo_root() / "build" / "targets")
-    target = emit(spec, out_dir, dt=dt, method=method, substeps=substeps, prefix=prefix, hold=hold)
+    target = emit(spec, out_dir, dt=dt, method=method, substeps=substeps, prefix=prefix, hold=hold,
+                  inline=inline)
     return load(target, build(target, native=native))

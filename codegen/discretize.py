@@ -21,6 +21,10 @@ import casadi as ca
 
 METHODS = ("euler", "rk4")
 HOLDS = ("zoh", "foh")
+# Above this many RHS instructions the stages call one shared RHS routine in the C instead of
+# inlining it (RK4 x substeps copies): a big observer (I&I on a 6-DoF arm) stays small and quick
+# to compile. Below it, inlining lets common subexpressions (e.g. sin/cos of a held y) be shared.
+INLINE_LIMIT = 20000
 
 
 def integrator_step(f, x, t, h, method):
@@ -43,10 +47,9 @@ def _check(dt, method, substeps, hold):
         raise ValueError(f"need dt > 0 and an integer substeps >= 1, got dt={dt!r}, substeps={substeps!r}")
 
 
-def _symbols(spec):
-    return (ca.SX.sym("x", spec.nx), ca.SX.sym("y_prev", spec.ny), ca.SX.sym("y", spec.ny),
-            ca.SX.sym("u_prev", spec.nu), ca.SX.sym("u", spec.nu), ca.SX.sym("p", spec.np),
-            ca.SX.sym("active"))
+def _symbols(spec, sym):
+    return (sym("x", spec.nx), sym("y_prev", spec.ny), sym("y", spec.ny),
+            sym("u_prev", spec.nu), sym("u", spec.nu), sym("p", spec.np), sym("active", 1))
 
 
 def _advance(spec, x, y_of_t, u, p, dt, method, substeps):
@@ -56,8 +59,10 @@ def _advance(spec, x, y_of_t, u, p, dt, method, substeps):
     return x
 
 
-def _pieces(spec, dt, method, substeps, hold):
-    x, yp, y, up, u, p, active = _symbols(spec)
+def _pieces(spec, dt, method, substeps, hold, inline):
+    if inline == "auto":
+        inline = spec.rhs.n_instructions() <= INLINE_LIMIT
+    x, yp, y, up, u, p, active = _symbols(spec, ca.SX.sym if inline else ca.MX.sym)
     if hold == "zoh":
         xj = spec.jump(x, y, p) if spec.jump is not None else x
         est = spec.output(xj, y, u, p)
@@ -70,17 +75,18 @@ def _pieces(spec, dt, method, substeps, hold):
     return [x, yp, y, up, u, p, active], xn, est
 
 
-def discretize(spec, dt, method="rk4", substeps=1, hold="zoh"):
-    """The step Function of ``spec`` for step dt (s); see the module docstring."""
+def discretize(spec, dt, method="rk4", substeps=1, hold="zoh", inline="auto"):
+    """The step Function of ``spec`` for step dt (s); see the module docstring. ``inline``:
+    True (one flat SX expression), False (MX calling the spec's functions), "auto" (by size)."""
     _check(dt, method, substeps, hold)
-    ins, xn, est = _pieces(spec, dt, method, substeps, hold)
+    ins, xn, est = _pieces(spec, dt, method, substeps, hold, inline)
     return ca.Function("step", ins, [xn, est],
                        ["x", "y_prev", "y", "u_prev", "u", "p", "active"], ["x_next", "est"])
 
 
-def estimate(spec, dt, method="rk4", substeps=1, hold="zoh"):
+def estimate(spec, dt, method="rk4", substeps=1, hold="zoh", inline="auto"):
     """The estimate of ``step`` as its own Function (same inputs), without advancing the state."""
     _check(dt, method, substeps, hold)
-    ins, _, est = _pieces(spec, dt, method, substeps, hold)
+    ins, _, est = _pieces(spec, dt, method, substeps, hold, inline)
     return ca.Function("estimate", ins, [est],
                        ["x", "y_prev", "y", "u_prev", "u", "p", "active"], ["est"])

@@ -75,13 +75,14 @@ def metadata(spec, prefix, dt, method, substeps, hold, kernels):
     }
 
 
-def emit(spec, out_dir, dt=1e-3, method="rk4", substeps=1, prefix=None, hold="zoh"):
+def emit(spec, out_dir, dt=1e-3, method="rk4", substeps=1, prefix=None, hold="zoh", inline="auto"):
     """Write the C target of ``spec`` into ``out_dir/<prefix>/``; returns that folder (Path).
 
-    dt, method, substeps and hold define the discretisation (see codegen.discretize)."""
+    dt, method, substeps, hold and inline define the discretisation (see codegen.discretize)."""
     prefix = sanitize(prefix or spec.target_name)
-    fns = {"step": discretize(spec, dt, method, substeps, hold),
-           "estimate": estimate(spec, dt, method, substeps, hold), "rhs": spec.rhs, "init": spec.init}
+    fns = {"step": discretize(spec, dt, method, substeps, hold, inline),
+           "estimate": estimate(spec, dt, method, substeps, hold, inline), "rhs": spec.rhs,
+           "init": spec.init}
     kernels = {}
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -90,7 +91,8 @@ def emit(spec, out_dir, dt=1e-3, method="rk4", substeps=1, prefix=None, hold="zo
         cg = ca.CodeGenerator(f"{prefix}_kernels.c", {"with_header": True, "casadi_int": "int",
                                                       "casadi_real": "double", "verbose": False})
         for key, f in fns.items():
-            named = ca.Function(f"{prefix}_k_{key}", f.sx_in(), f.call(f.sx_in()))
+            ins = f.mx_in() if f.is_a("MXFunction") else f.sx_in()
+            named = ca.Function(f"{prefix}_k_{key}", ins, f.call(ins))
             cg.add(named)
             kernels[key] = {"name": named.name(), "n_instructions": int(named.n_instructions()),
                             "sz_arg": int(named.sz_arg()), "sz_res": int(named.sz_res()),
@@ -136,10 +138,14 @@ def _header(spec, prefix, meta):
     P = prefix.upper()
     s, d = meta["sizes"], meta["discretization"]
     z = _sizes(meta)
-    slot_macros = []
+    slot_macros, used = [], set()
     for kind, names in meta["names"].items():
         for i, nm in enumerate(names):
-            slot_macros.append(f"#define {P}_{kind.upper()}_{sanitize(nm).upper()} {i}")
+            macro = f"{P}_{kind.upper()}_{sanitize(nm).upper()}"
+            if macro in used:  # names differing only in case or punctuation (k_m, k_M)
+                macro = f"{macro}_{i}"
+            used.add(macro)
+            slot_macros.append(f"#define {macro} {i}")
     status = "\n".join(f"  {P}_{k} = {v}," for k, v in STATUS.items())
     return f"""/* {prefix}.h -- {_comment(spec.family)} observer for robot {_comment(sanitize(spec.robot.name))}.
  *

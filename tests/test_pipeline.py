@@ -252,3 +252,18 @@ def test_generated_folder_builds_standalone(spec_of, tmp_path):
             r = subprocess.run(cmd, capture_output=True, text=True)
             assert r.returncode == 0, r.stdout + r.stderr
         assert (b / f"lib{target.name}.a").exists()
+
+
+def test_rk4_calling_a_shared_rhs_equals_the_inlined_one(spec_of, tmp_path):
+    """inline=False (the stages call one RHS routine, for big observers) gives the same numbers
+    and strict C99."""
+    from codegen.sim.trajectory import demo_trajectory
+    spec = spec_of("ur5")
+    t, Q, QD, TAU = demo_trajectory(spec.robot, T=0.3)
+    ests = []
+    for inline in (True, False):
+        target = emit(spec, tmp_path / str(inline), hold="foh", substeps=2, inline=inline)
+        obs = load(target, build(target, strict=True, cache=tmp_path / "cache"))
+        obs.reset(Q[0])
+        ests.append(obs.run(Q, TAU))
+    assert np.allclose(ests[0], ests[1], rtol=1e-12, atol=1e-12)
