@@ -21,10 +21,11 @@ import casadi as ca
 
 METHODS = ("euler", "rk4")
 HOLDS = ("zoh", "foh")
-# Above this many RHS instructions the stages call one shared RHS routine in the C instead of
-# inlining it (RK4 x substeps copies): a big observer (I&I on a 6-DoF arm) stays small and quick
-# to compile. Below it, inlining lets common subexpressions (e.g. sin/cos of a held y) be shared.
-INLINE_LIMIT = 20000
+# Above this many inlined RHS instructions (RHS size x stages x substeps) the stages call one
+# shared RHS routine in the C instead: a big observer (I&I on a 6-DoF arm, an elastic 3R) stays
+# small and quick to compile. Below it, inlining lets common subexpressions (sin/cos of a held y)
+# be shared across stages.
+INLINE_LIMIT = 40000
 
 
 def integrator_step(f, x, t, h, method):
@@ -61,7 +62,8 @@ def _advance(spec, x, y_of_t, u, p, dt, method, substeps):
 
 def _pieces(spec, dt, method, substeps, hold, inline):
     if inline == "auto":
-        inline = spec.rhs.n_instructions() <= INLINE_LIMIT
+        stages = {"euler": 1, "rk4": 4}[method] * substeps
+        inline = spec.rhs.n_instructions() * stages <= INLINE_LIMIT
     x, yp, y, up, u, p, active = _symbols(spec, ca.SX.sym if inline else ca.MX.sym)
     if hold == "zoh":
         xj = spec.jump(x, y, p) if spec.jump is not None else x

@@ -11,8 +11,9 @@ It reads only plain data from an ObserverSpec (duck typing): ``family``, ``robot
     EST = ref.run(Y, U)           # (N, ny), (N, nu) -> (N, nest)
 
 A family module gives ``rhs(robot, x, y, u, p)``, ``output(robot, x, y, u, p)``,
-``init(robot, y0, est0, p)``, ``sizes(robot)``, optionally ``P_NAMES`` and, for hybrid
-observers, ``jump(robot, x, y, p)``.
+``init(robot, y0, est0, p)``, ``sizes(robot)``, optionally ``P_NAMES``, for hybrid
+observers ``jump(robot, x, y, p)``, and, when it needs generation options,
+``configure(robot, info, names) -> family`` (info = spec.info, names = the slot names).
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ from . import discretize
 from .robots import SEED_SOURCES, reference_robot
 
 # a family is a module of this package named like the symbolic one (codegen/observers/<family>.py)
-_NOT_FAMILIES = {"discretize", "robots"}
+_NOT_FAMILIES = {"discretize", "robots", "elastic"}
 FAMILIES = {m.name: importlib.import_module(f"{__name__}.{m.name}")
             for m in pkgutil.iter_modules(__path__)
             if m.name not in _NOT_FAMILIES and not m.name.startswith("_")}
@@ -86,8 +87,13 @@ class ReferenceObserver:
             raise ValueError(f"hold must be one of {discretize.HOLDS}, got {hold!r}")
         self.hold = hold
         self._prev = None   # (y, u) of the last sample, for the first-order hold
-        self.family = FAMILIES[spec.family]
         self.robot = reference_robot(spec.robot_source)
+        # a family may need generation options (plain data: spec.info, the slot names)
+        family = FAMILIES[spec.family]
+        configure = getattr(family, "configure", None)
+        names = {"x": list(spec.x_names), "y": list(spec.y_names), "u": list(spec.u_names),
+                 "p": list(spec.p_names), "est": list(spec.est_names)}
+        self.family = configure(self.robot, dict(spec.info), names) if configure else family
         self.dt, self.method, self.substeps = float(dt), method, int(substeps)
         self.x_names, self.y_names = list(spec.x_names), list(spec.y_names)
         self.u_names, self.est_names = list(spec.u_names), list(spec.est_names)

@@ -318,27 +318,8 @@ def reference_elastic(source):
     return ElasticRobot(source)
 
 
-def reference_observer(spec, dt=1e-3, method="rk4", substeps=1):
-    """``codegen.reference.reference_observer`` for specs on elastic robots.
-
-    ``reference_robot`` of robots.py does not know ``kind == "elastic"`` (and that file is not
-    ours to edit), so the generic ReferenceObserver is built with this module's dispatch for the
-    duration of the constructor. Once robots.reference_robot dispatches "elastic"/"dh" sources
-    here, this wrapper is the plain ``reference_observer``."""
-    from .. import reference as R
-    orig = R.reference_robot
-
-    def dispatch(source):
-        if source.get("kind") != "elastic":
-            return reference_rigid(source)
-        robot = ElasticRobot(source)
-        if spec.family == "ciccarella_germani":
-            from .ciccarella_germani import variant_of
-            robot.cg_variant = variant_of(list(spec.y_names), robot.n)
-        return robot
-
-    R.reference_robot = dispatch
-    try:
-        return R.ReferenceObserver(spec, dt=dt, method=method, substeps=substeps)
-    finally:
-        R.reference_robot = orig
+def reference_observer(spec, dt=1e-3, method="rk4", substeps=1, hold="zoh"):
+    """Kept for callers of the first version: the generic ``codegen.reference.reference_observer``
+    now dispatches elastic/DH robots and the CG variant itself."""
+    from . import reference_observer as generic
+    return generic(spec, dt=dt, method=method, substeps=substeps, hold=hold)

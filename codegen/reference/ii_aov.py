@@ -22,6 +22,8 @@ p = [k1, k2, k3, c_r, deltabar_p, r0, a (n^2 row-major), b (n^3, j,i,m)]; est = 
 """
 from __future__ import annotations
 
+import sys
+
 from functools import partial
 from types import SimpleNamespace
 
@@ -154,6 +156,11 @@ def init(robot, y0, est0, p, N=None):
 def sizes(robot):
     n = robot.n
     return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
+
+
+def configure(robot, info, names):
+    """The family with the spec's quadrature order N (``spec.info["N"]``)."""
+    return bound(info.get("N", DEFAULT_N)) if "N" in info else sys.modules[__name__]
 
 
 def bound(N):

@@ -27,6 +27,8 @@ b (n^3, C order j,i,m)].
 """
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
@@ -139,6 +141,11 @@ def init(robot, y0, est0, p, N=None):
 def sizes(robot):
     n = robot.n
     return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
+
+
+def configure(robot, info, names):
+    """The family with the spec's quadrature order N (``spec.info["N"]``)."""
+    return bound(info.get("N", DEFAULT_N)) if "N" in info else sys.modules[__name__]
 
 
 def bound(N):

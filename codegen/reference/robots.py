@@ -48,7 +48,11 @@ def reference_robot(source):
     """Build the reference robot described by a ``robot.source`` dict (see
     :func:`_build_reference_robot`); the dict is kept as ``robot.source`` so that observer
     families can read extra plain data a spec adds to it (e.g. seed 002's non-minimal rows)."""
-    robot = _build_reference_robot(source)
+    if isinstance(source, dict) and source.get("kind") in ("elastic", "dh"):
+        from . import elastic  # elastic-joint and DH-table robots (seed 004)
+        robot = elastic.ElasticRobot(source) if source["kind"] == "elastic" else elastic.DHRobot(source)
+    else:
+        robot = _build_reference_robot(source)
     robot.source = dict(source)
     return robot
 

@@ -50,11 +50,7 @@ def specs(N=None):
 def _observer(spec, reference, dt):
     if reference:
         from ...reference import reference_observer
-        from ...reference import ii_aov as ref_aov
-        from ...reference import ii_speed as ref_ii
-        obs = reference_observer(spec, dt=dt, method="rk4", hold=HOLD)
-        obs.family = (ref_ii if spec.family == "ii_speed" else ref_aov).bound(spec.info["N"])
-        return obs
+        return reference_observer(spec, dt=dt, method="rk4", hold=HOLD)
     from ... import compile_observer
     return compile_observer(spec, dt=dt, method="rk4", hold=HOLD)
 
@@ -303,7 +299,6 @@ def bench(robot="ur5", N=8, native=False, blocks=51):
     c_bytes = sum(f.stat().st_size for f in target.glob("*.c"))
     ours = time_target(target, blocks=blocks)
     ref = reference_observer(spec)
-    ref.family = ref_ii.bound(N)
     rng = np.random.default_rng(0)
     y = rb.sample_configurations(1, 1)[0]
     x = np.concatenate([rng.normal(size=rb.n), y + 0.1, rng.normal(size=rb.n), [0.1]])
