@@ -33,6 +33,7 @@ class Planar2R(RobotModel):
         self.q_lower, self.q_upper = np.full(2, -np.pi), np.full(2, np.pi)
         self.v_limit = np.full(2, np.inf)
         self.joint_names = ["q1", "q2"]
+        self._periodic = np.ones(2, dtype=bool)          # revolute joints: 2 pi-periodic
         self.source = {"kind": "closed_form", "name": name, "model": "planar_2r",
                        "params": {**{k: float(v) for k, v in p.items()},
                                   "F": [float(f) for f in np.diag(self.F)]}}
@@ -88,6 +89,7 @@ class Absolute2R(RobotModel):
         self.q_lower, self.q_upper = np.full(2, -np.pi), np.full(2, np.pi)
         self.v_limit = np.full(2, np.inf)
         self.joint_names = ["y1", "y2"]
+        self._periodic = np.ones(2, dtype=bool)          # absolute angles: 2 pi-periodic
         self.source = {"kind": "closed_form", "name": name, "model": "absolute_2r",
                        "params": {k: float(v) for k, v in self.p.items()}}
 

@@ -891,6 +891,7 @@ class UrdfRobot(RobotModel):
         self.dim = 3
         self.joint_names = [b.joint for b in self.tree.bodies]
         self.link_names = [b.link for b in self.tree.bodies]
+        self._periodic = np.array([b.kind == "R" for b in self.tree.bodies])   # revolute/continuous
         self.masses = np.array([b.mass for b in self.tree.bodies])
         self.F = np.diag(np.array(pm.damping, dtype=float))
         self.v_limit = np.array(pm.velocityLimit, dtype=float)

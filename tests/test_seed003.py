@@ -18,6 +18,8 @@ RNG = np.random.default_rng(3)
 def _reference(spec, dt, hold="zoh"):
     ref = reference_observer(spec, dt=dt, method="rk4", hold=hold)
     assert ref.family.N == spec.info["N"]      # the quadrature order reaches the reference
+    assert ref.family.periodic == spec.info["periodic"]    # and the same interval reduction
+    assert ref.family.N_period == spec.info["N_period"]
     return ref
 
 
@@ -81,7 +83,8 @@ def test_emitted_c_equals_reference_2dof(family):
     ref = _reference(spec, dt)
     worst = 0.0
     for k in range(60):
-        y = robot.sample_configurations(1, 100 + k)[0]
+        # angles past +-pi (a link going round): the interval reduction y = 2 pi m + rho
+        y = robot.sample_configurations(1, 100 + k)[0] + 2 * np.pi * RNG.integers(-2, 3, 2)
         x = _random_state(robot, y, r=(1.0, 1.5) if family == "ii_aov" else (0.05, 0.5))
         u = RNG.normal(size=2)
         worst = max(worst, relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)))
@@ -114,14 +117,18 @@ def test_symbolic_equals_reference_ur5():
 
 
 def test_emitted_c_equals_reference_ur5():
-    """ur5: emitted C RHS against the reference on random inputs, <= 1e-9 relative
-    (the library comes from the build cache after the first compile)."""
+    """ur5: emitted C RHS against the reference on random inputs, <= 1e-9 relative, with the
+    interval reduction (wrap="auto": all six joints revolute). N = 4 keeps the cold compile
+    short (the step calls the RHS routine, codegen/discretize.py); the accuracy of beta against
+    scipy is test_quadrature_converges's business. The library comes from the build cache
+    after the first compile."""
     robot = load_robot("ur5")
-    spec = observers.build("ii_speed", robot, N=8, bounds=ii_speed_bounds(robot, samples=50, refine=False))
+    spec = observers.build("ii_speed", robot, N=4, bounds=ii_speed_bounds(robot, samples=50, refine=False))
+    assert spec.info["periodic"] == [True] * 6
     obs = compile_observer(spec, dt=1e-3, method="rk4")
     ref = _reference(spec, 1e-3)
     for k in range(3):
-        y = robot.sample_configurations(1, 10 + k)[0]
+        y = robot.sample_configurations(1, 10 + k)[0] + 2 * np.pi * RNG.integers(-1, 2, 6)
         x = _random_state(robot, y)
         u = RNG.normal(size=robot.n) * 10
         assert relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)) <= TOL
@@ -144,12 +151,64 @@ def test_seed003_scenario_converges():
     assert ex[-1] < ex[len(ex) // 2] < ex[len(ex) // 4]
 
 
+def test_wrap_option_resolution():
+    """wrap="auto" follows robot.periodic (models side) and the reference robot's own flags
+    (pinocchio joint types, closed forms); True on a robot without periodic joints and a spec
+    whose flags disagree with the reference are errors."""
+    from codegen.observers._ii_common import resolve_wrap
+    from codegen.reference import reference_robot
+    from codegen.reference.ii_speed import resolve_wrap as ref_resolve
+    for name in ("ur5", "seed003_2r_abs", "seed000_2r"):
+        robot = load_robot(name)
+        rr = reference_robot(robot.source)
+        assert list(robot.periodic) == list(rr.periodic) == [True] * robot.n
+        assert resolve_wrap(robot, "auto") == ref_resolve(rr, {"wrap": "auto"}) == [True] * robot.n
+        assert resolve_wrap(robot, False) == [False] * robot.n
+    robot = load_robot("seed003_2r_abs")
+
+    class Sliding:                       # a robot declaring a non-periodic (prismatic) joint
+        n, name, joint_names, periodic = 2, "sliding", ["a", "b"], np.array([True, False])
+    assert resolve_wrap(Sliding, "auto") == [True, False]
+    with pytest.raises(ValueError):
+        resolve_wrap(Sliding, True)
+    with pytest.raises(ValueError):
+        ref_resolve(reference_robot(robot.source), {"wrap": "auto", "periodic": [True, False]})
+    spec = observers.build("ii_speed", robot, wrap=False)
+    assert spec.info["periodic"] == [False, False] and _reference(spec, 1e-3).family.periodic == [False, False]
+
+
+def test_wrap_removes_the_drift_at_large_angles():
+    """At y2 = 9.3 rad (where the seed-003 arm is at t = 2 s) the reduced quadrature keeps
+    dbeta/ds_y, dbeta/ds_x at the adaptive value; N-node Gauss-Legendre on [0, 9.3] does not."""
+    from scipy.integrate import quad_vec
+
+    from codegen.reference import reference_robot
+    robot = reference_robot(load_robot("seed003_2r_abs").source)
+    y, s_y, s_x, k1 = np.array([1.2, 9.3]), np.array([1.25, 9.3 - 2 * np.pi]), np.array([-2.0, 4.0]), 40.0
+
+    def integrand(sig, i):
+        z = s_y.copy()
+        z[i] = sig
+        Hi, dq, dx = ref_ii.h_column_derivatives(robot, z, s_x, k1, i)
+        dq[:, i] = 0.0
+        return np.concatenate([Hi, dq.ravel(), dx.ravel()])
+    exact = sum(quad_vec(lambda s, i=i: integrand(s, i), 0.0, y[i], epsabs=1e-13, epsrel=1e-12,
+                         limit=1000)[0] for i in range(2))
+
+    def err(periodic, N_period=None):
+        b, _, dsy, dsx = ref_ii.beta_and_derivatives(robot, y, s_y, s_x, k1, 16, True, periodic, N_period)
+        return np.abs(np.concatenate([b, dsy.ravel(), dsx.ravel()]) - exact).max()
+    assert err([False, False]) > 1e-3
+    assert err([True, True]) < 1e-4
+    assert err([True, True], 32) < 1e-9
+
+
 def test_quadrature_converges():
-    """beta and its derivatives converge with N to the adaptive value; < 1e-10 at the default
-    N (16) on the 2-DoF arm over full-range angles."""
+    """beta and its derivatives (reduced intervals) converge with N to the adaptive value on
+    the whole [0, y_i], |y_i| up to 3 pi; small at the default N on the 2-DoF arm."""
     from codegen.observers._ii_common import DEFAULT_N
     from codegen.sim.scenarios.seed003 import quadrature_study
-    t = quadrature_study(robots=("seed003_2r_abs",), Ns=(2, 4, 8, 12, DEFAULT_N), samples=2)["seed003_2r_abs"]
+    t = quadrature_study(robots=("seed003_2r_abs",), Ns=(4, 8, 16, 24), samples=2)["seed003_2r_abs"]
     for k in range(3):
-        assert t[2][k] > t[4][k] > t[8][k] > t[12][k]
-        assert t[DEFAULT_N][k] < 1e-10
+        assert t[4][k] > t[8][k] > t[16][k] > t[24][k]
+    assert max(t[DEFAULT_N][:3]) < QUAD_TOL

@@ -7,7 +7,19 @@ columns are ``col(i, q, x)``:
     dbeta/dy          = [col(i, [s_y with y_i in place i], s_x)]_i                            [S003 (13)]
 
 The integrals are N-point Gauss-Legendre sums (a generation parameter, see docs/quadrature.md);
-dbeta/dy is exact (fundamental theorem of calculus, no quadrature). The derivatives with
+dbeta/dy is exact (fundamental theorem of calculus, no quadrature).
+
+Interval reduction (``wrap``): for a joint whose dynamics are 2 pi-periodic in q_i (revolute,
+``robot.periodic[i]``), with y_i = 2 pi m + rho, m = floor(y_i / 2 pi + 1/2), |rho| <= pi,
+
+    int_0^{y_i} col_i d sigma = m int_{-pi}^{pi} col_i d sigma + int_0^{rho} col_i d sigma
+
+(the period by the N_period-node trapezoidal rule, [0, rho] by N-node Gauss-Legendre), so the
+quadrature error no longer grows with |y_i| (a free-swinging link goes round several times, and
+dbeta/ds_y, dbeta/ds_x, AD of the quadrature, then drift from the exact dbeta/dy). m is piecewise
+constant, so AD gives the right partials a.e.; dbeta/dy stays col_i at y_i. A column that does
+not depend on sigma at all (e.g. column 1 of a serial arm: M and C do not depend on q_1) is
+y_i col_i exactly, with no quadrature. The derivatives with
 respect to the filter states enter the observer only through the product
 
     dbeta/ds_y alpha2 + dbeta/ds_x alpha3                                                    [S003 (6)]
@@ -19,9 +31,39 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ..symbolic import integrate
+import numpy as np
+
+from ..symbolic import integrate, periodic_integrate, wrap_angle
 
 DEFAULT_N = 16         # Gauss-Legendre nodes per integral (docs/quadrature.md)
+WRAP_OPTIONS = ("auto", True, False)
+
+
+def resolve_wrap(robot, wrap="auto"):
+    """Per-joint interval reduction flags (list of n bools) for the generation option ``wrap``:
+
+    "auto"  wrap the joints the robot declares 2 pi-periodic (``robot.periodic``; none if the
+            robot does not say), True  wrap every joint (ValueError if the robot declares one
+            not periodic, e.g. prismatic), False  no reduction (plain [0, y_i] quadrature);
+    or an explicit sequence of n bools (checked against ``robot.periodic`` the same way)."""
+    n = robot.n
+    declared = getattr(robot, "periodic", None)
+    declared = np.zeros(n, bool) if declared is None else np.asarray(declared, dtype=bool).reshape(n)
+    if isinstance(wrap, str):
+        if wrap != "auto":
+            raise ValueError(f"wrap must be 'auto', True, False or n bools, got {wrap!r}")
+        return [bool(v) for v in declared]
+    if wrap is True or wrap is False:
+        flags = np.full(n, bool(wrap))
+    else:
+        flags = np.asarray(wrap, dtype=bool).reshape(-1)
+        if flags.size != n:
+            raise ValueError(f"wrap needs {n} flags, got {list(flags)}")
+    bad = [robot.joint_names[i] for i in range(n) if flags[i] and not declared[i]]
+    if bad:
+        raise ValueError(f"wrap: joints {bad} of {robot.name!r} are not declared 2 pi-periodic "
+                         f"(robot.periodic = {list(map(bool, declared))})")
+    return [bool(v) for v in flags]
 
 
 def substitute_entry(v, i, value):
@@ -29,12 +71,25 @@ def substitute_entry(v, i, value):
     return ca.vertcat(*[value if j == i else v[j] for j in range(v.numel())])
 
 
-def quadrature_beta(col, y, s_y, s_x, N):
-    """beta [S003 (12)] by N-node Gauss-Legendre on each [0, y_i], and the exact dbeta/dy (13)."""
+def quadrature_beta(col, y, s_y, s_x, N, periodic=None, N_period=None):
+    """beta [S003 (12)] by N-node Gauss-Legendre on each [0, y_i] (on [0, rho_i] plus m_i
+    periods by the N_period-node trapezoid for the joints flagged in ``periodic``, see the
+    module docstring), and the exact dbeta/dy (13)."""
     n = y.numel()
+    periodic = [False] * n if periodic is None else list(periodic)
+    N_period = N if N_period is None else N_period
     beta = ca.SX.zeros(n, 1)
     for i in range(n):
-        beta = beta + integrate(lambda s, i=i: col(i, substitute_entry(s_y, i, s), s_x), y[i], N)
+        f = (lambda s, i=i: col(i, substitute_entry(s_y, i, s), s_x))
+        sigma = ca.SX.sym("sigma")
+        probe = f(sigma)
+        if not ca.depends_on(probe, sigma):             # constant along sigma: exact
+            beta = beta + y[i] * probe
+        elif periodic[i]:
+            m, rho = wrap_angle(y[i])
+            beta = beta + m * periodic_integrate(f, N_period) + integrate(f, rho, N)
+        else:
+            beta = beta + integrate(f, y[i], N)
     dbeta_dy = ca.horzcat(*[col(i, substitute_entry(s_y, i, y[i]), s_x) for i in range(n)])
     return beta, dbeta_dy
 

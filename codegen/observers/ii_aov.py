@@ -32,7 +32,7 @@ import numpy as np
 from ..design import ii_aov_bounds
 from ..spec import ObserverSpec
 from ..symbolic import chol_lower, ldl_solve
-from ._ii_common import DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq, quadrature_beta
+from ._ii_common import DEFAULT_N, beta_directional, resolve_wrap, christoffel_column_matrix, frobenius_sq, quadrature_beta
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 
@@ -97,8 +97,9 @@ def split_params(p, n):
 
 
 def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=None,
-          samples=None, refine=True):
-    """AOV observer for ``robot`` (defaults: seed-003 comparison k1 = 10, SPEC §5 item 5)."""
+          samples=None, refine=True, wrap="auto", N_period=None):
+    """AOV observer for ``robot`` (defaults: seed-003 comparison k1 = 10, SPEC §5 item 5);
+    ``N``, ``wrap``, ``N_period``: the quadrature of beta, as in ii_speed.build."""
     if not k1 > 4:
         raise ValueError(f"k1 must be > 4, got {k1}")
     if not (r0 >= c_r > 0):
@@ -106,6 +107,8 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     samples = samples or (2000 if robot.n <= 3 else 300)    # offline sups: sampled + refined
     design = bounds if bounds is not None else ii_aov_bounds(robot, samples=samples, refine=refine)
     n = robot.n
+    periodic = resolve_wrap(robot, wrap)
+    N_period = int(N_period or N)
     pn = p_names(n)
     p_default = ([k1, k2, k3, c_r, design.deltabar_p, r0] + list(np.asarray(design.dq_k1).reshape(-1))
                  + list(np.asarray(design.dq_p).reshape(-1)))
@@ -118,7 +121,7 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     def col(i, q, v):
         return hbar_column(robot, q, v, K1, i)
 
-    beta, dbdq = quadrature_beta(col, y, qhat, phat, N)
+    beta, dbdq = quadrature_beta(col, y, qhat, phat, N, periodic, N_period)
     pbh = xi + beta
     My, T, Tinv = cholesky_velocity(robot, y)
     qd_hat = ca.mtimes(T, pbh)
@@ -142,7 +145,7 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", 2 * n)
     _, _, Tinv0 = cholesky_velocity(robot, y0)
     phat0 = ca.mtimes(Tinv0, est0[:n])
-    beta0, _ = quadrature_beta(col, y0, y0, phat0, N)
+    beta0, _ = quadrature_beta(col, y0, y0, phat0, N, periodic, N_period)
     x0 = ca.vertcat(ca.mtimes(Tinv0, est0[n:]) - beta0, y0, phat0, s["r0"])
 
     j = list(robot.joint_names)
@@ -155,5 +158,7 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
         output=ca.Function("output", [x, y, u, p], [ca.vertcat(ca.mtimes(T, phat), qd_hat)]),
         init=ca.Function("init", [y0, est0, p], [x0]),
         info={"design": design.as_dict(), "N": int(N), "quadrature": "gauss-legendre",
+              "wrap": wrap if isinstance(wrap, (str, bool)) else list(map(bool, wrap)),
+              "periodic": periodic, "N_period": N_period, "period_rule": "trapezoid",
               "norms": "frobenius", "estimate": "[T(y) phat; T(y) pbarhat]"},
     )

@@ -39,7 +39,7 @@ import numpy as np
 from ..design import ii_speed_bounds
 from ..spec import ObserverSpec
 from ..symbolic import ldl_solve
-from ._ii_common import DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq, quadrature_beta
+from ._ii_common import DEFAULT_N, beta_directional, resolve_wrap, christoffel_column_matrix, frobenius_sq, quadrature_beta
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 
@@ -71,11 +71,13 @@ def split_params(p, n):
 
 
 def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=None,
-          samples=None, refine=True):
+          samples=None, refine=True, wrap="auto", N_period=None):
     """I&I speed observer for ``robot`` (defaults: seed 003 Table II gains, r(0) = 0.1).
 
     ``bounds`` is an IISpeedDesign (design.ii_speed_bounds(robot) when None); ``N`` is the
-    number of Gauss-Legendre nodes per integral. Requires k1 > 4 and r0 > c_r > 0 [S003 (55),(38)]."""
+    number of Gauss-Legendre nodes per integral; ``wrap`` ("auto" | True | False | n bools,
+    see _ii_common.resolve_wrap) reduces the interval of the 2 pi-periodic joints to |rho| <= pi
+    plus whole periods, integrated by the N_period-node (default N) trapezoid. Requires k1 > 4 and r0 > c_r > 0 [S003 (55),(38)]."""
     if not k1 > 4:
         raise ValueError(f"k1 must be > 4 [S003 (55)], got {k1}")
     if not (r0 > c_r > 0):
@@ -83,6 +85,8 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     samples = samples or (2000 if robot.n <= 3 else 300)    # offline sups: sampled + refined
     design = bounds if bounds is not None else ii_speed_bounds(robot, samples=samples, refine=refine)
     n = robot.n
+    periodic = resolve_wrap(robot, wrap)
+    N_period = int(N_period or N)
     pn = p_names(n)
     p_default = ([k1, k2, k3, c_r, design.k_m, design.k_M, design.deltabar_x, r0]
                  + list(np.asarray(design.dy_k1).reshape(-1))
@@ -96,7 +100,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     def col(i, q, v):
         return h_column(robot, q, v, K1, i)
 
-    beta, dbdy = quadrature_beta(col, y, s_y, s_x, N)                   # [S003 (12),(13)]
+    beta, dbdy = quadrature_beta(col, y, s_y, s_x, N, periodic, N_period)                   # [S003 (12),(13)]
     xhat = xi + beta                                                    # [S003 (3b)]
     e_y, e_x = s_y - y, s_x - xhat                                      # [S003 (17),(18)]
     fd = robot.forward_dynamics(y, xhat, u)
@@ -118,7 +122,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
 
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", 2 * n)
     sx0, xhat0 = est0[:n], est0[n:]
-    beta0, _ = quadrature_beta(col, y0, y0, sx0, N)
+    beta0, _ = quadrature_beta(col, y0, y0, sx0, N, periodic, N_period)
     x0 = ca.vertcat(xhat0 - beta0, y0, sx0, s["r0"])
 
     j = list(robot.joint_names)
@@ -131,5 +135,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
         output=ca.Function("output", [x, y, u, p], [ca.vertcat(s_x, xhat)]),
         init=ca.Function("init", [y0, est0, p], [x0]),
         info={"design": design.as_dict(), "N": int(N), "quadrature": "gauss-legendre",
+              "wrap": wrap if isinstance(wrap, (str, bool)) else list(map(bool, wrap)),
+              "periodic": periodic, "N_period": N_period, "period_rule": "trapezoid",
               "norms": "frobenius", "estimate": "[s_x; xhat]"},
     )

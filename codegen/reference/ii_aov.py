@@ -29,6 +29,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from .ii_speed import column_nodes, resolve_wrap
+
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 DEFAULT_N = 16
 _H = 1e-30
@@ -86,16 +88,17 @@ def hbar_column(robot, q, p, k1, i):
     return k1 * Tinv[:, i] - T.T @ Mq @ dT[i] @ p - T.T @ robot.C(q, e) @ T @ p
 
 
-def beta_and_derivatives(robot, y, qhat, phat, k1, N, derivatives=True):
+def beta_and_derivatives(robot, y, qhat, phat, k1, N, derivatives=True, periodic=None, N_period=None):
+    """beta, dbeta/dq, dbeta/dqhat, dbeta/dphat; quadrature nodes (and the interval reduction
+    of the ``periodic`` joints) as in reference/ii_speed.column_nodes."""
     n = robot.n
-    t, w = np.polynomial.legendre.leggauss(int(N))
+    periodic = [False] * n if periodic is None else periodic
     beta = np.zeros(n)
     dqh, dph, dy = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
     for i in range(n):
         z = np.array(qhat, dtype=float)
-        for tk, wk in zip(t, w):
-            z[i] = 0.5 * y[i] * (1.0 + tk)
-            h = 0.5 * y[i] * wk
+        for sk, h in column_nodes(y[i], N, periodic[i], N_period):
+            z[i] = sk
             beta += h * hbar_column(robot, z, phat, k1, i)
             if derivatives:
                 for j in range(n):
@@ -112,12 +115,13 @@ def beta_and_derivatives(robot, y, qhat, phat, k1, N, derivatives=True):
     return beta, dy, dqh, dph
 
 
-def rhs(robot, x, y, u, p, N=None):
+def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
     n = robot.n
     s, a, b = params(p, n)
     k1 = s["k1"]
     xi, qhat, phat, r = x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n]
-    beta, dbdq, dqh, dph = beta_and_derivatives(robot, y, qhat, phat, k1, N or DEFAULT_N)
+    beta, dbdq, dqh, dph = beta_and_derivatives(robot, y, qhat, phat, k1, N or DEFAULT_N, True, periodic,
+                                                   N_period)
     pbh = xi + beta
     _, T, _, _ = kinematics(robot, y)
     qd_hat = T @ pbh
@@ -136,20 +140,22 @@ def rhs(robot, x, y, u, p, N=None):
     return np.concatenate([xi_dot, qhat_dot, phat_dot, [rdot]])
 
 
-def output(robot, x, y, u, p, N=None):
+def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
     n = robot.n
     xi, qhat, phat = x[:n], x[n:2 * n], x[2 * n:3 * n]
-    beta, *_ = beta_and_derivatives(robot, y, qhat, phat, params(p, n)[0]["k1"], N or DEFAULT_N, False)
+    beta, *_ = beta_and_derivatives(robot, y, qhat, phat, params(p, n)[0]["k1"], N or DEFAULT_N, False,
+                                    periodic, N_period)
     T = kinematics(robot, y)[1]
     return np.concatenate([T @ phat, T @ (xi + beta)])
 
 
-def init(robot, y0, est0, p, N=None):
+def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
     n = robot.n
     s = params(p, n)[0]
     Tinv = kinematics(robot, y0)[2]
     phat0 = Tinv @ est0[:n]
-    beta, *_ = beta_and_derivatives(robot, y0, y0, phat0, s["k1"], N or DEFAULT_N, False)
+    beta, *_ = beta_and_derivatives(robot, y0, y0, phat0, s["k1"], N or DEFAULT_N, False, periodic,
+                                   N_period)
     return np.concatenate([Tinv @ est0[n:] - beta, y0, phat0, [s["r0"]]])
 
 
@@ -159,11 +165,16 @@ def sizes(robot):
 
 
 def configure(robot, info, names):
-    """The family with the spec's quadrature order N (``spec.info["N"]``)."""
-    return bound(info.get("N", DEFAULT_N)) if "N" in info else sys.modules[__name__]
+    """The family with the spec's quadrature (N, interval reduction, N_period), see
+    reference/ii_speed.configure."""
+    if "N" not in info and "wrap" not in info:
+        return sys.modules[__name__]
+    return bound(info.get("N", DEFAULT_N), resolve_wrap(robot, info), info.get("N_period"))
 
 
-def bound(N):
-    """This family with quadrature order N fixed (see reference/ii_speed.py ``bound``)."""
-    return SimpleNamespace(rhs=partial(rhs, N=N), output=partial(output, N=N),
-                           init=partial(init, N=N), sizes=sizes, N=N)
+def bound(N, periodic=None, N_period=None):
+    """This family with the quadrature fixed (see reference/ii_speed.py ``bound``)."""
+    kw = dict(N=N, periodic=periodic, N_period=N_period)
+    return SimpleNamespace(rhs=partial(rhs, **kw), output=partial(output, **kw),
+                           init=partial(init, **kw), sizes=sizes, N=N, periodic=periodic,
+                           N_period=N_period)

@@ -67,18 +67,34 @@ def h_column_derivatives(robot, q, x, k1, i):
     return Hi, dq, dx
 
 
-def beta_and_derivatives(robot, y, s_y, s_x, k1, N, derivatives=True):
-    """beta (12), dbeta/dy (13), dbeta/ds_y (14), dbeta/ds_x (15)."""
-    n = robot.n
+def column_nodes(yi, N, periodic=False, N_period=None):
+    """(sigma_k, h_k) with int_0^{yi} f ~= sum_k h_k f(sigma_k): N-node Gauss-Legendre on
+    [0, yi]; for a 2 pi-periodic joint, with yi = 2 pi m + rho (m = floor(yi/2pi + 1/2)),
+    m times the N_period-node trapezoid over [-pi, pi) plus Gauss-Legendre on [0, rho]."""
     t, w = quadrature_nodes(N)
+    if not periodic:
+        return list(zip(0.5 * yi * (1.0 + t), 0.5 * yi * w))
+    m = np.floor(yi / (2 * np.pi) + 0.5)
+    rho = yi - 2 * np.pi * m
+    nodes = list(zip(0.5 * rho * (1.0 + t), 0.5 * rho * w))
+    if m != 0:
+        Np = int(N_period or N)
+        nodes += [(-np.pi + 2 * np.pi * k / Np, m * 2 * np.pi / Np) for k in range(Np)]
+    return nodes
+
+
+def beta_and_derivatives(robot, y, s_y, s_x, k1, N, derivatives=True, periodic=None, N_period=None):
+    """beta (12), dbeta/dy (13), dbeta/ds_y (14), dbeta/ds_x (15); ``periodic`` (n bools):
+    the joints whose interval is reduced to |rho| <= pi plus whole periods (column_nodes)."""
+    n = robot.n
+    periodic = [False] * n if periodic is None else periodic
     beta = np.zeros(n)
     dsy, dsx = np.zeros((n, n)), np.zeros((n, n))
     dy = np.zeros((n, n))
     for i in range(n):
         z = np.array(s_y, dtype=float)
-        for tk, wk in zip(t, w):
-            z[i] = 0.5 * y[i] * (1.0 + tk)
-            h = 0.5 * y[i] * wk
+        for sk, h in column_nodes(y[i], N, periodic[i], N_period):
+            z[i] = sk
             if derivatives:
                 Hi, dq, dx = h_column_derivatives(robot, z, s_x, k1, i)
                 dq[:, i] = 0.0                          # z_i(sigma) does not depend on s_y,i
@@ -96,13 +112,13 @@ def _split(x, n):
     return x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n]
 
 
-def rhs(robot, x, y, u, p, N=None):
+def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
     n = robot.n
     N = N or DEFAULT_N
     s, a, b = params(p, n)
     k1 = s["k1"]
     xi, s_y, s_x, r = _split(x, n)
-    beta, dbdy, dsy, dsx = beta_and_derivatives(robot, y, s_y, s_x, k1, N)
+    beta, dbdy, dsy, dsx = beta_and_derivatives(robot, y, s_y, s_x, k1, N, True, periodic, N_period)
     xhat = xi + beta
     e_y, e_x = s_y - y, s_x - xhat
     fd = robot.forward_dynamics(y, xhat, u)
@@ -120,21 +136,22 @@ def rhs(robot, x, y, u, p, N=None):
     return np.concatenate([alpha1, alpha2, alpha3, [rdot]])
 
 
-def output(robot, x, y, u, p, N=None):
+def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
     """est = [s_x; xhat]."""
     n = robot.n
     xi, s_y, s_x, _ = _split(x, n)
     beta, *_ = beta_and_derivatives(robot, y, s_y, s_x, params(p, n)[0]["k1"], N or DEFAULT_N,
-                                    derivatives=False)
+                                    False, periodic, N_period)
     return np.concatenate([s_x, xi + beta])
 
 
-def init(robot, y0, est0, p, N=None):
+def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
     """s_y = y0, s_x = est0[:n], xi = est0[n:] - beta(y0, y0, s_x), r = r0."""
     n = robot.n
     s = params(p, n)[0]
     sx0, xhat0 = est0[:n], est0[n:]
-    beta, *_ = beta_and_derivatives(robot, y0, y0, sx0, s["k1"], N or DEFAULT_N, derivatives=False)
+    beta, *_ = beta_and_derivatives(robot, y0, y0, sx0, s["k1"], N or DEFAULT_N, False, periodic,
+                                   N_period)
     return np.concatenate([xhat0 - beta, y0, sx0, [s["r0"]]])
 
 
@@ -143,16 +160,42 @@ def sizes(robot):
     return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
 
 
+def resolve_wrap(robot, info):
+    """The per-joint interval reduction of a spec, decided from this reference robot's own
+    ``periodic`` flags (pinocchio joint types / closed forms) and the spec's request
+    ``info["wrap"]`` ("auto": the periodic joints, True: all, False: none, or n bools);
+    ValueError if the spec's resolved ``info["periodic"]`` disagrees (independent check)."""
+    n = robot.n
+    declared = getattr(robot, "periodic", None)
+    declared = np.zeros(n, bool) if declared is None else np.asarray(declared, dtype=bool)
+    req = info.get("wrap", False)
+    if req == "auto":
+        flags = declared.copy()
+    elif req is True or req is False:
+        flags = np.full(n, bool(req))
+    else:
+        flags = np.asarray(req, dtype=bool).reshape(n)
+    if np.any(flags & ~declared):
+        raise ValueError(f"wrap {req!r}: the reference robot has non-periodic joints {list(declared)}")
+    if "periodic" in info and list(map(bool, info["periodic"])) != list(map(bool, flags)):
+        raise ValueError(f"spec periodic flags {info['periodic']} differ from the reference's {list(flags)}")
+    return [bool(v) for v in flags]
+
+
 def configure(robot, info, names):
-    """The family with the spec's quadrature order N (``spec.info["N"]``)."""
-    return bound(info.get("N", DEFAULT_N)) if "N" in info else sys.modules[__name__]
+    """The family with the spec's quadrature: order N (``spec.info["N"]``), interval reduction
+    (``info["wrap"]``, resolved with this robot's own periodicity) and ``info["N_period"]``."""
+    if "N" not in info and "wrap" not in info:
+        return sys.modules[__name__]
+    return bound(info.get("N", DEFAULT_N), resolve_wrap(robot, info), info.get("N_period"))
 
 
-def bound(N):
-    """This family with the quadrature order N fixed (the spec's generation parameter
-    ``spec.info["N"]``, which ReferenceObserver does not pass to families): assign to
-    ``ReferenceObserver.family`` when N differs from DEFAULT_N."""
+def bound(N, periodic=None, N_period=None):
+    """This family with the quadrature fixed (order N, per-joint ``periodic`` reduction,
+    N_period trapezoid nodes per period)."""
     from functools import partial
     from types import SimpleNamespace
-    return SimpleNamespace(rhs=partial(rhs, N=N), output=partial(output, N=N),
-                           init=partial(init, N=N), sizes=sizes, N=N)
+    kw = dict(N=N, periodic=periodic, N_period=N_period)
+    return SimpleNamespace(rhs=partial(rhs, **kw), output=partial(output, **kw),
+                           init=partial(init, **kw), sizes=sizes, N=N, periodic=periodic,
+                           N_period=N_period)

@@ -90,6 +90,7 @@ class ReferenceRobot:
     name: str
     n: int
     F: np.ndarray
+    periodic = None      # (n,) bools: joint i 2 pi-periodic (revolute); None: not declared
 
     def nle(self, q, v):
         """Non-linear effects C(q, v) v + g(q)."""
@@ -121,6 +122,7 @@ class Planar2R(ReferenceRobot):
         F = np.asarray(params.get("F", [0.0, 0.0]), dtype=float)
         self.F = np.diag(F) if F.ndim == 1 else F.reshape(2, 2)
         self.masses = np.array([p["m1"], p["m2"]])
+        self.periodic = np.ones(2, dtype=bool)             # revolute joints
         self.inertias = np.array([p["I1"], p["I2"]])
         self.a1 = p["I1"] + p["m1"] * p["lc1"] ** 2 + p["I2"] + p["m2"] * (p["l1"] ** 2 + p["lc2"] ** 2)
         self.a2 = p["m2"] * p["l1"] * p["lc2"]
@@ -197,6 +199,7 @@ class Absolute2R(ReferenceRobot):
         self.c = [float(params[k]) for k in ("c1", "c2", "c3", "c4", "c5")]
         self.gravity_scale = float(params.get("gravity_scale", 1.0))
         self.F = np.zeros((2, 2))
+        self.periodic = np.ones(2, dtype=bool)             # absolute angles
 
     def M(self, q):
         c1, c2, c3 = self.c[:3]
@@ -281,6 +284,10 @@ class UrdfRobot(ReferenceRobot):
                 raise ValueError(f"joint {j.shortname()} (nq={j.nq}, nv={j.nv}) is not supported: "
                                  "only 1-DoF revolute, continuous and prismatic joints")
         self.F = np.diag(np.asarray(self.model.damping, dtype=float))
+        # revolute (JointModelR*, RevoluteUnaligned, RevoluteUnbounded*: continuous) joints are
+        # 2 pi-periodic; prismatic ones (JointModelP*, PrismaticUnaligned) are not
+        self.periodic = np.array([j.shortname().startswith(("JointModelR", "JointModelRevolute"))
+                                  for j in self.model.joints[1:]])
 
     @staticmethod
     def _set_coordinate(joint, q_pin, value):

@@ -33,6 +33,9 @@ def benches():
 
 def run(name, reference=False, out="build/sim"):
     reg = registry()
+    if name == "list":
+        print("\n".join(sorted(reg)))
+        return 0
     if name not in reg:
         raise SystemExit(f"unknown scenario {name!r}; known: {', '.join(sorted(reg)) or '(none)'}")
     out = Path(out) / name

@@ -35,16 +35,18 @@ HOLD = "foh"        # y linear between samples: a zero-order hold biases xhat by
 HORIZON = 2.0
 
 
-def specs(N=None):
-    """(ii_speed spec, ii_aov spec) of the seed-003 arm with the seed's gains."""
+def specs(N=None, wrap="auto", N_period=None):
+    """(ii_speed spec, ii_aov spec) of the seed-003 arm with the seed's gains; N, wrap and
+    N_period: the quadrature of beta (ii_speed.build, docs/quadrature.md)."""
     from models import load_robot
 
     from ...observers import build
     from ...observers._ii_common import DEFAULT_N
     robot = load_robot("seed003_2r_abs")
     N = N or DEFAULT_N
-    return (build("ii_speed", robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=R0, N=N),
-            build("ii_aov", robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=N))
+    q = dict(N=N, wrap=wrap, N_period=N_period)
+    return (build("ii_speed", robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=R0, **q),
+            build("ii_aov", robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, **q))
 
 
 def _observer(spec, reference, dt):
@@ -55,10 +57,11 @@ def _observer(spec, reference, dt):
     return compile_observer(spec, dt=dt, method="rk4", hold=HOLD)
 
 
-def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True):
+def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True, N=None, wrap="auto",
+                N_period=None):
     """Closed loop of SPEC §12.3 with both observers; returns (summary, traces dict)."""
     from ..plant import Plant
-    sp_ii, sp_aov = specs()
+    sp_ii, sp_aov = specs(N, wrap, N_period)
     robot = sp_ii.robot
     n = robot.n
     plant = Plant(robot, dt, substeps=10)
@@ -79,8 +82,11 @@ def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True):
     for k in range(N):
         X[k] = x
         for name, o in obs.items():
-            S[name][k] = o.state
+            if HOLD == "zoh":
+                S[name][k] = o.state           # the state at t_k (step then advances it)
             E[name][k] = o.step(x[:n], u)
+            if HOLD == "foh":
+                S[name][k] = o.state           # first-order hold: step brings the state to t_k
         if k < N - 1:
             x = plant.advance(u)
     wall = time.perf_counter() - t0
@@ -88,6 +94,7 @@ def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True):
     tr = {"t": t, "x": X, "states": S, "est": E}
     summary = summarize(tr, n)
     summary.update({"dt": dt, "T": T, "method": "rk4", "hold": HOLD, "plant_substeps": 10, "N_quadrature": sp_ii.info["N"],
+                    "N_period": sp_ii.info["N_period"], "wrap": sp_ii.info["periodic"],
                     "reference": bool(reference), "wall_s": round(wall, 3),
                     "k_m": sp_ii.info["design"]["k_m"], "k_M": sp_ii.info["design"]["k_M"],
                     "k_c": sp_ii.info["design"]["k_c"]})
@@ -200,12 +207,19 @@ SCENARIOS = {"seed003": seed003}
 
 
 # ============================================================================ quadrature study
+QUADRATURE_NOTES = """## Default N"""
+
+
 def quadrature_study(robots=("seed003_2r_abs", "ur5"), Ns=range(2, 17), samples=4, seed=0,
-                     write=None):
-    """Gauss-Legendre beta, dbeta/ds_y, dbeta/ds_x (reference formulas, N nodes) against an
-    adaptive reference (scipy.integrate.quad_vec, epsabs 1e-14, epsrel 1e-13) of the same
-    integrands. Returns {robot: {N: (err_beta, err_dsy, err_dsx)}}, worst relative errors over
-    ``samples`` random (y, s_y, s_x); with ``write`` a path, writes the markdown table there."""
+                     write=None, y_range=3 * np.pi):
+    """beta, dbeta/ds_y, dbeta/ds_x (reference formulas, N nodes, interval reduction of the
+    periodic joints: N-node Gauss-Legendre on [0, rho], |rho| <= pi, plus m periods by the
+    N-node trapezoid) against an adaptive reference (scipy.integrate.quad_vec, epsabs 1e-14,
+    epsrel 1e-13) of the same integrands on the whole [0, y_i] (so the reduction itself is
+    checked). y ~ U(-y_range, y_range)^n (up to 1.5 turns: m in {-1, 0, 1}). Returns
+    {robot: {N: (err_beta, err_dsy, err_dsx, err_beta_nowrap)}}: worst relative errors over
+    ``samples`` random (y, s_y, s_x), the last one without reduction (N-node Gauss-Legendre on
+    [0, y_i]); with ``write`` a path, writes the markdown table there."""
     from scipy.integrate import quad_vec
 
     from models import load_robot
@@ -218,10 +232,11 @@ def quadrature_study(robots=("seed003_2r_abs", "ur5"), Ns=range(2, 17), samples=
     for name in robots:
         robot = reference_robot(load_robot(name).source)
         n = robot.n
-        rows = {N: [0.0, 0.0, 0.0] for N in Ns}
+        periodic = list(np.asarray(robot.periodic, dtype=bool))
+        rows = {N: [0.0, 0.0, 0.0, 0.0] for N in Ns}
         for _ in range(samples):
-            y = rng.uniform(-np.pi, np.pi, n)
-            s_y = y + rng.normal(scale=0.5, size=n)
+            y = rng.uniform(-y_range, y_range, n)
+            s_y = np.mod(y + rng.normal(scale=0.5, size=n) + np.pi, 2 * np.pi) - np.pi
             s_x = rng.normal(scale=2.0, size=n)
 
             def integrand(sig, i):
@@ -232,50 +247,51 @@ def quadrature_study(robots=("seed003_2r_abs", "ur5"), Ns=range(2, 17), samples=
                 return np.concatenate([Hi, dq.ravel(), dx.ravel()])
 
             exact = sum(quad_vec(lambda s, i=i: integrand(s, i), 0.0, y[i], epsabs=1e-14,
-                                 epsrel=1e-13, limit=400)[0] for i in range(n))
+                                 epsrel=1e-13, limit=1000)[0] for i in range(n))
             eb, esy, esx = exact[:n], exact[n:n + n * n].reshape(n, n), exact[n + n * n:].reshape(n, n)
             for N in Ns:
-                b, _, dsy, dsx = ref.beta_and_derivatives(robot, y, s_y, s_x, k1, N)
-                for k, (a, e) in enumerate(((b, eb), (dsy, esy), (dsx, esx))):
+                b, _, dsy, dsx = ref.beta_and_derivatives(robot, y, s_y, s_x, k1, N, True, periodic)
+                b0, *_ = ref.beta_and_derivatives(robot, y, s_y, s_x, k1, N, False)
+                for k, (a, e) in enumerate(((b, eb), (dsy, esy), (dsx, esx), (b0, eb))):
                     rows[N][k] = max(rows[N][k], float(np.linalg.norm(a - e) / np.linalg.norm(e)))
         table[name] = rows
     if write is not None:
-        write_quadrature_doc(table, write, samples)
+        write_quadrature_doc(table, write, samples, y_range)
     return table
 
 
-def write_quadrature_doc(table, path, samples):
-    lines = ["# Quadrature order of the I&I speed observer (seed 003)", "",
-             "beta (12) and its derivatives (14), (15) are N-node Gauss-Legendre sums on each "
-             "[0, y_i]. The table gives the worst relative error (2-norm, Frobenius for matrices) "
-             f"over {samples} random (y in [-pi, pi]^n, s_y = y + N(0, 0.5^2), s_x ~ N(0, 2^2)), "
+def write_quadrature_doc(table, path, samples, y_range=3 * np.pi):
+    lines = ["# Quadrature order of the I&I speed observers (seed 003)", "",
+             "beta (12) and its derivatives (14), (15) are quadratures of the columns of H. For a "
+             "2 pi-periodic (revolute) joint the interval is reduced (`wrap`, default \"auto\"): "
+             "y_i = 2 pi m + rho, m = floor(y_i / 2 pi + 1/2), |rho| <= pi, and "
+             "int_0^{y_i} = m int_{-pi}^{pi} + int_0^{rho}, the period by the N_period-node "
+             "trapezoidal rule (default N_period = N), [0, rho] by N-node Gauss-Legendre. The "
+             "table gives the worst relative error (2-norm, Frobenius for matrices) over "
+             f"{samples} random y ~ U(-{y_range / np.pi:g} pi, {y_range / np.pi:g} pi)^n "
+             "(up to 1.5 turns), s_y = y + N(0, 0.5^2) wrapped to [-pi, pi), s_x ~ N(0, 2^2), "
              "k1 = 40, against scipy.integrate.quad_vec (adaptive, epsabs 1e-14, epsrel 1e-13) "
-             "of the same exact integrands. Generated by "
+             "of the same exact integrands on the whole [0, y_i] (so the reduction itself is "
+             "checked); the last column is N-node Gauss-Legendre on [0, y_i] without the "
+             "reduction. Generated by "
              "`codegen.sim.scenarios.seed003.quadrature_study(write='docs/quadrature.md')`.", ""]
     for name, rows in table.items():
-        lines += [f"## {name}", "", "| N | beta | dbeta/ds_y | dbeta/ds_x |", "|---:|---:|---:|---:|"]
-        for N, (a, b, c) in rows.items():
-            lines.append(f"| {N} | {a:.2e} | {b:.2e} | {c:.2e} |")
+        lines += [f"## {name}", "", "| N | beta | dbeta/ds_y | dbeta/ds_x | beta, no reduction |",
+                  "|---:|---:|---:|---:|---:|"]
+        for N, (a, b, c, d) in rows.items():
+            lines.append(f"| {N} | {a:.2e} | {b:.2e} | {c:.2e} | {d:.2e} |")
         lines.append("")
-    lines += ["## Default N = 16", "",
-              "The integrands are analytic in sigma (trigonometric polynomials over a positive "
-              "denominator det M), so Gauss-Legendre converges geometrically, with the rate set by "
-              "the interval length |y_i| (up to pi here). On the 2-DoF arm N = 8 leaves ~1e-8 "
-              "(beta) and ~3e-7 (dbeta/ds_y) over full-range angles; N = 12 ~1e-12 / 1e-10; N = 16 "
-              "reaches round-off (<= 1e-13). N = 16 is the default "
-              "(`codegen.observers._ii_common.DEFAULT_N`): the cost of the RHS grows linearly with N "
-              "(n N configurations per evaluation), and for a 6-DoF arm where that cost matters "
-              "(and for the on-line benchmark) N = 8 is a deliberate, documented trade: its error "
-              "is far below encoder resolution effects on xhat. Pass N to build().", ""]
+    lines += [QUADRATURE_NOTES]
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     Path(path).write_text("\n".join(lines))
     return path
 
 
 # ============================================================================ benchmark
-def bench(robot="ur5", N=8, native=False, blocks=51):
+def bench(robot="ur5", N=8, native=False, blocks=51, wrap="auto"):
     """ur5 I&I RHS in C (codegen.harness.time_target) vs the numpy/pin reference (timeit).
-    Returns a dict with generation, emit, compile times, C size and ns per RHS / step."""
+    Returns a dict with generation, emit, compile times, C size and ns per RHS / step;
+    ``wrap`` is the interval reduction of the quadrature (ii_speed.build)."""
     import timeit
 
     from models import load_robot
@@ -288,7 +304,7 @@ def bench(robot="ur5", N=8, native=False, blocks=51):
     from ...reference import ii_speed as ref_ii
     rb = load_robot(robot)
     t0 = time.perf_counter()
-    spec = build_observer("ii_speed", rb, N=N)
+    spec = build_observer("ii_speed", rb, N=N, wrap=wrap)
     t_gen = time.perf_counter() - t0
     t0 = time.perf_counter()
     target = emit(spec, repo_root() / "build" / "bench", dt=1e-3, method="rk4", substeps=1)
@@ -305,7 +321,7 @@ def bench(robot="ur5", N=8, native=False, blocks=51):
     u = np.zeros(rb.n)
     reps = 20
     t_ref = min(timeit.repeat(lambda: ref.rhs(x, y, u), number=reps, repeat=3)) / reps
-    return {"robot": robot, "N": N, "rhs_instructions": int(spec.rhs.n_instructions()),
+    return {"robot": robot, "N": N, "wrap": spec.info["periodic"], "rhs_instructions": int(spec.rhs.n_instructions()),
             "generate_s": round(t_gen, 2), "emit_s": round(t_emit, 2), "compile_s": round(t_cc, 2),
             "c_bytes": int(c_bytes), "ns_per_rhs": ours["ns_per_rhs"], "ns_per_rk4_step": ours["ns_per_step"],
             "ns_per_rhs_reference": t_ref * 1e9, "speedup": t_ref * 1e9 / ours["ns_per_rhs"],
