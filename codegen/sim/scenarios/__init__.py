@@ -9,6 +9,7 @@ from __future__ import annotations
 import importlib
 import json
 import pkgutil
+import re
 from pathlib import Path
 
 
@@ -34,7 +35,8 @@ def benches():
 def run(name, reference=False, out="build/sim"):
     reg = registry()
     if name == "list":
-        print("\n".join(sorted(reg)))
+        natural = lambda s: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]  # noqa: E731
+        print("\n".join(sorted(reg, key=natural)))
         return 0
     if name not in reg:
         raise SystemExit(f"unknown scenario {name!r}; known: {', '.join(sorted(reg)) or '(none)'}")
