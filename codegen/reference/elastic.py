@@ -32,11 +32,14 @@ class HyperDual:
     __array_priority__ = 100
 
     def __init__(self, a, b=None, c=None, d=None):
-        self.a = np.asarray(a, dtype=float)
-        z = np.zeros_like(self.a)
-        self.b = z if b is None else np.asarray(b, dtype=float)
-        self.c = z if c is None else np.asarray(c, dtype=float)
-        self.d = z if d is None else np.asarray(d, dtype=float)
+        # parts are float arrays; the type test skips np.asarray on the hot path (speed only)
+        self.a = a if type(a) is np.ndarray and a.dtype == np.float64 else np.asarray(a, dtype=float)
+        z = None
+        if b is None or c is None or d is None:
+            z = np.zeros(self.a.shape)
+        self.b = z if b is None else b if type(b) is np.ndarray else np.asarray(b, dtype=float)
+        self.c = z if c is None else c if type(c) is np.ndarray else np.asarray(c, dtype=float)
+        self.d = z if d is None else d if type(d) is np.ndarray else np.asarray(d, dtype=float)
 
     @staticmethod
     def lift(v):
@@ -292,16 +295,24 @@ class ElasticRobot:
         fx = self.f(x)
         Q = np.zeros((nx, nx))
         Q[:2 * n, :2 * n] = np.eye(2 * n)
-        for j in range(nx):
-            e = np.zeros(nx)
-            e[j] = 1.0
-            if self.exact:
+        if self.exact:
+            # y3 does not depend on x4: its columns there are 0 (first and second order)
+            d2 = np.zeros((n, nx))
+            for j in range(3 * n):
+                e = np.zeros(nx)
+                e[j] = 1.0
                 h = self.y3(seeded(x, fx, e))                     # D y3[f], D y3[e_j], D^2 y3[f, e_j]
-                dy3 = h.c
-                df = np.concatenate([e[n:2 * n], dy3, e[3 * n:], self.Jinv @ self.K @ (e[:n] - e[2 * n:3 * n])])
-                Q[2 * n:3 * n, j] = dy3
-                Q[3 * n:, j] = h.d + self._Dy3(x, df)
-            else:
+                Q[2 * n:3 * n, j], d2[:, j] = h.c, h.d
+            Dy3 = Q[2 * n:3 * n]
+            for j in range(nx):   # d y4/dx_j = D^2 y3[f, e_j] + D y3[df/dx_j], D y3 linear: Dy3 @ .
+                e = np.zeros(nx)
+                e[j] = 1.0
+                df = np.concatenate([e[n:2 * n], Dy3[:, j], e[3 * n:], self.Jinv @ self.K @ (e[:n] - e[2 * n:3 * n])])
+                Q[3 * n:, j] = d2[:, j] + Dy3 @ df
+        else:
+            for j in range(nx):
+                e = np.zeros(nx)
+                e[j] = 1.0
                 Q[2 * n:3 * n, j] = self._Dy3(x, e)
                 Q[3 * n:, j] = (self.y4(x + fd_step * e) - self.y4(x - fd_step * e)) / (2 * fd_step)
         x1, x2, _, _ = self.split(x)

@@ -289,6 +289,9 @@ def sim2(reference=False, out="build/sim/seed004-sim2", T=T_SIM, dt=DT):
         except Exception as exc:
             summary[f"{kind}_estimated_rms_rad"] = float("inf")
             summary[f"{kind}_estimated_failure"] = str(exc)[:120]
+    for state in ("true", "estimated"):   # SPEC §12.4: the manifold controller tracks better
+        fl, mf = summary[f"fl_{state}_rms_rad"], summary[f"manifold_{state}_rms_rad"]
+        summary[f"fl_over_manifold_rms_{state}"] = fl / mf if mf > 0 else float("inf")
     summary["plot"] = _plot(out, "sim2_tracking", t, curves, "||q1 - q_d|| (rad)",
                             title="Sim 2 (2R): FL vs integral manifold")
     summary["wall_s"] = time.perf_counter() - t0
@@ -394,19 +397,24 @@ def bench(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
     from ...observers import ciccarella_germani
     from ...reference import reference_observer
     from ...runtime import load
+    import tempfile
     rows = []
     for name in robots:
         robot = _robot(name)
         t0 = time.perf_counter()
-        spec = ciccarella_germani.build(robot, "O1")
+        # The gains are runtime parameters (the C is the same for any eigenvalues). The timing
+        # program drives the step with synthetic sinusoids (~250 rad/s at dt = 1e-4) that make
+        # the default high-gain observer overflow in its warm-up, so the defaults here are slow.
+        spec = ciccarella_germani.build(robot, "O1", eigenvalues=np.linspace(-1.0, -2.0, robot.nx))
         t_spec = time.perf_counter() - t0
         target = emit(spec, repo_root() / "build" / "bench", dt=dt, method=method)
         t_gen = time.perf_counter() - t0
         c_bytes = sum(p.stat().st_size for p in Path(target).glob("*.c"))
-        t1 = time.perf_counter()
-        lib = build(target)       # cached by content hash: 0 s when unchanged
-        t_cc = time.perf_counter() - t1
-        obs = load(target, lib)
+        with tempfile.TemporaryDirectory() as tmp:   # a fresh cache: the real compile time
+            t1 = time.perf_counter()
+            build(target, cache=tmp)
+            t_cc = time.perf_counter() - t1
+        obs = load(target, build(target))
         ref = reference_observer(spec, dt=dt)
         rng = np.random.default_rng(0)
         worst = 0.0
