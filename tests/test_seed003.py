@@ -1,4 +1,6 @@
 """Seed 003: I&I speed observer (SPEC §4) and the reconstructed AOV observer (SPEC §5)."""
+from functools import lru_cache
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -12,6 +14,7 @@ from codegen.targets import relative_error
 from models import load_robot
 
 TOL = 1e-9
+QUAD_TOL = 5e-4       # reduced quadrature at the default N, |y| <= 3 pi (docs/quadrature.md)
 RNG = np.random.default_rng(3)
 
 
@@ -85,13 +88,16 @@ def test_emitted_c_equals_reference_2dof(family):
     for k in range(60):
         # angles past +-pi (a link going round): the interval reduction y = 2 pi m + rho
         y = robot.sample_configurations(1, 100 + k)[0] + 2 * np.pi * RNG.integers(-2, 3, 2)
-        x = _random_state(robot, y, r=(1.0, 1.5) if family == "ii_aov" else (0.05, 0.5))
         u = RNG.normal(size=2)
-        worst = max(worst, relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)))
         est0 = RNG.normal(size=4) * 3
         obs.reset(y, est0)
         ref.reset(y, est0)
         worst = max(worst, relative_error(obs.state, ref.state))
+        # a filter state near the init one: |beta| grows with |y| (~k1 |y| / k_m), so a random
+        # xi would give a huge xhat and a step far outside RK4's stability interval
+        x = ref.state + np.concatenate([RNG.normal(size=2), 0.3 * RNG.normal(size=2), RNG.normal(size=2), [0]])
+        x[-1] = RNG.uniform(*((1.0, 1.5) if family == "ii_aov" else (0.05, 0.5)))
+        worst = max(worst, relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)))
         obs.state = x
         ref.state = x
         worst = max(worst, relative_error(obs.step(y, u), ref.step(y, u)))
@@ -99,14 +105,21 @@ def test_emitted_c_equals_reference_2dof(family):
     assert worst <= TOL, worst
 
 
+@lru_cache(maxsize=1)
+def _ur5_spec():
+    """ur5 I&I spec shared by the ur5 tests: N = 4 (with the interval reduction: 4 + 4 nodes
+    per column) keeps generation and the cold C compile short."""
+    robot = load_robot("ur5")
+    return robot, observers.build("ii_speed", robot, N=4, bounds=ii_speed_bounds(robot, samples=50, refine=False))
+
+
 def test_symbolic_equals_reference_ur5():
     """ur5: the CasADi RHS (quadrature + AD) against the reference (quadrature + pinocchio's
     analytical RNEA derivatives), <= 1e-9 relative; fast (no C)."""
-    robot = load_robot("ur5")
-    spec = observers.build("ii_speed", robot, N=8, bounds=ii_speed_bounds(robot, samples=50, refine=False))
+    robot, spec = _ur5_spec()
     ref = _reference(spec, 1e-3)
     for k in range(3):
-        y = robot.sample_configurations(1, k)[0]
+        y = robot.sample_configurations(1, k)[0] + 2 * np.pi * RNG.integers(-1, 2, 6)
         x = _random_state(robot, y)
         u = RNG.normal(size=robot.n) * 10
         a = np.array(spec.rhs(x, y, u, spec.p_default)).ravel()
@@ -122,8 +135,7 @@ def test_emitted_c_equals_reference_ur5():
     short (the step calls the RHS routine, codegen/discretize.py); the accuracy of beta against
     scipy is test_quadrature_converges's business. The library comes from the build cache
     after the first compile."""
-    robot = load_robot("ur5")
-    spec = observers.build("ii_speed", robot, N=4, bounds=ii_speed_bounds(robot, samples=50, refine=False))
+    robot, spec = _ur5_spec()
     assert spec.info["periodic"] == [True] * 6
     obs = compile_observer(spec, dt=1e-3, method="rk4")
     ref = _reference(spec, 1e-3)
@@ -198,9 +210,9 @@ def test_wrap_removes_the_drift_at_large_angles():
     def err(periodic, N_period=None):
         b, _, dsy, dsx = ref_ii.beta_and_derivatives(robot, y, s_y, s_x, k1, 16, True, periodic, N_period)
         return np.abs(np.concatenate([b, dsy.ravel(), dsx.ravel()]) - exact).max()
-    assert err([False, False]) > 1e-3
-    assert err([True, True]) < 1e-4
-    assert err([True, True], 32) < 1e-9
+    assert err([False, False]) > 1e-3 * np.abs(exact).max()
+    assert err([True, True]) < 1e-4 * np.abs(exact).max()      # ~5e-6 relative
+    assert err([True, True], 32) < 1e-7 * np.abs(exact).max()
 
 
 def test_quadrature_converges():

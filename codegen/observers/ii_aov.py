@@ -32,7 +32,8 @@ import numpy as np
 from ..design import ii_aov_bounds
 from ..spec import ObserverSpec
 from ..symbolic import chol_lower, ldl_solve
-from ._ii_common import DEFAULT_N, beta_directional, resolve_wrap, christoffel_column_matrix, frobenius_sq, quadrature_beta
+from ._ii_common import (DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq,
+                         quadrature_beta, resolve_wrap)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 

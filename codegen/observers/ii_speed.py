@@ -18,7 +18,10 @@ the seed; a robot with friction keeps its F [ASSUMPTION]).
 Implementation choices:
 - H_i(q, x) = M(q)^{-1}(k1 e_i - C(q, e_i) x) (symmetry P2): one Christoffel matrix and one
   unpivoted LDL^T solve per quadrature node, no symbolic inverse.
-- beta by N-node Gauss-Legendre (``N``, a generation parameter); dbeta/dy exact (13);
+- beta by N-node Gauss-Legendre (``N``, a generation parameter), the intervals of 2 pi-periodic
+  joints reduced to |rho| <= pi plus whole periods (``wrap``, ``N_period``; _ii_common and
+  docs/quadrature.md; recorded in info["wrap"], info["periodic"], info["N_period"], which the
+  reference's configure() reads); dbeta/dy exact (13);
   dbeta/ds_y alpha2 + dbeta/ds_x alpha3 by one forward AD sweep of the quadrature (14),(15).
 - Norms of matrices in (38), (53), (54) are Frobenius norms [DERIVED]: an upper bound of the
   spectral norm (so (37) still holds) that is smooth and cheap in C; Lemma 2 bounds exactly
@@ -39,7 +42,8 @@ import numpy as np
 from ..design import ii_speed_bounds
 from ..spec import ObserverSpec
 from ..symbolic import ldl_solve
-from ._ii_common import DEFAULT_N, beta_directional, resolve_wrap, christoffel_column_matrix, frobenius_sq, quadrature_beta
+from ._ii_common import (DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq,
+                         quadrature_beta, resolve_wrap)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 
@@ -100,7 +104,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     def col(i, q, v):
         return h_column(robot, q, v, K1, i)
 
-    beta, dbdy = quadrature_beta(col, y, s_y, s_x, N, periodic, N_period)                   # [S003 (12),(13)]
+    beta, dbdy = quadrature_beta(col, y, s_y, s_x, N, periodic, N_period)   # [S003 (12),(13)]
     xhat = xi + beta                                                    # [S003 (3b)]
     e_y, e_x = s_y - y, s_x - xhat                                      # [S003 (17),(18)]
     fd = robot.forward_dynamics(y, xhat, u)
