@@ -152,7 +152,7 @@ def target_info(target_dir):
 HARNESS_FILES = ("obs_bind.h", "run_csv.c", "time_step.c")
 
 
-def build_harness(target_dir, build_dir=None, native=False, cc=None):
+def build_harness(target_dir, build_dir=None, native=False, cc=None, extra_flags=()):
     """Compile run_csv and time_step against a generated target.
 
     Parameters
@@ -162,6 +162,7 @@ def build_harness(target_dir, build_dir=None, native=False, cc=None):
         ``<build_dir>/<prefix>-<hash>/``
     native : add -march=native (default flags are the portable -O3)
     cc : C compiler (default $CC, else gcc)
+    extra_flags : appended to the target's compile flags (e.g. ("-O2",) for a huge kernel)
 
     Returns
     -------
@@ -171,8 +172,9 @@ def build_harness(target_dir, build_dir=None, native=False, cc=None):
     cc = cc or os.environ.get("CC", "gcc")
     cc_exe, cc_version = _compiler_version(cc)
     flags = C_FLAGS + (["-march=native"] if native else [])
+    target_flags = flags + list(extra_flags)
     h = hashlib.sha256()
-    h.update(json.dumps([prefix, cc_exe, cc_version, flags, HARNESS_STRICT]).encode())
+    h.update(json.dumps([prefix, cc_exe, cc_version, target_flags, HARNESS_STRICT]).encode())
     for name in HARNESS_FILES:
         h.update(name.encode() + b"\0" + (HARNESS_SRC / name).read_bytes() + b"\0")
     for f in sorted(d.iterdir()):
@@ -186,7 +188,7 @@ def build_harness(target_dir, build_dir=None, native=False, cc=None):
         objs = []
         for src in sources:
             obj = tmp / f"{src.stem}.o"
-            _run_tool([cc_exe, *flags, "-I", d, "-c", src, "-o", obj], f"compiling {src.name}")
+            _run_tool([cc_exe, *target_flags, "-I", d, "-c", src, "-o", obj], f"compiling {src.name}")
             objs.append(obj)
         for prog in ("run_csv", "time_step"):
             obj = tmp / f"harness_{prog}.o"
@@ -218,13 +220,13 @@ def run_csv(target_dir, csv_in, csv_out, est0=None, build_dir=None, native=False
     return Path(csv_out)
 
 
-def time_target(target_dir, blocks=51, block_ms=15.0, build_dir=None, native=False):
+def time_target(target_dir, blocks=51, block_ms=15.0, build_dir=None, native=False, extra_flags=()):
     """ns per <prefix>_step and per <prefix>_rhs (medians over ``blocks`` blocks of ~block_ms).
 
     Returns the program's JSON line as a dict: target, ns_per_step, ns_per_rhs, blocks,
     calls_per_block, calls_per_block_rhs, nx, ny, nu, nest, dt, errors (step calls that
     returned a non-zero status; non-zero means the timing is not representative)."""
-    exe = build_harness(target_dir, build_dir, native=native)["time_step"]
+    exe = build_harness(target_dir, build_dir, native=native, extra_flags=extra_flags)["time_step"]
     proc = _run_tool([exe, f"--blocks={int(blocks)}", f"--block-ms={float(block_ms)!r}"],
                      "time_step")
     res = json.loads(proc.stdout.strip().splitlines()[-1])

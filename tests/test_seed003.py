@@ -137,7 +137,7 @@ def test_emitted_c_equals_reference_ur5():
     after the first compile."""
     robot, spec = _ur5_spec()
     assert spec.info["periodic"] == [True] * 6
-    obs = compile_observer(spec, dt=1e-3, method="rk4")
+    obs = compile_observer(spec, dt=1e-3, method="rk4", cflags=("-O1",))  # ~100k-instruction kernel
     ref = _reference(spec, 1e-3)
     for k in range(3):
         y = robot.sample_configurations(1, 10 + k)[0] + 2 * np.pi * RNG.integers(-1, 2, 6)
