@@ -187,13 +187,15 @@ int main(int argc, char **argv)
         fprintf(stderr, "time_step: %s_init returned %d: %s\n", OBS_NAME, st, obs_status_name(st));
         return 3;
     }
-    /* warm-up run over the table, then keep that state as every block's start */
+    /* warm-up run over the table, then keep that state as every block's start; an observer
+       that the synthetic table drives out of range (non-finite result) restarts from init and
+       the failure is counted in "errors" (the RHS timing does not depend on it) */
+    state0 = state;
     for (i = 0; i < 4 * K_TABLE; ++i) {
         st = OBS_FN(step)(&state, Y_tab[i % K_TABLE], U_tab[i % K_TABLE], est);
         if (st != 0) {
-            fprintf(stderr, "time_step: %s_step returned %d at warm-up step %d: %s\n", OBS_NAME, st,
-                    i, obs_status_name(st));
-            return 3;
+            ++n_errors;
+            state = state0;
         }
     }
     state0 = state;
