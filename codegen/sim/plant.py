@@ -1,52 +1,70 @@
-"""The true robot as a block: x = [q; qd], xdot = [qd; FD(q, qd, tau)]  [S000 (1)].
+"""The true robot as a block: a spec with no measurement, input u, output the full state.
 
-The plant is a spec like any observer (no measurement, input tau, output the full state),
-so it is emitted and compiled the same way and integrated in C by RK4 with `substeps`
-sub-steps per sample, the torque held over the sample (zero-order hold).
+    rigid:    x = [q; qd],            xdot = [qd; FD(q, qd, tau)]     [S000 (1)]
+    elastic:  x = [q1; q1'; q2; q2'], xdot = f(x) + G(x) u            [S004 (2.6)-(2.11)], sim/elastic_plant.py
+
+It is emitted and compiled like any observer and integrated in C by RK4 with ``substeps``
+sub-steps per sample, the input held over the sample (zero-order hold).
 """
 from __future__ import annotations
 
 import casadi as ca
+import numpy as np
 
 from ..spec import ObserverSpec
+
+
+def state_space_spec(family, robot, x_names, u_names, xdot):
+    """Spec of x' = xdot(x, u) with no measurement, no parameter, output x, init x0 = est0."""
+    nx, nu = len(x_names), len(u_names)
+    x, u = ca.SX.sym("x", nx), ca.SX.sym("u", nu)
+    y, p, x0 = ca.SX.sym("y", 0), ca.SX.sym("p", 0), ca.SX.sym("x0", nx)
+    return ObserverSpec(
+        family=family, robot=robot, x_names=list(x_names), y_names=[], u_names=list(u_names),
+        p_names=[], est_names=list(x_names), p_default=[],
+        rhs=ca.Function("rhs", [x, y, u, p], [xdot(x, u)]),
+        output=ca.Function("output", [x, y, u, p], [x]),
+        init=ca.Function("init", [y, x0, p], [x0]))
 
 
 def plant_spec(robot):
     """Rigid-robot plant: state [q; qd], input tau, output [q; qd]."""
     n = robot.n
-    x, tau = ca.SX.sym("x", 2 * n), ca.SX.sym("tau", n)
-    y, p = ca.SX.sym("y", 0), ca.SX.sym("p", 0)
-    q, v = x[:n], x[n:]
-    xdot = ca.vertcat(v, robot.forward_dynamics(q, v, tau))
     names = [f"q_{j}" for j in robot.joint_names] + [f"qd_{j}" for j in robot.joint_names]
-    x0 = ca.SX.sym("x0", 2 * n)
-    return ObserverSpec(
-        family="plant", robot=robot, x_names=names, y_names=[],
-        u_names=[f"tau_{j}" for j in robot.joint_names], p_names=[], est_names=names, p_default=[],
-        rhs=ca.Function("rhs", [x, y, tau, p], [xdot]),
-        output=ca.Function("output", [x, y, tau, p], [x]),
-        init=ca.Function("init", [y, x0, p], [x0]))
+    return state_space_spec(
+        "plant", robot, names, [f"tau_{j}" for j in robot.joint_names],
+        lambda x, tau: ca.vertcat(x[n:], robot.forward_dynamics(x[:n], x[n:], tau)))
 
 
-class Plant:
-    """The true robot integrated in C: ``reset(q0, qd0)``, ``advance(tau)``, ``q``, ``qd``."""
+class SampledPlant:
+    """A state-space spec compiled with RK4 sub-steps: ``reset_state(x0)``, ``advance(u) -> x``,
+    ``state``."""
 
-    def __init__(self, robot, dt, substeps=10, out_dir=None):
+    def __init__(self, spec, dt, substeps, out_dir=None):
         from .. import compile_observer
-        self.robot, self.n, self.dt, self.substeps = robot, robot.n, dt, substeps
-        self.block = compile_observer(plant_spec(robot), dt=dt, method="rk4", substeps=substeps,
-                                      out_dir=out_dir)
-        self._empty = []
+        self.dt, self.substeps, self.nx = dt, substeps, spec.nx
+        self.block = compile_observer(spec, dt=dt, method="rk4", substeps=substeps, out_dir=out_dir)
+        self._empty = np.zeros(0)
 
-    def reset(self, q0, qd0):
-        import numpy as np
-        self.block.reset(self._empty, est0=np.concatenate([q0, qd0]))
+    def reset_state(self, x0):
+        self.block.reset(self._empty, est0=np.asarray(x0, dtype=float))
 
-    def advance(self, tau):
-        """Integrate over one sample with tau held; returns the new [q; qd]."""
-        self.block.step(self._empty, tau)
+    def advance(self, u):
+        """Integrate over one sample with u held; returns the new state."""
+        self.block.step(self._empty, u)
         return self.block.state
 
     @property
     def state(self):
         return self.block.state
+
+
+class Plant(SampledPlant):
+    """The true rigid robot integrated in C: ``reset(q0, qd0)``, ``advance(tau)``, ``state``."""
+
+    def __init__(self, robot, dt, substeps=10, out_dir=None):
+        self.robot, self.n = robot, robot.n
+        super().__init__(plant_spec(robot), dt, substeps, out_dir)
+
+    def reset(self, q0, qd0):
+        self.reset_state(np.concatenate([q0, qd0]))
