@@ -11,7 +11,7 @@ TOL = 1e-9
 
 
 def _rel(a, b):
-    a, b = np.ravel(a), np.ravel(b)
+    a, b = np.asarray(a, dtype=float).ravel(), np.asarray(b, dtype=float).ravel()
     return np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300)
 
 
@@ -27,7 +27,7 @@ def test_2r_mass_matrix_and_gravity(qs):
         c2, c1, c12 = np.cos(q[1]), np.cos(q[0]), np.cos(q[0] + q[1])
         M = np.array([[1.52 + 0.32 * c2, 0.44 + 0.16 * c2], [0.44 + 0.16 * c2, 0.44]])
         assert np.abs(np.array(r.M(q)) - M).max() < 1e-13
-        assert np.abs(np.ravel(r.g(q)) - [19.62 * c1 + 3.924 * c12, 3.924 * c12]).max() < 1e-12
+        assert np.abs(np.asarray(r.g(q)).ravel() - [19.62 * c1 + 3.924 * c12, 3.924 * c12]).max() < 1e-12
         s = -0.16 * np.sin(q[1])
         v = np.array([0.7, -1.3])
         S = s * np.array([[v[1], v[0] + v[1]], [-v[0], 0]])
@@ -47,7 +47,7 @@ def test_3r_mass_matrix_det_and_gravity(qs):
         c23, c2 = np.cos(q2 + q3), np.cos(q2)
         detM = 6.4e-5 * (297 - 16 * np.cos(q3) ** 2) * (c23 ** 2 + 8 * c23 * c2 + 17 * c2 ** 2 + 30)
         assert abs(np.linalg.det(M) - detM) < 1e-12 * detM
-        assert np.abs(np.ravel(r.g(q)) - [0, 19.62 * c2 + 3.924 * c23, 3.924 * c23]).max() < 1e-12
+        assert np.abs(np.asarray(r.g(q)).ravel() - [0, 19.62 * c2 + 3.924 * c23, 3.924 * c23]).max() < 1e-12
 
 
 def test_3r_det_Q_formula(qs):
@@ -77,7 +77,7 @@ def test_dh_reference_matches_symbolic_model():
         for xs in e.sample_states(10, seed=1):
             q, v = xs[:e.n], xs[e.n:2 * e.n]
             assert _rel(ref.M(q), np.array(e.rigid.M(q))) < 1e-13
-            nle = np.array(e.rigid.C(q, v)) @ v + np.ravel(e.rigid.g(q))
+            nle = np.array(e.rigid.C(q, v)) @ v + np.asarray(e.rigid.g(q)).ravel()
             assert _rel(ref.rigid.nle(q, v), nle) < 1e-13
             assert _rel(ref.f(xs), np.array(e.f(xs))) < 1e-13
 
@@ -89,10 +89,10 @@ def test_elastic_robot_shape_and_source():
     assert np.allclose(np.diag(e.J), 37.5) and np.allclose(np.diag(e.K), 20000)
     assert np.allclose(np.diag(load_elastic("seed004_3r").J), 87.5)
     x, u = e.sample_states(1, seed=2)[0], np.array([3.0, -4.0])
-    xd = np.ravel(e.xdot(x, u))
+    xd = np.asarray(e.xdot(x, u)).ravel()
     assert np.allclose(xd[6:], (20000 * (x[:2] - x[4:6]) + u) / 37.5)      # J q2'' = K(q1-q2) + u
     M = np.array(e.rigid.M(x[:2]))
-    lhs = M @ xd[2:4] + np.array(e.rigid.C(x[:2], x[2:4])) @ x[2:4] + np.ravel(e.rigid.g(x[:2]))
+    lhs = M @ xd[2:4] + np.array(e.rigid.C(x[:2], x[2:4])) @ x[2:4] + np.asarray(e.rigid.g(x[:2])).ravel()
     assert np.allclose(lhs + 20000 * (x[:2] - x[4:6]), 0, atol=1e-9)       # link equation
 
 
@@ -185,12 +185,12 @@ def test_observer_rhs_against_reference(robot, kind):
     for xs in states:
         x, y, u = _random_case(spec, rng, xs)
         want = ref.rhs(x, y, u)
-        got = np.ravel(spec.rhs(x, y, u, spec.p_default))
+        got = np.asarray(spec.rhs(x, y, u, spec.p_default)).ravel()
         assert _rel(got, want) < TOL
         assert _rel(obs.rhs(x, y, u), want) < TOL
         if kind != "tomei":      # the correction term matters (not a test of f alone)
             p0[:-1] = 0
-            assert _rel(np.ravel(spec.rhs(x, y, u, p0)), got) > 1e-3
+            assert _rel(np.asarray(spec.rhs(x, y, u, p0)).ravel(), got) > 1e-3
 
 
 @pytest.mark.parametrize("robot,kind", CASES)
