@@ -209,8 +209,9 @@ int {prefix}_estimate(const {prefix}_state *s, const double *y, const double *u,
 int {prefix}_run({prefix}_state *s, long n, const double *Y, const double *U, double *EST, long *n_done);
 /* Continuous-time right-hand side xdot = f(x, y, u, s->p) (uses s's work buffers only). */
 int {prefix}_rhs({prefix}_state *s, const double *x, const double *y, const double *u, double *xdot);
-/* Replace the parameters (checked finite). */
+/* Replace or read the parameters (set: checked finite). */
 int {prefix}_set_params({prefix}_state *s, const double *p);
+int {prefix}_get_params(const {prefix}_state *s, double *p);
 /* Read or overwrite the observer state. */
 int {prefix}_get_state(const {prefix}_state *s, double *x);
 int {prefix}_set_state({prefix}_state *s, const double *x);
@@ -349,6 +350,12 @@ int {prefix}_set_params({prefix}_state *s, const double *p) {{
   if (!s || !p) return {P}_ERR_BAD_ARG;
   if (!{prefix}_finite(p, {P}_NP)) return {P}_ERR_NONFINITE_INPUT;
   {prefix}_copy(s->p, p, {P}_NP);
+  return {P}_OK;
+}}
+
+int {prefix}_get_params(const {prefix}_state *s, double *p) {{
+  if (!s || !p) return {P}_ERR_BAD_ARG;
+  {prefix}_copy(p, s->p, {P}_NP);
   return {P}_OK;
 }}
 

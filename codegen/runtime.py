@@ -65,11 +65,12 @@ class CompiledObserver:
         self._estimate = f("estimate")
         self._estimate.argtypes = [ct.c_void_p, _D, _D, _D]
         self._set_params, self._get_state, self._set_state = f("set_params"), f("get_state"), f("set_state")
+        self._get_params = f("get_params")
         self._init.argtypes = [ct.c_void_p, _D, _D, _D]
         self._step.argtypes = [ct.c_void_p, _D, _D, _D]
         self._run.argtypes = [ct.c_void_p, ct.c_long, _D, _D, _D, ct.POINTER(ct.c_long)]
         self._rhs.argtypes = [ct.c_void_p, _D, _D, _D, _D]
-        for g in (self._set_params, self._get_state, self._set_state):
+        for g in (self._set_params, self._get_params, self._get_state, self._set_state):
             g.argtypes = [ct.c_void_p, _D]
         self._default_params = f("default_params")
         self._default_params.argtypes = [_D]
@@ -180,8 +181,8 @@ class CompiledObserver:
 
     @property
     def params(self):
-        off = 8 * max(1, self.nx)  # p follows x in the state struct (see the header)
-        return np.frombuffer(self._s, dtype=float, count=self.np, offset=off).copy()
+        self._check(self._get_params(self._s, self._ptr["p"]), "get_params")
+        return self._buf["p"][: self.np].copy()
 
     @params.setter
     def params(self, p):
