@@ -267,3 +267,17 @@ def test_rk4_calling_a_shared_rhs_equals_the_inlined_one(spec_of, tmp_path):
         obs.reset(Q[0])
         ests.append(obs.run(Q, TAU))
     assert np.allclose(ests[0], ests[1], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("family,robot", [("reduced_order_hybrid", "seed000_2r"),
+                                          ("nicosia_tomei", "seed000_2r"),
+                                          ("lotfi_namvar", "seed002_2r"),
+                                          ("su_nonsmooth", "seed002_2r"),
+                                          ("ii_speed", "seed003_2r_abs"),
+                                          ("ii_aov", "seed003_2r_abs")])
+def test_cli_check_works_for_every_rigid_family(family, robot):
+    """`python -m codegen check ROBOT --family F` (the generic cross-check with the family's own
+    random inputs where it has them) for every rigid-robot family; elastic families are
+    cross-checked in tests/test_seed004.py."""
+    from codegen.cli import main
+    assert main(["check", robot, "--family", family, "--count", "100"]) == 0

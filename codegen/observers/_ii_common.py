@@ -120,3 +120,22 @@ def frobenius_sq(A):
 def names(robot):
     """Joint-suffixed name lists used by both families."""
     return list(robot.joint_names)
+
+
+def random_inputs(spec, count, seed=0):
+    """Cross-check inputs for the I&I observers (targets.random_inputs hook): configurations
+    shared by every call (a fixed draw) plus 1e-2 rad of seeded noise, so the two samples of a
+    cross-check draw differ like consecutive 1 kHz measurements rather than by whole turns (a
+    jump of several rad in 1 ms drives these stiff filters out of range); states from init at
+    velocity-sized estimates with s_y off y by ~0.05 rad and r in [2 c_r, 0.02 + 2 c_r]."""
+    rng = np.random.default_rng(seed)
+    robot, n = spec.robot, spec.robot.n
+    Y = robot.sample_configurations(count, 0) + 1e-2 * rng.normal(size=(count, n))
+    U = np.asarray(robot.g.map(count)(Y.T)).T + rng.normal(size=(count, n))
+    EST = rng.normal(size=(count, spec.nest))
+    P = np.tile(spec.p_default[:, None], count)
+    X = np.asarray(spec.init.map(count)(Y.T, EST.T, P)).T.reshape(count, spec.nx)
+    X[:, n:2 * n] += 0.05 * rng.normal(size=(count, n))
+    c_r = spec.p_default[spec.p_names.index("c_r")]
+    X[:, -1] = 2 * c_r + 0.02 * rng.uniform(size=count)
+    return X, Y, U

@@ -32,6 +32,7 @@ import numpy as np
 from ..design import ii_aov_bounds
 from ..spec import ObserverSpec
 from ..symbolic import chol_lower, ldl_solve
+from ._ii_common import random_inputs  # noqa: F401  (cross-check inputs, targets.random_inputs)
 from ._ii_common import (DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq,
                          quadrature_beta, resolve_wrap)
 
