@@ -155,9 +155,11 @@ def cmd_bench(args):
     if not args.no_scenarios:
         from .sim.scenarios import benches
         for name, fn in benches().items():
-            print(f"\n{name}: ", end="", flush=True)
+            print(f"\n{name}:", flush=True)
             extra[name] = fn()
-            print("  ".join(f"{k} = {v}" for k, v in extra[name].items()))
+            for row in (extra[name] if isinstance(extra[name], list) else [extra[name]]):
+                print("  " + "  ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
+                                       for k, v in row.items()))
     if args.json:
         Path(args.json).write_text(json.dumps({"observer_rhs": rows, "scenarios": extra}, indent=2,
                                               default=float))

@@ -439,5 +439,4 @@ def bench(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
                      "ns_rhs_c_ctypes": _time_rhs(obs.rhs, args, repeat=2000),
                      "ns_rhs_reference": _time_rhs(ref.rhs, args, repeat=20),
                      "gate_ns_rhs": gate, "gate_ok": None if gate is None else ns <= gate})
-        print(rows[-1], flush=True)
     return rows
