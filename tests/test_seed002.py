@@ -193,12 +193,15 @@ def test_nominal_run_converges(nominal):
     assert s["qd_err_final_max_su"] <= 0.5, s          # (35) converges too, with chattering
 
 
-def test_adaptive_is_less_noise_sensitive_at_3mrad(nominal):
-    """std = 0.003 rad at 1 kHz: steady-state (last 1 s of 4 s) velocity-error RMS of the
-    adaptive observer well below that of (35)."""
+@pytest.mark.parametrize("noise,margin", [(0.003, 4.0), (0.03, 2.0)])
+def test_adaptive_is_less_noise_sensitive(nominal, noise, margin):
+    """std = 3 mrad and 30 mrad at 1 kHz: steady-state (last 1 s of 4 s) velocity-error RMS of
+    the adaptive observer well below that of (35) (measured: 0.14 vs 2.05 and 1.38 vs 3.81 rad/s
+    over 5 s). At SPEC's "30 %" reading (~0.21 rad) the order reverses (9.5 vs 7.2): see the
+    seed002-noisy scenario and the closing note."""
     from codegen.sim.scenarios.seed002 import experiment, summarize
-    s = summarize(experiment(T=4.0, noise=0.003))
-    assert s["qd_err_rms_ss_adaptive"] * 4 < s["qd_err_rms_ss_su"], s
+    s = summarize(experiment(T=4.0, noise=noise))
+    assert s["qd_err_rms_ss_adaptive"] * margin < s["qd_err_rms_ss_su"], s
 
 
 def test_scenario_c_equals_reference():
