@@ -55,26 +55,35 @@ def build(target_dir, native=False, strict=False, cc=None, extra_flags=(), cache
     cc = cc or os.environ.get("CC", "gcc")
     flags = BASE_FLAGS + (["-march=native"] if native else []) + (STRICT_FLAGS if strict else []) \
         + list(extra_flags)
-    sources = [target_dir / f"{prefix}.c", target_dir / f"{prefix}_kernels.c"]
+    # read the sources once: the hash and the compiled code are the same bytes, even if another
+    # process regenerates the folder meanwhile (the cache can never hold a library whose
+    # content differs from its key)
+    files = {f.name: f.read_bytes() for f in sorted(target_dir.iterdir()) if f.suffix in (".c", ".h")}
+    missing = {f"{prefix}.c", f"{prefix}_kernels.c"} - set(files)
+    if missing:
+        raise BuildError(f"{target_dir}: missing {', '.join(sorted(missing))}")
     h = hashlib.sha256()
-    for f in sorted(target_dir.iterdir()):
-        if f.suffix in (".c", ".h"):
-            h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    for name, data in files.items():
+        h.update(name.encode() + b"\0" + data + b"\0")
     h.update(json.dumps([cc, compiler_version(cc), flags]).encode())
     out_dir = Path(cache or cache_dir()) / f"{prefix}-{h.hexdigest()[:16]}"
     lib = out_dir / f"lib{prefix}.so"
     if lib.exists():
         return lib
     out_dir.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".so", dir=out_dir)
-    os.close(fd)
-    cmd = [cc, *flags, "-I", str(target_dir), "-o", tmp, *map(str, sources), "-lm"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        os.unlink(tmp)
-        raise BuildError(f"compiling {prefix} failed (exit {proc.returncode}):\n  {' '.join(cmd)}\n"
-                         f"{proc.stderr.strip()}")
-    os.replace(tmp, lib)
+    with tempfile.TemporaryDirectory(dir=out_dir) as work:
+        work = Path(work)
+        for name, data in files.items():
+            (work / name).write_bytes(data)
+        tmp = work / f"lib{prefix}.so"
+        cmd = [cc, *flags, "-I", str(work), "-o", str(tmp), str(work / f"{prefix}.c"),
+               str(work / f"{prefix}_kernels.c"), "-lm"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            msg = proc.stderr.strip().replace(str(work), str(target_dir))
+            raise BuildError(f"compiling {prefix} failed (exit {proc.returncode}):\n  "
+                             f"{' '.join(cmd).replace(str(work), str(target_dir))}\n{msg}")
+        os.replace(tmp, lib)
     return lib
 
 

@@ -1,0 +1,42 @@
+"""Reference open-loop torque of seed-000 Example 1 (SPEC §1.4, §12.1; [S000 (18)]), numpy.
+
+A stateless law (nx = 0): y = [q_1 .. q_n, t], no input, "estimate" = the torque
+
+    tau = g(q) + (cos(t/2), -cos t)                                      [S000 (18)]
+
+on the reference robot (2-joint robots only). Never imports CasADi or the symbolic code.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+P_NAMES = ()
+
+
+def extra_torque(t):
+    """The time-dependent part of (18)."""
+    return np.array([np.cos(0.5 * t), -np.cos(t)])
+
+
+def torque(robot, y, extra):
+    n = robot.n
+    if n != 2:
+        raise ValueError(f"seed-000 open-loop torques need a 2-joint robot, got n={n}")
+    q, t = np.asarray(y[:n], dtype=float), float(y[n])
+    return np.asarray(robot.g(q), dtype=float).reshape(n) + extra(t)
+
+
+def rhs(robot, x, y, u, p):
+    return np.zeros(0)
+
+
+def output(robot, x, y, u, p):
+    return torque(robot, y, extra_torque)
+
+
+def init(robot, y0, est0, p):
+    return np.zeros(0)
+
+
+def sizes(robot):
+    return {"nx": 0, "ny": robot.n + 1, "nu": 0, "nest": robot.n}

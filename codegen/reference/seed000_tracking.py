@@ -1,0 +1,54 @@
+"""Reference Example-3 output-feedback law of seed 000 (SPEC §1.4, §12.1), numpy.
+
+Stateless (nx = 0). y = [q (n), x2hat (n), t]; p = [q_start (n), q_goal (n), T_move, lambda,
+kp (n), kd (n)] (diagonal gains); "estimate" = the torque
+
+    tau = M(q)(qdd_d + Lambda(qd_d - x2hat)) + C(q, x2hat)(qd_d + Lambda(q_d - q)) + g(q)
+          + K_P (q_d - q) + K_D (qd_d - x2hat)                           [S000 eq. after Fig. 5]
+
+with q_d the rest-to-rest quintic q_start -> q_goal over [0, T_move], held outside
+[ASSUMPTION SPEC §12.1]:  q_d = q_start + (q_goal - q_start) h(s), s = clip(t / T_move, 0, 1),
+h = 10 s^3 - 15 s^4 + 6 s^5 (h' and h'' by t, written out below). Never imports CasADi.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _quintic(t, q0, q1, T):
+    """(q_d, qd_d, qdd_d) of the rest-to-rest quintic at time t."""
+    s = min(max(t / T, 0.0), 1.0)
+    h = 10.0 * s ** 3 - 15.0 * s ** 4 + 6.0 * s ** 5
+    dh = (30.0 * s ** 2 - 60.0 * s ** 3 + 30.0 * s ** 4) / T
+    ddh = (60.0 * s - 180.0 * s ** 2 + 120.0 * s ** 3) / T ** 2
+    dq = q1 - q0
+    return q0 + h * dq, dh * dq, ddh * dq
+
+
+def rhs(robot, x, y, u, p):
+    return np.zeros(0)
+
+
+def init(robot, y0, est0, p):
+    return np.zeros(0)
+
+
+def sizes(robot):
+    n = robot.n
+    return {"nx": 0, "ny": 2 * n + 1, "nu": 0, "nest": n}
+
+
+def output(robot, x, y, u, p):
+    n = robot.n
+    if len(p) != 4 * n + 2:
+        raise ValueError(f"seed000_tracking: expected {4 * n + 2} parameters, got {len(p)}")
+    q, qh, t = y[:n], y[n:2 * n], float(y[2 * n])
+    q0, q1 = p[:n], p[n:2 * n]
+    T, lam = float(p[2 * n]), float(p[2 * n + 1])
+    kp, kd = p[2 * n + 2:3 * n + 2], p[3 * n + 2:4 * n + 2]
+    q_d, qd_d, qdd_d = _quintic(t, q0, q1, T)
+    M = np.asarray(robot.M(q), dtype=float)
+    C = np.asarray(robot.C(q, qh), dtype=float)                      # Christoffel C(q, x2hat)
+    g = np.asarray(robot.g(q), dtype=float).reshape(n)
+    return (M @ (qdd_d + lam * (qd_d - qh)) + C @ (qd_d + lam * (q_d - q)) + g
+            + kp * (q_d - q) + kd * (qd_d - qh))
