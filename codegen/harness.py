@@ -177,18 +177,25 @@ def build_harness(target_dir, build_dir=None, native=False, cc=None, extra_flags
     h.update(json.dumps([prefix, cc_exe, cc_version, target_flags, HARNESS_STRICT]).encode())
     for name in HARNESS_FILES:
         h.update(name.encode() + b"\0" + (HARNESS_SRC / name).read_bytes() + b"\0")
-    for f in sorted(d.iterdir()):
-        if f.suffix in (".c", ".h"):
-            h.update(b"T" + f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    # the target's sources are read once: what is hashed is what is compiled (from a private
+    # copy), even if another process regenerates the folder meanwhile
+    files = {f.name: f.read_bytes() for f in sorted(d.iterdir()) if f.suffix in (".c", ".h")}
+    for name, data in files.items():
+        h.update(b"T" + name.encode() + b"\0" + data + b"\0")
     out_dir = _build_root(build_dir) / f"{prefix}-{h.hexdigest()[:16]}"
-    obs_defs = [f"-DOBS={prefix}", f"-DOBS_UPPER={prefix.upper()}",
-                f'-DOBS_HEADER="{prefix}.h"', "-I", d, "-I", HARNESS_SRC]
 
     def build_into(tmp):
+        src_dir = tmp / "src"
+        src_dir.mkdir()
+        for name, data in files.items():
+            (src_dir / name).write_bytes(data)
+        obs_defs = [f"-DOBS={prefix}", f"-DOBS_UPPER={prefix.upper()}",
+                    f'-DOBS_HEADER="{prefix}.h"', "-I", src_dir, "-I", HARNESS_SRC]
         objs = []
         for src in sources:
             obj = tmp / f"{src.stem}.o"
-            _run_tool([cc_exe, *target_flags, "-I", d, "-c", src, "-o", obj], f"compiling {src.name}")
+            _run_tool([cc_exe, *target_flags, "-I", src_dir, "-c", src_dir / src.name, "-o", obj],
+                      f"compiling {src.name}")
             objs.append(obj)
         for prog in ("run_csv", "time_step"):
             obj = tmp / f"harness_{prog}.o"
@@ -197,6 +204,7 @@ def build_harness(target_dir, build_dir=None, native=False, cc=None, extra_flags
             _run_tool([cc_exe, *flags, obj, *objs, "-lm", "-o", tmp / prog], f"linking {prog}")
         for o in tmp.glob("*.o"):
             o.unlink()
+        shutil.rmtree(src_dir)
 
     out_dir = _cached_build(out_dir, ("run_csv", "time_step"), build_into)
     return {"run_csv": out_dir / "run_csv", "time_step": out_dir / "time_step"}
