@@ -9,18 +9,79 @@ Imports are lazy so that ``codegen.reference`` (numpy + pin only) never loads Ca
 __version__ = "0.1.0"
 
 
-def compile_observer(spec, dt=1e-3, method="rk4", substeps=1, out_dir=None, prefix=None,
-                     native=False, hold="zoh", inline="auto", cflags=()):
-    """Emit, build and load ``spec`` as C; returns a CompiledObserver.
+def build_spec(target):
+    """The ObserverSpec a Target describes: its robot rebuilt from the source, then the family's
+    ``build`` with the target's variant and build arguments (observers, then control laws).
 
-    The target goes to ``out_dir`` (default <repo>/build/targets) and the library to the
-    content-hash cache, so compiling the same spec twice costs one generation only. ``cflags``
-    are appended to the compiler flags (e.g. ("-O1",) to compile a very large kernel quickly)."""
+    Parameters
+    ----------
+    target : codegen.target.Target
+
+    Returns
+    -------
+    codegen.spec.ObserverSpec
+    """
+    from models import from_source
+
+    from . import observers
+    kwargs = dict(target.build, **({"variant": target.variant} if target.variant else {}))
+    robot = from_source(target.robot)
+    if target.family in observers.FAMILIES:
+        return observers.build(target.family, robot, **kwargs)
+    from . import controllers
+    return controllers.build(target.family, robot, **kwargs)
+
+
+def compile_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,
+                     out_dir=None, prefix=None, native=False, inline="auto", cflags=()):
+    """Emit, build and load an observer as C.
+
+    Parameters
+    ----------
+    spec : codegen.spec.ObserverSpec or codegen.target.Target
+        What to build (a Target is built into its spec first).
+    discretization : codegen.target.Discretization or dict, optional
+        How to step it; default ``codegen.target.DEFAULT_DISCRETIZATION`` (or the Target's own).
+        ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields.
+    out_dir : path, optional
+        Where the generated folder goes (default <repo>/build/targets).
+    prefix : str, optional
+        Symbol prefix and folder name (default ``<robot>_<family>[_<variant>]``).
+    native : bool
+        Add -march=native.
+    inline : "auto" or bool
+        Code shape of the step (see codegen.discretize).
+    cflags : sequence of str
+        Extra compiler flags (e.g. ("-O1",) to compile a very large kernel quickly).
+
+    Returns
+    -------
+    codegen.runtime.CompiledObserver
+        Loaded from the content-hash cache: compiling the same target twice costs one generation.
+    """
     from .build import build, repo_root
     from .emit import emit
     from .runtime import load
+    from .target import Target
 
+    over = dict(dt=dt, method=method, substeps=substeps, hold=hold)
+    if isinstance(spec, Target):
+        target = spec.with_discretization(discretization, **over)
+        target = target if prefix is None else _renamed(target, prefix)
+        target = target if inline == "auto" else _reshaped(target, inline)
+        spec = None
+    else:
+        target = spec.target(discretization, name=prefix, inline=inline, **over)
     out_dir = out_dir or (repo_root() / "build" / "targets")
-    target = emit(spec, out_dir, dt=dt, method=method, substeps=substeps, prefix=prefix, hold=hold,
-                  inline=inline)
-    return load(target, build(target, native=native, extra_flags=cflags))
+    folder = emit(target, out_dir, spec=spec)
+    return load(folder, build(folder, native=native, extra_flags=cflags))
+
+
+def _renamed(target, name):
+    from dataclasses import replace
+    return replace(target, name=name)
+
+
+def _reshaped(target, inline):
+    from dataclasses import replace
+    return replace(target, inline=inline)

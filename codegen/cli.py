@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .build import BuildError, build, repo_root
-from .targets import DEFAULT_FAMILY, DEFAULT_ROBOTS, default_spec, random_inputs, relative_error
+from .targets import DEFAULT_FAMILY, DEFAULT_ROBOTS, default_spec
 
 
 def _progress(items, desc):
@@ -33,12 +33,16 @@ def cmd_list(args):
     return 0
 
 
+def _discretization(args):
+    from .target import discretization
+    return discretization(None, dt=args.dt, method=args.method, substeps=args.substeps, hold=args.hold)
+
+
 def _emit_and_build(robot_name, args):
     from .emit import emit
     spec = default_spec(robot_name, args.family)
     t0 = time.perf_counter()
-    target = emit(spec, args.out, dt=args.dt, method=args.method, substeps=args.substeps,
-                  hold=args.hold)
+    target = emit(spec.target(_discretization(args)), args.out, spec=spec)
     t1 = time.perf_counter()
     lib = build(target, native=args.native)
     return spec, target, lib, t1 - t0, time.perf_counter() - t1
@@ -48,13 +52,13 @@ def cmd_generate(args):
     """Generate, compile, and run the C harness on the built-in trajectory per target."""
     from . import harness
     from .runtime import load
-    from .sim.trajectory import demo_trajectory
+    from .trajectory import demo_trajectory
 
     rows = []
     items, say = _progress(args.robots, "generate")
     for name in items:
         spec, target, lib, t_gen, t_cc = _emit_and_build(name, args)
-        t, Q, QD, TAU = demo_trajectory(spec.robot, T=args.T, dt=args.dt)
+        t, Q, QD, TAU = demo_trajectory(spec.robot, T=args.T, dt=_discretization(args).dt)
         work = repo_root() / "build" / "demo"
         work.mkdir(parents=True, exist_ok=True)
         csv_in, csv_out = work / f"{target.name}_in.csv", work / f"{target.name}_out.csv"
@@ -68,7 +72,8 @@ def cmd_generate(args):
         rows.append((target.name, spec.p_default[0], t_gen, t_cc, err0, errT, same))
         say(f"{target.name:30s} k0 = {spec.p_default[0]:7.4g}  gen {t_gen:4.1f}s  cc {t_cc:4.1f}s  "
               f"|qd - qd_hat|: t=0 {err0:.3g} -> t={t[-1]:g}s {errT:.2g}   C harness == ctypes: {same}")
-    print(f"{len(rows)} targets ({args.method}, dt = {args.dt:g} s, {args.hold} hold) in {Path(args.out).resolve()}")
+    d = _discretization(args)
+    print(f"{len(rows)} targets ({d.method}, dt = {d.dt:g} s, {d.hold} hold) in {Path(args.out).resolve()}")
     return 0 if all(r[-1] for r in rows) else 1
 
 
@@ -79,48 +84,11 @@ def cmd_build(args):
     return 0
 
 
-def cross_check(spec, count=1000, dt=1e-3, method="rk4", substeps=1, hold="zoh", seed=0):
-    """Worst relative errors of the compiled C against the reference.
-
-    From each of `count` random (x, y, u): two samples (the second with another random y, u, so a
-    first-order hold integrates a real interval), comparing estimates and states; the RHS at
-    (x, y, u); and a run of `count` samples along the built-in trajectory with noise. Returns a dict."""
-    from . import compile_observer
-    from .reference import reference_observer
-    from .sim.trajectory import demo_trajectory
-
-    obs = compile_observer(spec, dt=dt, method=method, substeps=substeps, hold=hold)
-    ref = reference_observer(spec, dt=dt, method=method, substeps=substeps, hold=hold)
-    X, Y, U = random_inputs(spec, count, seed)
-    _, Y2, U2 = random_inputs(spec, count, seed + 7)
-    errs = {"step_est": [], "step_state": [], "rhs": []}
-    for x, y, u, y2, u2 in zip(X, Y, U, Y2, U2):
-        for o in (obs, ref):
-            o.reset(y)
-            o.state = x
-        for yk, uk in ((y, u), (y2, u2)):
-            errs["step_est"].append(relative_error(obs.step(yk, uk), ref.step(yk, uk)))
-            errs["step_state"].append(relative_error(obs.state, ref.state))
-        errs["rhs"].append(relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)))
-    worst = {k: float(np.max(v)) for k, v in errs.items()}  # np.max keeps a NaN: it must fail
-    rng = np.random.default_rng(seed + 1)
-    if spec.ny == spec.nu == spec.robot.n:   # y = q, u = tau: a smooth motion with noise
-        t, Q, QD, TAU = demo_trajectory(spec.robot, T=(count - 1) * dt, dt=dt, seed=seed)
-        Yn = Q + 1e-3 * rng.normal(size=Q.shape)
-        Un = TAU + 1e-2 * rng.normal(size=TAU.shape)
-    else:                                    # other measurements: the family's random inputs
-        _, Yn, Un = random_inputs(spec, count, seed + 2)
-    obs.reset(Yn[0]), ref.reset(Yn[0])
-    worst["run"] = relative_error(obs.run(Yn, Un), ref.run(Yn, Un))
-    worst["samples"] = count
-    return worst
-
-
 def cmd_check(args):
     worst = 0.0
     for name in args.robots:
-        r = cross_check(default_spec(name, args.family), count=args.count, dt=args.dt,
-                        method=args.method, substeps=args.substeps, hold=args.hold)
+        from .check import cross_check
+        r = cross_check(default_spec(name, args.family), _discretization(args), count=args.count)
         w = float(np.max([v for k, v in r.items() if k != "samples"]))
         worst = float(np.max([worst, w]))
         print(f"{name}_{args.family}: worst relative error {w:.2e}  "
@@ -139,7 +107,7 @@ def cmd_bench(args):
         out = repo_root() / "build" / "bench"
         spec = default_spec(name)
         from .emit import emit
-        target = emit(spec, out, dt=1e-3, method="rk4", substeps=1)
+        target = emit(spec.target(dt=1e-3, method="rk4", substeps=1, hold="zoh"), out, spec=spec)
         build(target, native=args.native)
         ours = harness.time_target(target)
         src = robot.source
@@ -180,16 +148,15 @@ def main(argv=None):
         if robots:
             p.add_argument("robots", nargs="*", default=DEFAULT_ROBOTS, help="catalog names")
         p.add_argument("--family", default=DEFAULT_FAMILY)
-        p.add_argument("--dt", type=float, default=1e-3)
-        p.add_argument("--method", default="rk4", choices=["euler", "rk4"])
-        p.add_argument("--substeps", type=int, default=1)
-        p.add_argument("--hold", default="zoh", choices=["zoh", "foh"],
-                       help="measurement hold between samples (see codegen.discretize)")
+        p.add_argument("--dt", type=float, help="sample time in s (default: codegen.target.DEFAULT_DISCRETIZATION)")
+        p.add_argument("--method", choices=["euler", "rk4"], help="integrator (default rk4)")
+        p.add_argument("--substeps", type=int, help="integrator sub-steps per sample (default 1)")
+        p.add_argument("--hold", choices=["zoh", "foh"],
+                       help="measurement hold between samples (default foh; see codegen.discretize)")
         p.add_argument("--native", action="store_true", help="add -march=native")
 
     g = sub.add_parser("generate", help="emit + compile the default targets, run the C harness")
     common(g)
-    g.set_defaults(hold="foh")  # the embedded deliverable: no k0*dt sampling bias (codegen.discretize)
     g.add_argument("--out", default=str(repo_root() / "generated"))
     g.add_argument("--T", type=float, default=2.0, help="length of the built-in trajectory (s)")
     b = sub.add_parser("build", help="emit + compile")

@@ -2,13 +2,13 @@
 
     step(x, y_prev, y, u_prev, u, p, active) -> (x_next, est)
 
-``hold="zoh"`` (default, DESIGN §4): y and u are held over [t_k, t_k+1]:
+``hold="zoh"``: y and u are held over [t_k, t_k+1]:
   1. x <- jump(x, y, p)              hybrid observers only (the logic state lives in x)
   2. est = output(x, y, u, p)        the estimate at this sample
   3. x_next = x advanced by dt with y and u held, in ``substeps`` equal sub-steps of
      ``method`` (explicit Euler or classical RK4). y_prev, u_prev and active are unused.
 
-``hold="foh"``: the state is first brought from t_k-1 to t_k with y interpolated linearly
+``hold="foh"`` (the default, codegen.target.DEFAULT_DISCRETIZATION): the state is first brought from t_k-1 to t_k with y interpolated linearly
 between y_prev and y and u_prev held (the input that was applied over that interval), then
 jump and output at t_k. Causal: it only uses samples already received. ``active`` = 0 on the
 first sample after init (nothing to integrate yet). Why: an observer with output injection
@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-METHODS = ("euler", "rk4")
-HOLDS = ("zoh", "foh")
+from .target import HOLDS, METHODS, Discretization  # noqa: F401  (re-exported)
+
 # Above this many inlined RHS instructions (RHS size x stages x substeps) the stages call one
 # shared RHS routine in the C instead: a big observer (I&I on a 6-DoF arm, an elastic 3R) stays
 # small and quick to compile. Below it, inlining lets common subexpressions (sin/cos of a held y)
@@ -37,15 +37,6 @@ def integrator_step(f, x, t, h, method):
     k3 = f(t + h / 2, x + h / 2 * k2)
     k4 = f(t + h, x + h * k3)
     return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-
-
-def _check(dt, method, substeps, hold):
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    if hold not in HOLDS:
-        raise ValueError(f"hold must be one of {HOLDS}, got {hold!r}")
-    if not (dt > 0) or not isinstance(substeps, int) or substeps < 1:
-        raise ValueError(f"need dt > 0 and an integer substeps >= 1, got dt={dt!r}, substeps={substeps!r}")
 
 
 def _symbols(spec, sym):
@@ -77,18 +68,30 @@ def _pieces(spec, dt, method, substeps, hold, inline):
     return [x, yp, y, up, u, p, active], xn, est
 
 
-def discretize(spec, dt, method="rk4", substeps=1, hold="zoh", inline="auto"):
-    """The step Function of ``spec`` for step dt (s); see the module docstring. ``inline``:
-    True (one flat SX expression), False (MX calling the spec's functions), "auto" (by size)."""
-    _check(dt, method, substeps, hold)
-    ins, xn, est = _pieces(spec, dt, method, substeps, hold, inline)
+def discretize(spec, disc, inline="auto"):
+    """The step Function of a spec under a discretisation (see the module docstring).
+
+    Parameters
+    ----------
+    spec : ObserverSpec
+    disc : codegen.target.Discretization
+        dt (s), method, hold, substeps.
+    inline : "auto" or bool
+        True: one flat SX expression; False: MX calling the spec's functions; "auto": by size.
+
+    Returns
+    -------
+    casadi.Function
+        ``step(x, y_prev, y, u_prev, u, p, active) -> (x_next, est)``.
+    """
+    ins, xn, est = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
     return ca.Function("step", ins, [xn, est],
                        ["x", "y_prev", "y", "u_prev", "u", "p", "active"], ["x_next", "est"])
 
 
-def estimate(spec, dt, method="rk4", substeps=1, hold="zoh", inline="auto"):
-    """The estimate of ``step`` as its own Function (same inputs), without advancing the state."""
-    _check(dt, method, substeps, hold)
-    ins, _, est = _pieces(spec, dt, method, substeps, hold, inline)
+def estimate(spec, disc, inline="auto"):
+    """The estimate of ``discretize(spec, disc)`` as its own Function (same inputs), without
+    advancing the state."""
+    ins, _, est = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
     return ca.Function("estimate", ins, [est],
                        ["x", "y_prev", "y", "u_prev", "u", "p", "active"], ["est"])

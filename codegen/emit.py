@@ -6,6 +6,7 @@ Same inputs give byte-identical files.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import re
@@ -18,7 +19,8 @@ import numpy as np
 
 from . import __version__
 from .discretize import discretize, estimate
-from .spec import sanitize
+from .spec import ObserverSpec
+from .target import sanitize
 
 HOLD_TEXT = {
     "zoh": "zero-order hold: y and u are held over [t_k, t_k+1];\n * step() returns the estimate at t_k, then advances the state to t_k+1.",
@@ -56,32 +58,57 @@ def _comment(text):
     return str(text).replace("*/", "* /").replace("\n", " ")
 
 
-def metadata(spec, prefix, dt, method, substeps, hold, kernels):
+def metadata(spec, target, kernels):
+    """The target's metadata JSON (dict): what was built (the Target, the spec's declared data)
+    and what the C holds (sizes, slot names, defaults, kernels, status codes, fingerprints)."""
+    d = target.discretization
     return {
-        "prefix": prefix,
+        "prefix": target.prefix,
         "family": spec.family,
+        "variant": spec.variant,
+        "target": target.to_dict(),
         "robot": {"name": spec.robot.name, "n": spec.robot.n, "fingerprint": spec.robot.fingerprint,
                   "source": spec.robot_source},
         "sizes": {"nx": spec.nx, "ny": spec.ny, "nu": spec.nu, "np": spec.np, "nest": spec.nest},
         "names": {"x": spec.x_names, "y": spec.y_names, "u": spec.u_names, "p": spec.p_names,
                   "est": spec.est_names},
         "p_default": [float(v) for v in spec.p_default],
-        "discretization": {"dt": float(dt), "method": method, "substeps": substeps,
-                           "hybrid": spec.jump is not None, "hold": hold},
+        "options": spec.options.to_dict(),
+        "discretization": {**d.to_dict(), "hybrid": spec.jump is not None},
         "kernels": kernels,
         "status": STATUS,
         "generator": {"codegen": __version__, "casadi": ca.__version__},
-        "info": spec.info,
+        "design": spec.design,
     }
 
 
-def emit(spec, out_dir, dt=1e-3, method="rk4", substeps=1, prefix=None, hold="zoh", inline="auto"):
-    """Write the C target of ``spec`` into ``out_dir/<prefix>/``; returns that folder (Path).
+def emit(target, out_dir, spec=None):
+    """Write the C of a target into ``out_dir/<prefix>/``.
 
-    dt, method, substeps, hold and inline define the discretisation (see codegen.discretize)."""
-    prefix = sanitize(prefix or spec.target_name)
-    fns = {"step": discretize(spec, dt, method, substeps, hold, inline),
-           "estimate": estimate(spec, dt, method, substeps, hold, inline), "rhs": spec.rhs,
+    Parameters
+    ----------
+    target : codegen.target.Target or codegen.spec.ObserverSpec
+        What to build and how (a spec stands for ``spec.target()``: default discretisation).
+    out_dir : str or Path
+        Parent folder; the target's folder is written to a temporary sibling and renamed.
+    spec : ObserverSpec, optional
+        The spec the target describes, when already built (otherwise built from the target).
+
+    Returns
+    -------
+    Path
+        The target's folder.
+    """
+    if isinstance(target, ObserverSpec):
+        target, spec = target.target(), target
+    if spec is None:
+        from . import build_spec
+        spec = build_spec(target)
+    if target.params:
+        spec = with_params(spec, target.params)
+    prefix = target.prefix
+    fns = {"step": discretize(spec, target.discretization, target.inline),
+           "estimate": estimate(spec, target.discretization, target.inline), "rhs": spec.rhs,
            "init": spec.init}
     kernels = {}
     out_dir = Path(out_dir)
@@ -105,7 +132,7 @@ def emit(spec, out_dir, dt=1e-3, method="rk4", substeps=1, prefix=None, hold="zo
             os.chdir(cwd)
         kfile = tmp / f"{prefix}_kernels.c"
         kfile.write_text(_void_unused(kfile.read_text()))
-        meta = metadata(spec, prefix, dt, method, substeps, hold, kernels)
+        meta = metadata(spec, target, kernels)
         (tmp / f"{prefix}.h").write_text(_header(spec, prefix, meta))
         (tmp / f"{prefix}.c").write_text(_wrapper(spec, prefix, meta))
         (tmp / "Makefile").write_text(_makefile(prefix))
@@ -123,6 +150,18 @@ def emit(spec, out_dir, dt=1e-3, method="rk4", substeps=1, prefix=None, hold="zo
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def with_params(spec, params):
+    """A copy of ``spec`` whose default parameters are overridden by ``params`` (name -> value)."""
+    unknown = set(params) - set(spec.p_names)
+    if unknown:
+        raise ValueError(f"params: unknown parameter(s) {sorted(unknown)} of {spec.family}; "
+                         f"known: {spec.p_names}")
+    p = spec.p_default.copy()
+    for k, v in params.items():
+        p[spec.p_names.index(k)] = float(v)
+    return dataclasses.replace(spec, p_default=p)
 
 
 # --------------------------------------------------------------------------- C text

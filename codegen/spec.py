@@ -5,11 +5,13 @@ Every observer family builds one of these; ``discretize``, ``emit``, ``build`` a
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
+
+from .options import DEFAULT_INPUTS, InputRanges, Options
+from .target import Target, discretization, sanitize  # noqa: F401  (sanitize re-exported)
 
 
 @dataclass
@@ -26,6 +28,13 @@ class ObserverSpec:
       output(x, y, u, p) -> est             the estimate at the current sample
       init(y0, est0, p)  -> x0              state from a first measurement and an initial estimate
       jump(x, y, p)      -> x+   (or None)  hybrid jump map, applied before each step
+
+    Declared data (what the reference and the cross-check read, never guessed):
+      variant     the family's variant (None if it has none)
+      options     typed generation options (codegen.options), e.g. the quadrature order
+      inputs      where the cross-check draws random inputs (codegen.options.InputRanges)
+      design      the design report (JSON-able dict: why the default gains are what they are)
+      build_args  the keyword arguments ``observers.build`` received (plain data, for Target)
     """
 
     family: str
@@ -40,7 +49,11 @@ class ObserverSpec:
     output: ca.Function
     init: ca.Function
     jump: ca.Function | None = None
-    info: dict = field(default_factory=dict)
+    variant: str | None = None
+    options: Options = field(default_factory=Options)
+    inputs: InputRanges = DEFAULT_INPUTS
+    design: dict = field(default_factory=dict)
+    build_args: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self.p_default = np.asarray(self.p_default, dtype=float).reshape(-1)
@@ -67,18 +80,43 @@ class ObserverSpec:
         return self.robot.source
 
     @property
-    def target_name(self):
-        """Default target name, a C identifier: ``<robot>_<family>``."""
-        return sanitize(f"{self.robot.name}_{self.family}")
-
-    @property
     def params(self):
         """Default parameters as a name -> value dict."""
         return dict(zip(self.p_names, self.p_default.tolist()))
 
+    def target(self, value=None, *, precision="double", name=None, inline="auto", **overrides):
+        """The Target that builds this spec with discretisation ``value`` (None: the default;
+        keyword overrides dt, method, hold, substeps), ``precision``, ``name`` (default
+        ``<robot>_<family>[_<variant>]``) and ``inline``."""
+        build = {k: v for k, v in self.build_args.items() if k != "variant"}
+        return Target(robot=self.robot_source, family=self.family, variant=self.variant, build=build,
+                      discretization=discretization(value, **overrides), precision=precision,
+                      name=name or _default_name(self), inline=inline)
 
-def sanitize(text):
-    """A C identifier made from user data: lowercase, [a-z0-9_], not starting with a digit."""
-    s = re.sub(r"[^0-9a-zA-Z_]", "_", str(text)).lower()
-    s = re.sub(r"_+", "_", s).strip("_") or "x"
-    return s if not s[0].isdigit() else "t_" + s
+    def describe(self):
+        """Plain data (JSON-able) the reference rebuilds this observer from: family, variant,
+        robot source, slot names, default parameters, options, and whether it is hybrid."""
+        return {"family": self.family, "variant": self.variant, "robot": self.robot_source,
+                "names": {"x": list(self.x_names), "y": list(self.y_names), "u": list(self.u_names),
+                          "p": list(self.p_names), "est": list(self.est_names)},
+                "p_default": [float(v) for v in self.p_default], "options": self.options.to_dict(),
+                "hybrid": self.jump is not None}
+
+
+def plain(value):
+    """``value`` as plain JSON data: numpy arrays and scalars as lists and floats, design reports
+    through their ``as_dict``; anything else unchanged (Target refuses what is not JSON)."""
+    if hasattr(value, "as_dict"):
+        value = value.as_dict()
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return value
+
+
+def _default_name(spec):
+    parts = [spec.robot.name, spec.family] + ([spec.variant] if spec.variant else [])
+    return sanitize("_".join(parts))

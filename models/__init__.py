@@ -1,5 +1,5 @@
 """Robot models: what a robot is (no observers here). See DESIGN §1-§3."""
-from .catalog import load_robot, names
+from .catalog import from_source, load_robot, names
 from .robot import ModelError, RobotModel
 
-__all__ = ["load_robot", "names", "ModelError", "RobotModel"]
+__all__ = ["from_source", "load_robot", "names", "ModelError", "RobotModel"]

@@ -69,6 +69,45 @@ def load_robot(name=None, *, urdf=None, locked_joints=None, **kwargs):
     return _cache[key]
 
 
+def from_source(source):
+    """The robot a ``RobotModel.source`` dict describes (the inverse of ``robot.source``).
+
+    Parameters
+    ----------
+    source : dict
+        ``{"kind": "closed_form" | "urdf" | "dh" | "elastic", ...}`` as recorded in a target's
+        metadata. A catalog robot's own source gives the (cached) catalog robot.
+
+    Returns
+    -------
+    RobotModel or ElasticRobot
+    """
+    if not isinstance(source, dict) or "kind" not in source:
+        raise ValueError(f"robot source must be a dict with a 'kind', got {source!r}")
+    kind, name = source["kind"], source.get("name")
+    if name in names() and load_robot(name).source == source:
+        return load_robot(name)
+    if kind == "elastic":
+        from .elastic import ElasticRobot
+        rigid = from_source(source["rigid"])
+        if name == f"{rigid.name}_elastic" and rigid.name in ELASTIC:
+            cached = load_elastic(rigid.name, J=source["J"], K=source["K"])
+            if cached.source == source:
+                return cached
+        return ElasticRobot(rigid, source["J"], source["K"], name=name)
+    if kind == "urdf":
+        from .urdf import load_urdf
+        return load_urdf(source["path"], locked_joints=source.get("locked_joints") or None,
+                         name=name, snap_tol=source.get("snap_tol", 1e-9))
+    if kind == "dh":
+        return dh.DHRobot(name, source["dh"], source["masses"], source["coms"], source["inertias"],
+                          source["gravity"], F=source.get("F"))
+    if kind == "closed_form":
+        cls = {"planar_2r": closed_form.Planar2R, "absolute_2r": closed_form.Absolute2R}[source["model"]]
+        return cls(name, **source["params"])
+    raise ValueError(f"unknown robot source kind {kind!r} (closed_form, urdf, dh, elastic)")
+
+
 def load_elastic(name, J=None, K=None):
     """ElasticRobot (SPEC §6) on catalog robot ``name``; J, K default to ``ELASTIC[name]``."""
     from .elastic import ElasticRobot

@@ -1078,7 +1078,8 @@ def load_urdf(path, locked_joints=None, name=None, snap_tol=1e-9):
                 raise ModelError(f"{path}: cannot lock joint {jn!r} of type {jm.shortname()}")
             ids.append(jid)
         model = pin.buildReducedModel(model, sorted(ids), q_ref)
-    source = {"kind": "urdf", "path": str(path), "sha256": hashlib.sha256(data).hexdigest(),
+    name = name if name is not None else path.stem
+    source = {"kind": "urdf", "name": name, "path": str(path), "sha256": hashlib.sha256(data).hexdigest(),
               "locked_joints": locked, "snap_tol": float(snap_tol)}
-    return UrdfRobot(model, name=name if name is not None else path.stem, source=source,
+    return UrdfRobot(model, name=name, source=source,
                      snap_tol=snap_tol)

@@ -9,7 +9,7 @@ import pytest
 
 from codegen import compile_observer
 from codegen.build import BuildError, build
-from codegen.cli import cross_check
+from codegen.check import cross_check
 from codegen.emit import emit
 from codegen.runtime import ObserverError, load
 from codegen.spec import sanitize
@@ -154,7 +154,7 @@ def test_emit_failure_leaves_nothing_half_written(spec_of, tmp_path):
 
 def test_metadata_and_header_describe_the_target(spec_of, tmp_path):
     spec = spec_of("seed000_2r")
-    target = emit(spec, tmp_path, dt=2e-3, method="euler", substeps=2)
+    target = emit(spec.target(dt=2e-3, method="euler", substeps=2, hold="zoh"), tmp_path, spec=spec)
     meta = json.loads((target / f"{target.name}.json").read_text())
     assert meta["sizes"] == {"nx": 2, "ny": 2, "nu": 2, "np": 1, "nest": 2}
     assert meta["discretization"] == {"dt": 2e-3, "method": "euler", "substeps": 2, "hybrid": False,
@@ -175,7 +175,7 @@ def test_sanitized_identifiers():
 def test_compile_observer_bad_arguments(spec_of):
     with pytest.raises(ValueError, match="method"):
         compile_observer(spec_of("seed000_2r"), method="rk45")
-    with pytest.raises(ValueError, match="dt > 0"):
+    with pytest.raises(ValueError, match="dt must be a positive"):
         compile_observer(spec_of("seed000_2r"), dt=-1.0)
 
 
@@ -208,7 +208,7 @@ def test_estimate_equals_step_without_advancing(compiled, spec_of):
 def test_c_harness_csv_equals_ctypes(name, compiled, spec_of, tmp_path):
     """The standalone C program (no Python) gives the same estimates, bit for bit, as ctypes."""
     from codegen import harness
-    from codegen.sim.trajectory import demo_trajectory
+    from codegen.trajectory import demo_trajectory
     obs = compiled(name)
     target = emit(spec_of(name), tmp_path / "t")
     t, Q, QD, TAU = demo_trajectory(spec_of(name).robot, T=0.5)
@@ -226,7 +226,7 @@ def test_c_harness_csv_equals_ctypes(name, compiled, spec_of, tmp_path):
 def test_first_order_hold_removes_the_sampling_bias(name, spec_of):
     """With y held, an output-injection observer settles at a/(1 - exp(-a)) qd, a = k0 dt (ur5:
     k0 dt ~ 0.48, a 27 % overshoot); the first-order hold leaves only an O(dt qdd) bias."""
-    from codegen.sim.trajectory import demo_trajectory
+    from codegen.trajectory import demo_trajectory
     spec = spec_of(name)
     t, Q, QD, TAU = demo_trajectory(spec.robot, T=2.0)
     err = {}
@@ -257,12 +257,12 @@ def test_generated_folder_builds_standalone(spec_of, tmp_path):
 def test_rk4_calling_a_shared_rhs_equals_the_inlined_one(spec_of, tmp_path):
     """inline=False (the stages call one RHS routine, for big observers) gives the same numbers
     and strict C99."""
-    from codegen.sim.trajectory import demo_trajectory
+    from codegen.trajectory import demo_trajectory
     spec = spec_of("ur5")
     t, Q, QD, TAU = demo_trajectory(spec.robot, T=0.3)
     ests = []
     for inline in (True, False):
-        target = emit(spec, tmp_path / str(inline), hold="foh", substeps=2, inline=inline)
+        target = emit(spec.target(hold="foh", substeps=2, inline=inline), tmp_path / str(inline), spec=spec)
         obs = load(target, build(target, strict=True, cache=tmp_path / "cache"))
         obs.reset(Q[0])
         ests.append(obs.run(Q, TAU))

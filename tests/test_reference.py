@@ -1,11 +1,10 @@
 """The independent reference (codegen.reference): robots from SPEC's formulas and
 pinocchio, the reduced-order observer, its discretization and its input checks.
 
-Uses a tiny fake spec (SimpleNamespace), so it depends on no other module of the project.
+Uses a tiny fake description (a plain dict), so it depends on no other module of the project.
 """
 import re
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -37,12 +36,12 @@ def ur5_source(**extra):
 
 
 def fake_spec(source, k0=16.037, family="reduced_order"):
+    """The plain-data description the reference reads (ObserverSpec.describe() keys)."""
     n = reference_robot(source).n
-    return SimpleNamespace(
-        family=family, robot_source=source, p_names=["k0"], p_default=np.array([k0]),
-        x_names=[f"z{i}" for i in range(n)], y_names=[f"q{i}" for i in range(n)],
-        u_names=[f"tau{i}" for i in range(n)], est_names=[f"dq_hat{i}" for i in range(n)],
-        jump=None)
+    return {"family": family, "variant": None, "robot": source, "p_default": [k0],
+            "names": {"p": ["k0"], "x": [f"z{i}" for i in range(n)], "y": [f"q{i}" for i in range(n)],
+                      "u": [f"tau{i}" for i in range(n)], "est": [f"dq_hat{i}" for i in range(n)]},
+            "options": {"kind": "Options"}, "hybrid": False}
 
 
 # ---------------------------------------------------------------------------- closed forms
@@ -235,7 +234,7 @@ def test_reduced_order_equations_and_init():
     estimate equals est0 [S000 (6),(9)]."""
     for source in (SEED_SOURCES["seed000_2r"], ur5_source()):
         spec = fake_spec(source, k0=7.5)
-        ref = reference_observer(spec, dt=1e-3)
+        ref = reference_observer(spec, dt=1e-3, hold="zoh")
         robot = ref.robot
         n = robot.n
         x, y, u = RNG.standard_normal((3, n))
@@ -265,7 +264,7 @@ def _exact_step(ref, x, y, u, dt):
 def test_rk4_step_matches_exact_flow(dt, substeps):
     """One step of rk4 with y, u held equals the exact flow (solve_ivp, rtol 1e-13) to 1e-9."""
     spec = fake_spec(SEED_SOURCES["seed000_2r"])
-    ref = reference_observer(spec, dt=dt, method="rk4", substeps=substeps)
+    ref = reference_observer(spec, dt=dt, method="rk4", substeps=substeps, hold="zoh")
     for _ in range(5):
         y, est0 = RNG.uniform(-2, 2, 2), RNG.uniform(-3, 3, 2)
         u = 100 * RNG.standard_normal(2)
@@ -283,7 +282,7 @@ def test_convergence_order(method, order):
     y, est0, u = np.array([0.4, -0.8]), np.array([1.0, -2.0]), np.array([30.0, -10.0])
     errs = []
     for substeps in (4, 8, 16):
-        ref = reference_observer(spec, dt=dt, method=method, substeps=substeps)
+        ref = reference_observer(spec, dt=dt, method=method, substeps=substeps, hold="zoh")
         ref.reset(y, est0)
         x0 = ref.state
         ref.step(y, u)
@@ -309,7 +308,7 @@ def test_continuous_observer_converges_on_seed000_plant():
     converges to the true velocity; the error falls by > 1e5 within 1 s (rate ~ k0)."""
     t = np.linspace(0.0, 1.0, 11)
     robot, tau, plant, s0 = _seed000_plant(t)
-    ref = reference_observer(fake_spec(SEED_SOURCES["seed000_2r"]))
+    ref = reference_observer(fake_spec(SEED_SOURCES["seed000_2r"]), hold="zoh")
     k0 = ref.params[0]
 
     def f(tt, s):
@@ -332,7 +331,7 @@ def test_sampled_observer_error_is_first_order_in_dt():
         sol = solve_ivp(plant, (0, t[-1]), s0, t_eval=t, method="DOP853", rtol=1e-12, atol=1e-12)
         Q, V = sol.y[:2].T, sol.y[2:].T
         U = np.array([tau(tt) for tt in t])
-        ref = reference_observer(fake_spec(SEED_SOURCES["seed000_2r"]), dt=dt, method="rk4")
+        ref = reference_observer(fake_spec(SEED_SOURCES["seed000_2r"]), dt=dt, method="rk4", hold="zoh")
         ref.reset(Q[0])                                   # x2hat(0) = 0
         err = np.linalg.norm(ref.run(Q, U) - V, axis=1)
         assert err[0] > 0.5 and err[-1] < 0.1 * err[0]
@@ -343,8 +342,8 @@ def test_sampled_observer_error_is_first_order_in_dt():
 def test_step_run_consistency():
     spec = fake_spec(SEED_SOURCES["seed002_2r"], k0=12.0)
     Y, U = RNG.uniform(-1, 1, (50, 2)), RNG.standard_normal((50, 2))
-    a = reference_observer(spec, dt=2e-3, method="rk4", substeps=2)
-    b = reference_observer(spec, dt=2e-3, method="rk4", substeps=2)
+    a = reference_observer(spec, dt=2e-3, method="rk4", substeps=2, hold="zoh")
+    b = reference_observer(spec, dt=2e-3, method="rk4", substeps=2, hold="zoh")
     a.reset(Y[0], [0.3, -0.1])
     b.reset(Y[0], [0.3, -0.1])
     EST = a.run(Y, U)
@@ -356,7 +355,7 @@ def test_step_run_consistency():
 
 def test_euler_is_one_explicit_step():
     spec = fake_spec(SEED_SOURCES["seed000_2r"])
-    ref = reference_observer(spec, dt=1e-3, method="euler")
+    ref = reference_observer(spec, dt=1e-3, method="euler", hold="zoh")
     y, u = np.array([0.2, 0.3]), np.array([1.0, 2.0])
     ref.reset(y, [1.0, 1.0])
     x0 = ref.state
@@ -372,7 +371,7 @@ def test_euler_is_one_explicit_step():
     (("ab", np.zeros(2)), "y"),
 ])
 def test_bad_step_inputs_raise_and_keep_state(args, name):
-    ref = reference_observer(fake_spec(SEED_SOURCES["seed000_2r"]))
+    ref = reference_observer(fake_spec(SEED_SOURCES["seed000_2r"]), hold="zoh")
     ref.reset([0.1, 0.2], [1.0, 2.0])
     before = ref.state
     with pytest.raises(ValueError, match=rf"^{name} .*\(2,\)"):
@@ -381,7 +380,7 @@ def test_bad_step_inputs_raise_and_keep_state(args, name):
 
 
 def test_bad_run_and_reset_inputs():
-    ref = reference_observer(fake_spec(SEED_SOURCES["seed000_2r"]))
+    ref = reference_observer(fake_spec(SEED_SOURCES["seed000_2r"]), hold="zoh")
     with pytest.raises(RuntimeError, match="reset"):
         ref.step(np.zeros(2), np.zeros(2))
     ref.reset([0.1, 0.2])
@@ -415,6 +414,8 @@ def test_bad_construction():
     with pytest.raises(ValueError, match="family"):
         reference_observer(fake_spec(SEED_SOURCES["seed000_2r"], family="nope"))
     with pytest.raises(ValueError, match="sizes"):
-        reference_observer(SimpleNamespace(**dict(vars(spec), x_names=["a"])))
+        reference_observer({**spec, "names": {**spec["names"], "x": ["a"]}})
     with pytest.raises(ValueError, match="jump"):
-        reference_observer(SimpleNamespace(**dict(vars(spec), jump=object())))
+        reference_observer({**spec, "hybrid": True})
+    with pytest.raises(ValueError, match="options"):
+        reference_observer({**spec, "options": {"kind": "Nonsense"}})

@@ -11,7 +11,7 @@ from codegen.observers._nonminimal import (conditioning, gravity_vector, moving_
                                            nonminimal, observable_joints, select_rows)
 from codegen.reference import reference_observer
 from codegen.reference.robots import reference_robot
-from codegen.targets import random_inputs, relative_error
+from codegen.check import random_inputs, relative_error
 from models import load_robot
 
 TOL_C = 1e-9          # emitted C vs reference, relative (DESIGN §4)
@@ -125,8 +125,8 @@ CASES = {
 def _cross_check(spec, count, dt=1e-4):
     """Worst relative errors of the C against the reference: single steps (estimate, next state,
     RHS) from `count` random (x, y, u), then a run of `count` samples."""
-    obs = compile_observer(spec, dt=dt, method="rk4")
-    ref = reference_observer(spec, dt=dt, method="rk4")
+    obs = compile_observer(spec, dt=dt, method="rk4", hold="zoh")
+    ref = reference_observer(spec, dt=dt, method="rk4", hold="zoh")
     X, Y, U = random_inputs(spec, count, seed=3)
     worst = {"est": 0.0, "state": 0.0, "rhs": 0.0}
     for x, y, u in zip(X, Y, U):

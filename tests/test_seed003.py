@@ -10,7 +10,7 @@ from codegen.design import ii_speed_bounds
 from codegen.reference import reference_observer
 from codegen.reference import ii_aov as ref_aov
 from codegen.reference import ii_speed as ref_ii
-from codegen.targets import relative_error
+from codegen.check import relative_error
 from models import load_robot
 
 TOL = 1e-9
@@ -20,9 +20,9 @@ RNG = np.random.default_rng(3)
 
 def _reference(spec, dt, hold="zoh"):
     ref = reference_observer(spec, dt=dt, method="rk4", hold=hold)
-    assert ref.family.N == spec.info["N"]      # the quadrature order reaches the reference
-    assert ref.family.periodic == spec.info["periodic"]    # and the same interval reduction
-    assert ref.family.N_period == spec.info["N_period"]
+    assert ref.family.N == spec.options.N      # the quadrature order reaches the reference
+    assert ref.family.periodic == list(spec.options.periodic)    # and the same interval reduction
+    assert ref.family.N_period == spec.options.N_period
     return ref
 
 
@@ -82,7 +82,7 @@ def test_emitted_c_equals_reference_2dof(family):
     robot = load_robot("seed003_2r_abs")
     spec = observers.build(family, robot)
     dt = 1e-4
-    obs = compile_observer(spec, dt=dt, method="rk4")
+    obs = compile_observer(spec, dt=dt, method="rk4", hold="zoh")
     ref = _reference(spec, dt)
     worst = 0.0
     for k in range(60):
@@ -136,8 +136,8 @@ def test_emitted_c_equals_reference_ur5():
     scipy is test_quadrature_converges's business. The library comes from the build cache
     after the first compile."""
     robot, spec = _ur5_spec()
-    assert spec.info["periodic"] == [True] * 6
-    obs = compile_observer(spec, dt=1e-3, method="rk4", cflags=("-O1",))  # ~100k-instruction kernel
+    assert spec.options.periodic == (True,) * 6
+    obs = compile_observer(spec, dt=1e-3, method="rk4", hold="zoh", cflags=("-O1",))  # ~100k-instruction kernel
     ref = _reference(spec, 1e-3)
     for k in range(3):
         y = robot.sample_configurations(1, 10 + k)[0] + 2 * np.pi * RNG.integers(-1, 2, 6)
@@ -169,12 +169,12 @@ def test_wrap_option_resolution():
     whose flags disagree with the reference are errors."""
     from codegen.observers._ii_common import resolve_wrap
     from codegen.reference import reference_robot
-    from codegen.reference.ii_speed import resolve_wrap as ref_resolve
+    from codegen.reference.ii_speed import check_periodic
     for name in ("ur5", "seed003_2r_abs", "seed000_2r"):
         robot = load_robot(name)
         rr = reference_robot(robot.source)
         assert list(robot.periodic) == list(rr.periodic) == [True] * robot.n
-        assert resolve_wrap(robot, "auto") == ref_resolve(rr, {"wrap": "auto"}) == [True] * robot.n
+        assert resolve_wrap(robot, "auto") == check_periodic(rr, robot.periodic) == [True] * robot.n
         assert resolve_wrap(robot, False) == [False] * robot.n
     robot = load_robot("seed003_2r_abs")
 
@@ -183,10 +183,10 @@ def test_wrap_option_resolution():
     assert resolve_wrap(Sliding, "auto") == [True, False]
     with pytest.raises(ValueError):
         resolve_wrap(Sliding, True)
-    with pytest.raises(ValueError):
-        ref_resolve(reference_robot(robot.source), {"wrap": "auto", "periodic": [True, False]})
+    with pytest.raises(ValueError):                    # the spec reduces a joint the reference
+        check_periodic(Sliding, [True, True])           # robot does not know to be periodic
     spec = observers.build("ii_speed", robot, wrap=False)
-    assert spec.info["periodic"] == [False, False] and _reference(spec, 1e-3).family.periodic == [False, False]
+    assert spec.options.periodic == (False, False) and _reference(spec, 1e-3).family.periodic == [False, False]
 
 
 def test_wrap_removes_the_drift_at_large_angles():

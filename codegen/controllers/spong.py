@@ -47,7 +47,7 @@ def _spong_coordinates(robot, x):
     return chain[:4], chain[4]
 
 
-def _spec(robot, family, y, y_names, p, p_names, p_default, u, info):
+def _spec(robot, family, y, y_names, p, p_names, p_default, u, design):
     n = robot.n
     xs, e, y0 = ca.SX.sym("s", 1), ca.SX.sym("u_in", 0), ca.SX.sym("y0", 9 * n)
     est0 = ca.SX.sym("est0", n)
@@ -56,7 +56,7 @@ def _spec(robot, family, y, y_names, p, p_names, p_default, u, info):
         p_names=p_names, est_names=[f"u_{a}" for a in robot.joint_names], p_default=p_default,
         rhs=ca.Function("rhs", [xs, y, e, p], [ca.SX.zeros(1)]),
         output=ca.Function("output", [xs, y, e, p], [ca.cse(u)]),
-        init=ca.Function("init", [y0, est0, p], [ca.SX.zeros(1)]), info=info)
+        init=ca.Function("init", [y0, est0, p], [ca.SX.zeros(1)]), design=design)
 
 
 def _saturate(u, umax):

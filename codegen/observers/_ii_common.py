@@ -33,6 +33,7 @@ import casadi as ca
 
 import numpy as np
 
+from ..options import InputRanges
 from ..symbolic import integrate, periodic_integrate, wrap_angle
 
 DEFAULT_N = 16         # Gauss-Legendre nodes per integral (docs/quadrature.md)
@@ -122,20 +123,13 @@ def names(robot):
     return list(robot.joint_names)
 
 
-def random_inputs(spec, count, seed=0):
-    """Cross-check inputs for the I&I observers (targets.random_inputs hook): configurations
-    shared by every call (a fixed draw) plus 1e-2 rad of seeded noise, so the two samples of a
-    cross-check draw differ like consecutive 1 kHz measurements rather than by whole turns (a
-    jump of several rad in 1 ms drives these stiff filters out of range); states from init at
-    velocity-sized estimates with s_y off y by ~0.05 rad and r in [2 c_r, 0.02 + 2 c_r]."""
-    rng = np.random.default_rng(seed)
-    robot, n = spec.robot, spec.robot.n
-    Y = robot.sample_configurations(count, 0) + 1e-2 * rng.normal(size=(count, n))
-    U = np.asarray(robot.g.map(count)(Y.T)).T + rng.normal(size=(count, n))
-    EST = rng.normal(size=(count, spec.nest))
-    P = np.tile(spec.p_default[:, None], count)
-    X = np.asarray(spec.init.map(count)(Y.T, EST.T, P)).T.reshape(count, spec.nx)
-    X[:, n:2 * n] += 0.05 * rng.normal(size=(count, n))
-    c_r = spec.p_default[spec.p_names.index("c_r")]
-    X[:, -1] = 2 * c_r + 0.02 * rng.uniform(size=count)
-    return X, Y, U
+def ii_inputs(n, c_r):
+    """Cross-check input ranges of the I&I observers (data, codegen.options.InputRanges):
+    configurations from one fixed draw plus 1e-2 rad of noise, so the two samples of a draw
+    differ like consecutive 1 kHz measurements rather than by whole turns (a jump of several
+    rad in 1 ms drives these stiff filters out of range); u = g(y) + N(0, 1); states from init
+    at N(0, 1) estimates with the position filter off y by ~0.05 rad and r in
+    [2 c_r, 2 c_r + 0.02]."""
+    return InputRanges(y_jitter=1e-2, u_gravity=True, u_scale=1.0, est_scale=1.0,
+                       x_scale=(0.0,) * n + (0.05,) * n + (0.0,) * (n + 1),
+                       x_uniform=(("r", 2 * c_r, 2 * c_r + 0.02),))

@@ -33,6 +33,7 @@ import numpy as np
 
 from .. import symbolic as sym
 from ..design import ciccarella_germani_gains
+from ..options import VariantOptions
 from ..spec import ObserverSpec
 
 VARIANTS = ("O1", "O2", "O3", "O4")
@@ -128,7 +129,7 @@ def build(robot, variant="O1", eigenvalues=None, gains=None, rcond_min=1e-12):
         rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
         output=ca.Function("output", [x, y, u, p], [x]),
         init=ca.Function("init", [y0, est0, p], [est0]),   # every integrator starts at x0_hat [CODE-CP]
-        info={"variant": variant, "structured_solve": structured, "degrees": degs,
-              "eigenvalues": None if eigenvalues is None else np.asarray(eigenvalues, float).tolist(),
-              "rows": rows},
+        variant=variant, options=VariantOptions(variant=variant),
+        design={"structured_solve": structured, "degrees": degs, "rows": rows,
+                "eigenvalues": None if eigenvalues is None else np.asarray(eigenvalues, float).tolist()},
     )

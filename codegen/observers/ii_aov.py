@@ -30,10 +30,10 @@ import casadi as ca
 import numpy as np
 
 from ..design import ii_aov_bounds
+from ..options import QuadratureOptions
 from ..spec import ObserverSpec
 from ..symbolic import chol_lower, ldl_solve
-from ._ii_common import random_inputs  # noqa: F401  (cross-check inputs, targets.random_inputs)
-from ._ii_common import (DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq,
+from ._ii_common import (DEFAULT_N, ii_inputs, beta_directional, christoffel_column_matrix, frobenius_sq,
                          quadrature_beta, resolve_wrap)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
@@ -159,8 +159,9 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
         rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
         output=ca.Function("output", [x, y, u, p], [ca.vertcat(ca.mtimes(T, phat), qd_hat)]),
         init=ca.Function("init", [y0, est0, p], [x0]),
-        info={"design": design.as_dict(), "N": int(N), "quadrature": "gauss-legendre",
-              "wrap": wrap if isinstance(wrap, (str, bool)) else list(map(bool, wrap)),
-              "periodic": periodic, "N_period": N_period, "period_rule": "trapezoid",
-              "norms": "frobenius", "estimate": "[T(y) phat; T(y) pbarhat]"},
+        options=QuadratureOptions(N=N, periodic=periodic, N_period=N_period),
+        inputs=ii_inputs(n, c_r),
+        design={**design.as_dict(), "quadrature": "gauss-legendre", "period_rule": "trapezoid",
+                "wrap": wrap if isinstance(wrap, (str, bool)) else list(map(bool, wrap)),
+                "norms": "frobenius", "estimate": "[T(y) phat; T(y) pbarhat]"},
     )

@@ -40,10 +40,10 @@ import casadi as ca
 import numpy as np
 
 from ..design import ii_speed_bounds
+from ..options import QuadratureOptions
 from ..spec import ObserverSpec
 from ..symbolic import ldl_solve
-from ._ii_common import random_inputs  # noqa: F401  (cross-check inputs, targets.random_inputs)
-from ._ii_common import (DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq,
+from ._ii_common import (DEFAULT_N, ii_inputs, beta_directional, christoffel_column_matrix, frobenius_sq,
                          quadrature_beta, resolve_wrap)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
@@ -139,8 +139,9 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
         rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
         output=ca.Function("output", [x, y, u, p], [ca.vertcat(s_x, xhat)]),
         init=ca.Function("init", [y0, est0, p], [x0]),
-        info={"design": design.as_dict(), "N": int(N), "quadrature": "gauss-legendre",
-              "wrap": wrap if isinstance(wrap, (str, bool)) else list(map(bool, wrap)),
-              "periodic": periodic, "N_period": N_period, "period_rule": "trapezoid",
-              "norms": "frobenius", "estimate": "[s_x; xhat]"},
+        options=QuadratureOptions(N=N, periodic=periodic, N_period=N_period),
+        inputs=ii_inputs(n, c_r),
+        design={**design.as_dict(), "quadrature": "gauss-legendre", "period_rule": "trapezoid",
+                "wrap": wrap if isinstance(wrap, (str, bool)) else list(map(bool, wrap)),
+                "norms": "frobenius", "estimate": "[s_x; xhat]"},
     )

@@ -29,11 +29,10 @@ projection = 1 the jump map clips thetahat into [theta_min, theta_max] before ev
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import casadi as ca
 import numpy as np
 
+from ..options import InputRanges, NonMinimalOptions
 from ..spec import ObserverSpec
 from ._nonminimal import nonminimal
 
@@ -41,18 +40,6 @@ from ._nonminimal import nonminimal
 TABLE_II = {"alpha": [30.0, 30.0, 30.0, 30.0], "lambda": [12.0, 12.0, 12.0, 12.0],
             "gamma": [200.0, 250.0, 250.0, 100.0], "thetahat0": [3.0, 3.0, 0.5, 0.5]}
 ADAPTATION_RATE = 500.0  # 1/s, the default gamma_j of other robots (see default_gains)
-
-
-@dataclass
-class _Spec(ObserverSpec):
-    """ObserverSpec whose robot source also names the non-minimal rows and joints, so the
-    independent reference rebuilds the same coordinates (plain data only)."""
-
-    nonminimal_source: dict | None = None
-
-    @property
-    def robot_source(self):
-        return {**self.robot.source, "nonminimal": self.nonminimal_source}
 
 
 def default_gains(nm):
@@ -126,7 +113,8 @@ def build(robot, rows="all", alpha=None, lam=None, gamma=None, thetahat0=None,
     p_default = np.concatenate([gains["alpha"], gains["lambda"], gains["gamma"], gains["thetahat0"],
                                 [float(zhat1_from_y0), 1.0 if projection else 0.0,
                                  float(theta_min), float(theta_max)]])
-    return _Spec(
+    mass = 1.0 / nm.theta
+    return ObserverSpec(
         family="lotfi_namvar", robot=robot,
         x_names=[f"{s}_{c}" for s in ("zhat1", "zhat2", "zeta", "thetahat") for c in ch],
         y_names=[f"q_{j}" for j in robot.joint_names] + [f"f_f_{c}" for c in ch],
@@ -140,26 +128,13 @@ def build(robot, rows="all", alpha=None, lam=None, gamma=None, thetahat0=None,
         output=ca.Function("output", [x, y, u, p], [est]),
         init=ca.Function("init", [y0, est0, p], [x0]),
         jump=ca.Function("jump", [x, y, p], [xj]),
-        info={"nonminimal": nm.source, "row_names": ch, "observable_joints": jn,
-              "theta_true": nm.theta.tolist(), "a": nm.a.tolist()},
-        nonminimal_source=nm.source,
+        options=NonMinimalOptions(**nm.source),
+        # cross-check inputs: f_f = m (acc - g_o) with acc ~ N(0, 10^2); zhat1 near pi (~0.3 m),
+        # zhat2 near J_n est0, zeta at the static-load level m g / alpha, thetahat in [0.2, 3] theta
+        inputs=InputRanges(y_extra=tuple(zip(-mass * nm.a, 10.0 * mass)), u_scale=10.0,
+                           x_scale=(0.3,) * r + (1.0,) * r + tuple(10.0 * mass / 30.0) + (0.0,) * r,
+                           x_uniform=tuple((f"thetahat_{c}", 0.2 * t, 3.0 * t) for c, t in zip(ch, nm.theta))),
+        design={"row_names": ch, "observable_joints": jn, "theta_true": nm.theta.tolist(),
+                "a": nm.a.tolist()},
     )
 
-
-def random_inputs(spec, count, seed=0):
-    """(X, Y, U) for cross-checks: q in the joint ranges, f_f = m (a - g_o) with a ~ N(0, 10^2),
-    states around their working values (zhat1 ~ pi, zeta ~ f_f / alpha, thetahat ~ theta)."""
-    from ._nonminimal import NonMinimal
-    robot, src = spec.robot, spec.nonminimal_source
-    nm = NonMinimal(robot=robot, rows=src["rows"], joints=src["joints"], g_o=np.array(src["g_o"]))
-    rng = np.random.default_rng(seed)
-    r, n = nm.r, robot.n
-    Q = robot.sample_configurations(count, seed)
-    mass = 1.0 / nm.theta
-    FF = mass * (10.0 * rng.normal(size=(count, r)) - nm.a)
-    PI = np.asarray(robot.com.map(count)(Q.T)).T[:, nm.rows]
-    X = np.hstack([PI + 0.1 * rng.normal(size=(count, r)), rng.normal(size=(count, r)),
-                   FF / 30.0 * rng.uniform(0.5, 1.5, size=(count, r)),
-                   nm.theta * rng.uniform(0.2, 3.0, size=(count, r))])
-    U = 10.0 * rng.normal(size=(count, n))
-    return X, np.hstack([Q, FF]), U

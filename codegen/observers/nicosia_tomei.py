@@ -14,6 +14,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ..design import reduced_order_gain
+from ..options import InputRanges
 from ..spec import ObserverSpec
 
 KP_DEFAULT = 500.0   # [ASSUMPTION SPEC §2, A0-4]
@@ -35,10 +36,7 @@ def build(robot, kd=None, kp=KP_DEFAULT, eta=1.0, v_max=2.0):
     x2hat_dot = robot.forward_dynamics(y, x1hat_dot, tau + kp_s * x1tilde)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     joints = robot.joint_names
-    # cross-check inputs: positions within a few rad, speeds ~10 rad/s (targets.random_inputs)
-    info = {"kd": float(kd), "kp": float(kp), "random_state_scale": [3.0] * n + [10.0] * n}
-    if design is not None:
-        info["design"] = design.as_dict()
+    report = {"kd": float(kd), "kp": float(kp), **({"reduced_order": design.as_dict()} if design else {})}
     return ObserverSpec(
         family="nicosia_tomei", robot=robot,
         x_names=[f"q_hat_{j}" for j in joints] + [f"qd_hat_{j}" for j in joints],
@@ -47,5 +45,7 @@ def build(robot, kd=None, kp=KP_DEFAULT, eta=1.0, v_max=2.0):
         rhs=ca.Function("rhs", [x, y, tau, p], [ca.vertcat(x1hat_dot, x2hat_dot)]),
         output=ca.Function("output", [x, y, tau, p], [x2hat]),
         init=ca.Function("init", [y0, est0, p], [ca.vertcat(y0, est0)]),   # [CODE-KUKA] x1hat(0) = y(0)
-        info=info,
+        design=report,
+        # cross-check inputs: positions within a few rad, speeds ~10 rad/s
+        inputs=InputRanges(x_scale=(3.0,) * n + (10.0,) * n),
     )

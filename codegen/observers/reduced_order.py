@@ -43,5 +43,5 @@ def build(robot, k0=None, eta=1.0, v_max=2.0):
         rhs=ca.Function("rhs", [z, y, tau, k], [zdot]),
         output=ca.Function("output", [z, y, tau, k], [x2hat]),
         init=ca.Function("init", [y0, est0, k], [est0 - k * y0]),  # [CODE-KUKA] z(0) = x2hat(0) - k0 y(0)
-        info={"design": design.as_dict() if design else {"k0": float(k0), "given": True}},
+        design=design.as_dict() if design else {"k0": float(k0), "given": True},
     )

@@ -21,6 +21,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ..design import scheduled_gains
+from ..options import HybridOptions, InputRanges
 from ..spec import ObserverSpec
 from .reduced_order import flow
 
@@ -102,7 +103,8 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None):
         # [S000 §V] r(0) = 1; [CODE-KUKA] z(0) = x2hat(0) - k_1 y(0); the first jump raises r if needed
         init=ca.Function("init", [y0, est0, p], [ca.vertcat(est0 - k[0] * y0, 1)]),
         jump=ca.Function("jump", [x, y, p], [ca.vertcat(z_plus, r_plus)]),
-        info={"design": {"eta": float(eta), "vbar": float(vbar), "r_max": r_max,
-                         "delta": float(delta), "k_r": gains},
-              "integer_states": {"r": [1, r_max]}},
+        options=HybridOptions(r_max=r_max),
+        inputs=InputRanges(x_integer=(("r", 1, r_max),)),
+        design={"eta": float(eta), "vbar": float(vbar), "r_max": r_max, "delta": float(delta),
+                "k_r": gains},
     )

@@ -27,6 +27,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from ..options import InputRanges
 from ..spec import ObserverSpec
 
 FORMS = ("literal", "xian")
@@ -71,16 +72,10 @@ def build(robot, form="literal", smoothing_eps=None, K0=None, K1=None, K2=None):
         rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
         output=ca.Function("output", [x, y, u, p], [est]),
         init=ca.Function("init", [y0, est0, p], [x0]),
-        info={"form": form, "smoothing_eps": smoothing_eps},
+        design={"form": form, "smoothing_eps": smoothing_eps},
+        # cross-check inputs: qhat near q (both signs of e, half the draws inside the tanh
+        # layer), w ~ N(0, 5^2); u is unused
+        inputs=InputRanges(x_scale=(0.5,) * n + (5.0,) * n, x_fine=1e-4,
+                           x_about_y=tuple((f"qhat_{s}", f"q_{s}") for s in j)),
     )
 
-
-def random_inputs(spec, count, seed=0):
-    """(X, Y, U) for cross-checks: q in the joint ranges, qhat near q (both signs of e, and
-    inside the tanh layer), w ~ N(0, 5^2); u is unused."""
-    rng = np.random.default_rng(seed)
-    robot, n = spec.robot, spec.robot.n
-    Q = robot.sample_configurations(count, seed)
-    scale = np.where(rng.uniform(size=(count, 1)) < 0.5, 0.5, 1e-4)
-    X = np.hstack([Q + scale * rng.normal(size=(count, n)), 5.0 * rng.normal(size=(count, n))])
-    return X, Q, rng.normal(size=(count, n))

@@ -2,18 +2,20 @@
 
 Never imports CasADi, ``models`` or the symbolic ``codegen`` modules (DESIGN §1), so a
 cross-check of the generated C against it compares two independent implementations.
-It reads only plain data from an ObserverSpec (duck typing): ``family``, ``robot_source``,
-``p_names``, ``p_default``, ``x_names``, ``y_names``, ``u_names``, ``est_names``, ``jump``.
+It reads only plain data: an ObserverSpec's ``describe()`` (family, variant, robot source,
+slot names, default parameters, typed options, hybrid flag), or the same keys in a generated
+target's metadata JSON, and a ``codegen.target.Discretization`` (plain data too).
 
-    ref = reference_observer(spec, dt=1e-3, method="rk4", substeps=1)
+    ref = reference_observer(spec)                      # the default discretisation
+    ref = reference_observer(spec, dt=1e-3, method="rk4", substeps=1, hold="foh")
     ref.reset(y0, est0=None, p=None)
     est = ref.step(y, u)          # est from the current state, then x advances over dt
     EST = ref.run(Y, U)           # (N, ny), (N, nu) -> (N, nest)
 
 A family module gives ``rhs(robot, x, y, u, p)``, ``output(robot, x, y, u, p)``,
 ``init(robot, y0, est0, p)``, ``sizes(robot)``, optionally ``P_NAMES``, for hybrid
-observers ``jump(robot, x, y, p)``, and, when it needs generation options,
-``configure(robot, info, names) -> family`` (info = spec.info, names = the slot names).
+observers ``jump(robot, x, y, p)``, and, when it needs the spec's declared options,
+``configure(robot, options) -> family`` (options: the typed value of codegen.options).
 """
 from __future__ import annotations
 
@@ -22,6 +24,8 @@ import pkgutil
 
 import numpy as np
 
+from ..options import options_from_dict
+from ..target import discretization as as_discretization
 from . import discretize
 from .robots import SEED_SOURCES, reference_robot
 
@@ -34,11 +38,30 @@ FAMILIES = {m.name: importlib.import_module(f"{__name__}.{m.name}")
 __all__ = ["reference_observer", "reference_robot", "ReferenceObserver", "FAMILIES", "SEED_SOURCES"]
 
 
-def reference_observer(spec, dt=1e-3, method="rk4", substeps=1, hold="zoh"):
-    """The reference implementation of ``spec`` discretized with ``method`` over ``dt``;
-    ``hold`` "zoh" (y, u held over the next step) or "foh" (at each sample the state is first
-    brought from the previous sample with y linear in between and the previous u held)."""
-    return ReferenceObserver(spec, dt=dt, method=method, substeps=substeps, hold=hold)
+def reference_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None):
+    """The numpy reference of an observer, stepped like the generated C.
+
+    Parameters
+    ----------
+    spec : ObserverSpec or dict
+        Anything with ``describe()`` (an ObserverSpec), or its plain-data description (the
+        keys of ``ObserverSpec.describe``; a generated target's metadata JSON has them).
+    discretization : codegen.target.Discretization or dict, optional
+        Default: ``codegen.target.DEFAULT_DISCRETIZATION`` (for metadata: the recorded one).
+        ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields.
+
+    Returns
+    -------
+    ReferenceObserver
+    """
+    desc = spec.describe() if hasattr(spec, "describe") else dict(spec)
+    if "source" in desc["robot"]:                    # a metadata JSON: robot = {name, ..., source}
+        desc = {**desc, "robot": desc["robot"]["source"],
+                "hybrid": desc.get("hybrid", desc["discretization"]["hybrid"])}
+    if discretization is None and "target" in desc:
+        discretization = desc["target"]["discretization"]
+    disc = as_discretization(discretization, dt=dt, method=method, substeps=substeps, hold=hold)
+    return ReferenceObserver(desc, disc)
 
 
 def _vector(value, n, name):
@@ -72,47 +95,46 @@ def _matrix(value, N, n, name, n_rows_name="N"):
 
 
 class ReferenceObserver:
-    """A discretized observer in numpy: same step/run contract as the compiled one."""
+    """A discretized observer in numpy: same step/run contract as the compiled one.
 
-    def __init__(self, spec, dt=1e-3, method="rk4", substeps=1, hold="zoh"):
-        if spec.family not in FAMILIES:
-            raise ValueError(f"no reference for observer family {spec.family!r}; known: {sorted(FAMILIES)}")
-        if method not in discretize.METHODS:
-            raise ValueError(f"method must be one of {discretize.METHODS}, got {method!r}")
-        if not (np.isscalar(dt) and np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive finite number, got {dt!r}")
-        if int(substeps) != substeps or substeps < 1:
-            raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
-        if hold not in discretize.HOLDS:
-            raise ValueError(f"hold must be one of {discretize.HOLDS}, got {hold!r}")
-        self.hold = hold
+    Parameters
+    ----------
+    desc : dict
+        Plain-data description (``ObserverSpec.describe()`` keys).
+    disc : codegen.target.Discretization
+    """
+
+    def __init__(self, desc, disc):
+        family_name = desc["family"]
+        if family_name not in FAMILIES:
+            raise ValueError(f"no reference for observer family {family_name!r}; known: {sorted(FAMILIES)}")
+        self.disc = disc
+        self.dt, self.method, self.substeps, self.hold = disc.dt, disc.method, disc.substeps, disc.hold
         self._prev = None   # (y, u) of the last sample, for the first-order hold
-        self.robot = reference_robot(spec.robot_source)
-        # a family may need generation options (plain data: spec.info, the slot names)
-        family = FAMILIES[spec.family]
+        self.robot = reference_robot(desc["robot"])
+        family = FAMILIES[family_name]
         configure = getattr(family, "configure", None)
-        names = {"x": list(spec.x_names), "y": list(spec.y_names), "u": list(spec.u_names),
-                 "p": list(spec.p_names), "est": list(spec.est_names)}
-        self.family = configure(self.robot, dict(spec.info), names) if configure else family
-        self.dt, self.method, self.substeps = float(dt), method, int(substeps)
-        self.x_names, self.y_names = list(spec.x_names), list(spec.y_names)
-        self.u_names, self.est_names = list(spec.u_names), list(spec.est_names)
-        self.p_names = list(spec.p_names)
+        self.options = options_from_dict(desc.get("options"))
+        self.family = configure(self.robot, self.options) if configure else family
+        names = desc["names"]
+        self.x_names, self.y_names = list(names["x"]), list(names["y"])
+        self.u_names, self.est_names = list(names["u"]), list(names["est"])
+        self.p_names = list(names["p"])
         self.nx, self.ny, self.nu = len(self.x_names), len(self.y_names), len(self.u_names)
         self.nest, self.np = len(self.est_names), len(self.p_names)
 
         expected = self.family.sizes(self.robot)
         got = {"nx": self.nx, "ny": self.ny, "nu": self.nu, "nest": self.nest}
         if got != expected:
-            raise ValueError(f"{spec.family}: spec sizes {got} differ from the reference's {expected}")
+            raise ValueError(f"{family_name}: spec sizes {got} differ from the reference's {expected}")
         wanted = getattr(self.family, "P_NAMES", None)
         if wanted is not None and tuple(self.p_names) != tuple(wanted):
-            raise ValueError(f"{spec.family}: p_names {self.p_names} differ from the reference's {list(wanted)}")
-        self.hybrid = spec.jump is not None
+            raise ValueError(f"{family_name}: p_names {self.p_names} differ from the reference's {list(wanted)}")
+        self.hybrid = bool(desc.get("hybrid"))
         if self.hybrid and not hasattr(self.family, "jump"):
-            raise ValueError(f"{spec.family}: the spec has a jump map but the reference family has none")
+            raise ValueError(f"{family_name}: the spec has a jump map but the reference family has none")
 
-        self.p_default = _vector(spec.p_default, self.np, "p_default")
+        self.p_default = _vector(desc["p_default"], self.np, "p_default")
         self.params = self.p_default.copy()
         self._x = None
 

@@ -20,17 +20,13 @@ import numpy as np
 from .elastic import ElasticRobot
 
 
-def configure(robot, info, names):
-    """The measured outputs name the variant (O1..O4); recorded on the reference robot."""
-    robot.cg_variant = variant_of(names["y"], robot.n)
+def configure(robot, options):
+    """The variant the spec declares (codegen.options.VariantOptions), recorded on the
+    reference robot."""
+    if options.variant not in ("O1", "O2", "O3", "O4"):
+        raise ValueError(f"unknown Ciccarella-Germani variant {options.variant!r} (O1..O4)")
+    robot.cg_variant = options.variant
     return sys.modules[__name__]
-
-
-def variant_of(y_names, n):
-    """O1 ('q1_'), O2 (q1, q1d interleaved), O3 (q2, tau), O4 ('q2_')."""
-    if len(y_names) == 2 * n:
-        return "O2" if y_names[1].startswith("q1d_") else "O3"
-    return "O1" if y_names[0].startswith("q1_") else "O4"
 
 
 def _phi_Q(robot, variant, x):

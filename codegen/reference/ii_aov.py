@@ -29,7 +29,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .ii_speed import column_nodes, resolve_wrap
+from .ii_speed import check_periodic, column_nodes
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 DEFAULT_N = 16
@@ -164,12 +164,10 @@ def sizes(robot):
     return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
 
 
-def configure(robot, info, names):
+def configure(robot, options):
     """The family with the spec's quadrature (N, interval reduction, N_period), see
     reference/ii_speed.configure."""
-    if "N" not in info and "wrap" not in info:
-        return sys.modules[__name__]
-    return bound(info.get("N", DEFAULT_N), resolve_wrap(robot, info), info.get("N_period"))
+    return bound(options.N, check_periodic(robot, options.periodic), options.N_period)
 
 
 def bound(N, periodic=None, N_period=None):

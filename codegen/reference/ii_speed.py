@@ -160,34 +160,22 @@ def sizes(robot):
     return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
 
 
-def resolve_wrap(robot, info):
-    """The per-joint interval reduction of a spec, decided from this reference robot's own
-    ``periodic`` flags (pinocchio joint types / closed forms) and the spec's request
-    ``info["wrap"]`` ("auto": the periodic joints, True: all, False: none, or n bools);
-    ValueError if the spec's resolved ``info["periodic"]`` disagrees (independent check)."""
-    n = robot.n
+def check_periodic(robot, periodic):
+    """The spec's per-joint interval reduction, checked against this reference robot's own
+    ``periodic`` flags (pinocchio joint types / closed forms): ValueError if the spec reduces
+    a joint the reference robot does not know to be 2 pi-periodic (independent check)."""
     declared = getattr(robot, "periodic", None)
-    declared = np.zeros(n, bool) if declared is None else np.asarray(declared, dtype=bool)
-    req = info.get("wrap", False)
-    if req == "auto":
-        flags = declared.copy()
-    elif req is True or req is False:
-        flags = np.full(n, bool(req))
-    else:
-        flags = np.asarray(req, dtype=bool).reshape(n)
+    declared = np.zeros(robot.n, bool) if declared is None else np.asarray(declared, dtype=bool)
+    flags = np.asarray(periodic, dtype=bool).reshape(robot.n)
     if np.any(flags & ~declared):
-        raise ValueError(f"wrap {req!r}: the reference robot has non-periodic joints {list(declared)}")
-    if "periodic" in info and list(map(bool, info["periodic"])) != list(map(bool, flags)):
-        raise ValueError(f"spec periodic flags {info['periodic']} differ from the reference's {list(flags)}")
+        raise ValueError(f"periodic {list(flags)}: the reference robot has non-periodic joints {list(declared)}")
     return [bool(v) for v in flags]
 
 
-def configure(robot, info, names):
-    """The family with the spec's quadrature: order N (``spec.info["N"]``), interval reduction
-    (``info["wrap"]``, resolved with this robot's own periodicity) and ``info["N_period"]``."""
-    if "N" not in info and "wrap" not in info:
-        return sys.modules[__name__]
-    return bound(info.get("N", DEFAULT_N), resolve_wrap(robot, info), info.get("N_period"))
+def configure(robot, options):
+    """The family with the spec's quadrature (codegen.options.QuadratureOptions): order N,
+    per-joint interval reduction (checked against this robot's periodicity), N_period."""
+    return bound(options.N, check_periodic(robot, options.periodic), options.N_period)
 
 
 def bound(N, periodic=None, N_period=None):

@@ -67,7 +67,7 @@ def sizes(robot):
     return {"nx": 1, "ny": 9 * n, "nu": 0, "nest": n}
 
 
-def configure(robot, info, names):
+def configure(robot, options):
     require_exact(robot, "spong_fl")
     return _THIS
 

@@ -27,7 +27,7 @@ from . import elastic as E
 from .spong_fl import init, require_exact, rhs, sizes, split_measurement, spong_y3_y4_F  # noqa: F401
 
 
-def configure(robot, info, names):
+def configure(robot, options):
     require_exact(robot, "spong_manifold")
     return _THIS
 

@@ -43,7 +43,8 @@ class SampledPlant:
     def __init__(self, spec, dt, substeps, out_dir=None):
         from .. import compile_observer
         self.dt, self.substeps, self.nx = dt, substeps, spec.nx
-        self.block = compile_observer(spec, dt=dt, method="rk4", substeps=substeps, out_dir=out_dir)
+        self.block = compile_observer(spec, dt=dt, method="rk4", substeps=substeps, hold="zoh",
+                                      out_dir=out_dir)
         self._empty = np.zeros(0)
 
     def reset_state(self, x0):

@@ -174,7 +174,7 @@ def example2(reference=False, T=T_OPEN, dt=DT, seed=2, fixed=None, delta=None):
     obs = {"hybrid": observer(hyb, reference, dt)}
     for r in fixed:
         spec = build("reduced_order", nominal, k0=float(gains[r - 1]))
-        obs[f"fixed_k{r}"] = observer(spec, reference, dt, prefix=f"{spec.target_name}_fixed_k{r}")
+        obs[f"fixed_k{r}"] = observer(spec, reference, dt, prefix=f"{spec.target().prefix}_fixed_k{r}")
     res = simulate(plant(1.0, dt), Q0, QD0, T, dt, open_loop_law(2, dt), obs,
                    sensor=Sensor(**NOISE_HIGH, seed=seed), log_states=("hybrid",))
     r = logic_trace(res, "hybrid")

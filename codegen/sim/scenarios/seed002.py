@@ -97,9 +97,9 @@ def noisy(Q, std, dt, rate=1e3, seed=0):
 def _runner(spec, dt, reference):
     if reference:
         from ...reference import reference_observer
-        return reference_observer(spec, dt=dt, method="rk4")
+        return reference_observer(spec, dt=dt, method="rk4", hold="zoh")
     from ... import compile_observer
-    return compile_observer(spec, dt=dt, method="rk4")
+    return compile_observer(spec, dt=dt, method="rk4", hold="zoh")
 
 
 def run_observer(spec, Y, U, dt, reference=False, est0=None):

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ...target import Discretization
+
 Y0 = np.array([0.0, 0.0])
 X0 = np.array([-0.29, 6.66])
 XI0 = np.array([-8.45, 68.33])
@@ -93,11 +95,11 @@ def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True, N=None,
     t = np.arange(N) * dt
     tr = {"t": t, "x": X, "states": S, "est": E}
     summary = summarize(tr, n)
-    summary.update({"dt": dt, "T": T, "method": "rk4", "hold": HOLD, "plant_substeps": 10, "N_quadrature": sp_ii.info["N"],
-                    "N_period": sp_ii.info["N_period"], "wrap": sp_ii.info["periodic"],
+    summary.update({"dt": dt, "T": T, "method": "rk4", "hold": HOLD, "plant_substeps": 10, "N_quadrature": sp_ii.options.N,
+                    "N_period": sp_ii.options.N_period, "wrap": list(sp_ii.options.periodic),
                     "reference": bool(reference), "wall_s": round(wall, 3),
-                    "k_m": sp_ii.info["design"]["k_m"], "k_M": sp_ii.info["design"]["k_M"],
-                    "k_c": sp_ii.info["design"]["k_c"]})
+                    "k_m": sp_ii.design["k_m"], "k_M": sp_ii.design["k_M"],
+                    "k_c": sp_ii.design["k_c"]})
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
@@ -418,21 +420,22 @@ def bench(robot="ur5", N=8, native=False, blocks=51, wrap=False, opt="-O1"):
     spec = build_observer("ii_speed", rb, N=N, wrap=wrap)
     t_gen = time.perf_counter() - t0
     t0 = time.perf_counter()
-    target = emit(spec, repo_root() / "build" / "bench", dt=1e-3, method="rk4", substeps=1)
+    disc = Discretization(dt=1e-3, method="rk4", substeps=1, hold="zoh")
+    target = emit(spec.target(disc), repo_root() / "build" / "bench", spec=spec)
     t_emit = time.perf_counter() - t0
     t0 = time.perf_counter()
     build(target, native=native, extra_flags=[opt])
     t_cc = time.perf_counter() - t0
     c_bytes = sum(f.stat().st_size for f in target.glob("*.c"))
     ours = time_target(target, blocks=blocks, extra_flags=[opt])
-    ref = reference_observer(spec)
+    ref = reference_observer(spec, disc)
     rng = np.random.default_rng(0)
     y = rb.sample_configurations(1, 1)[0]
     x = np.concatenate([rng.normal(size=rb.n), y + 0.1, rng.normal(size=rb.n), [0.1]])
     u = np.zeros(rb.n)
     reps = 20
     t_ref = min(timeit.repeat(lambda: ref.rhs(x, y, u), number=reps, repeat=3)) / reps
-    return {"robot": robot, "N": N, "wrap": spec.info["periodic"], "opt": opt, "rhs_instructions": int(spec.rhs.n_instructions()),
+    return {"robot": robot, "N": N, "wrap": list(spec.options.periodic), "opt": opt, "rhs_instructions": int(spec.rhs.n_instructions()),
             "generate_s": round(t_gen, 2), "emit_s": round(t_emit, 2), "compile_s": round(t_cc, 2),
             "c_bytes": int(c_bytes), "ns_per_rhs": ours["ns_per_rhs"], "ns_per_rk4_step": ours["ns_per_step"],
             "ns_per_rhs_reference": t_ref * 1e9, "speedup": t_ref * 1e9 / ours["ns_per_rhs"],
