@@ -30,6 +30,7 @@ def aba(tree, q, v, tau):
     Parameters
     ----------
     tree : models.tree.SpatialTree
+        Bodies: placements, joint kinds, inertias, armatures; gravity.
     q, v : casadi.SX (n, 1) or sequence of n scalars
         Joint positions (rad or m) and velocities (rad/s or m/s); ``v`` None means zero.
     tau : casadi.SX (n, 1) or sequence of n scalars

@@ -19,6 +19,7 @@ def crba(tree, q):
     Parameters
     ----------
     tree : models.tree.SpatialTree
+        Bodies: placements, joint kinds, inertias, armatures.
     q : casadi.SX (n, 1) or sequence of n scalars
         Joint positions (rad or m).
 

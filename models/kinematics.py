@@ -17,6 +17,7 @@ def com_positions(tree, q):
     Parameters
     ----------
     tree : models.tree.SpatialTree
+        Bodies: placements, joint kinds, centres of mass.
     q : casadi.SX (n, 1) or sequence of n scalars
         Joint positions (rad or m).
 

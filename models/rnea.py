@@ -18,6 +18,7 @@ def rnea(tree, q, v=None, a=None, gravity=True):
     Parameters
     ----------
     tree : models.tree.SpatialTree
+        Bodies: placements, joint kinds, inertias, armatures; gravity.
     q : casadi.SX (n, 1) or sequence of n scalars
         Joint positions (rad or m).
     v, a : casadi.SX (n, 1), sequence of n scalars, or None
