@@ -1,12 +1,15 @@
-"""models.urdf: our CasADi SX spatial algorithms against pinocchio's own.
+"""models.urdf and the spatial algorithms it runs (models.rnea, crba, aba, kinematics) against
+pinocchio's own; URDF fixtures in tests/data/.
 
 Tolerances: 1e-10 relative to the norm of pinocchio's value (pinocchio run on the SNAPPED
 model, the one our algorithms read), as DESIGN §4 states.
 """
+import hashlib
 import json
 import math
 import pathlib
 import time
+import xml.etree.ElementTree as ET
 
 import casadi as ca
 import numpy as np
@@ -14,12 +17,15 @@ import pytest
 
 pin = pytest.importorskip("pinocchio")
 
+from models.algebra import dot, mul, split  # noqa: E402
+from models.rnea import rnea  # noqa: E402
 from models.robot import ModelError, RobotModel  # noqa: E402
 from models.urdf import UrdfRobot, example_robot_data_dir, load_urdf  # noqa: E402
 
 TOL = 1e-10
 N_SAMPLES = 200
 PANDA_LOCKED = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+DATA = pathlib.Path(__file__).parent / "data"
 
 
 def _rel(a, b):
@@ -44,82 +50,27 @@ def panda(erd):
     return load_urdf(erd / "panda_description/urdf/panda.urdf", locked_joints=PANDA_LOCKED)
 
 
-# ------------------------------------------------------------------ a 3-link test robot
-CPR_URDF = """<?xml version="1.0"?>
-<robot name="cpr">
-  <link name="base"/>
-  <joint name="j_cont" type="continuous">
-    <parent link="base"/><child link="l1"/>
-    <origin xyz="0 0 0.3" rpy="0.1 -0.2 0.3"/>
-    <axis xyz="1 2 3"/>
-    <dynamics damping="0.2"/>
-  </joint>
-  <link name="l1">
-    <inertial><origin xyz="0.05 0.02 0.1" rpy="0.3 0 0.1"/><mass value="2.0"/>
-      <inertia ixx="0.03" ixy="0.001" ixz="-0.002" iyy="0.025" iyz="0.0015" izz="0.02"/>
-    </inertial>
-  </link>
-  <joint name="j_pris" type="prismatic">
-    <parent link="l1"/><child link="l2"/>
-    <origin xyz="0.1 0 0.2" rpy="0 0.5 0"/>
-    <axis xyz="0.6 0 0.8"/>
-    <limit lower="-0.2" upper="0.3" effort="100" velocity="1.0"/>
-    <dynamics damping="1.5"/>
-  </joint>
-  <link name="l2">
-    <inertial><origin xyz="0.0 0.03 -0.05"/><mass value="1.2"/>
-      <inertia ixx="0.01" ixy="0" ixz="0.001" iyy="0.012" iyz="0" izz="0.008"/>
-    </inertial>
-  </link>
-  <joint name="j_rev" type="revolute">
-    <parent link="l2"/><child link="l3"/>
-    <origin xyz="0 0.1 0.15" rpy="0.2 0.1 -0.4"/>
-    <axis xyz="0 -1 0"/>
-    <limit lower="-2" upper="2" effort="50" velocity="3"/>
-  </joint>
-  <link name="l3">
-    <inertial><origin xyz="0.2 0 0.01"/><mass value="0.8"/>
-      <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.009" iyz="0" izz="0.009"/>
-    </inertial>
-  </link>
-  <joint name="tool_joint" type="fixed">
-    <parent link="l3"/><child link="tool"/><origin xyz="0.4 0 0" rpy="0 0 1.0"/>
-  </joint>
-  <link name="tool">
-    <inertial><origin xyz="0.02 0 0"/><mass value="0.3"/>
-      <inertia ixx="0.0004" ixy="0" ixz="0" iyy="0.0004" iyz="0" izz="0.0004"/>
-    </inertial>
-  </link>
-</robot>
-"""
-
-_LINK = ('<link name="{name}"><inertial><origin xyz="0.1 0 0"/><mass value="{mass}"/>'
-         '<inertia ixx="{ixx}" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>')
-
-
-def _chain_urdf(j2_type="revolute", mass2=1.0, ixx2=0.01, extra=""):
-    """base -(revolute j1)- l1 -(j2 of type j2_type)- l2."""
-    return f"""<robot name="chain">
-  <link name="base"/>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
-    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
-  {_LINK.format(name="l1", mass=1.0, ixx=0.01)}
-  <joint name="j2" type="{j2_type}"><parent link="l1"/><child link="l2"/>
-    <origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
-    <limit lower="-1" upper="1" effort="1" velocity="1"/>{extra}</joint>
-  {_LINK.format(name="l2", mass=mass2, ixx=ixx2)}
-</robot>"""
-
-
-def _write(tmp_path, text, name="robot.urdf"):
-    p = tmp_path / name
-    p.write_text(text)
-    return p
+# ------------------------------------------------------------------ test robots (tests/data)
+def _two_link(tmp_path, j2_type="revolute", axis="0 1 0", mimic=None, mass2=1.0, ixx2=0.01):
+    """tests/data/two_link.urdf with joint j2 (type, axis, mimic) and link l2 (mass, ixx)
+    edited, written to tmp_path."""
+    root = ET.parse(DATA / "two_link.urdf").getroot()
+    j2 = root.find("joint[@name='j2']")
+    j2.set("type", j2_type)
+    j2.find("axis").set("xyz", axis)
+    if mimic is not None:
+        ET.SubElement(j2, "mimic", joint=mimic)
+    inertial = root.find("link[@name='l2']/inertial")
+    inertial.find("mass").set("value", str(mass2))
+    inertial.find("inertia").set("ixx", str(ixx2))
+    path = tmp_path / "two_link.urdf"
+    ET.ElementTree(root).write(path)
+    return path
 
 
 @pytest.fixture(scope="module")
-def cpr(tmp_path_factory):
-    return load_urdf(_write(tmp_path_factory.mktemp("cpr"), CPR_URDF, "cpr.urdf"))
+def cpr():
+    return load_urdf(DATA / "cpr.urdf")
 
 
 # ------------------------------------------------------------------ helpers
@@ -228,6 +179,31 @@ def test_nle_gravity_forward_dynamics_symbolic(panda):
     assert ca.Function("gm", [qm], [panda.gravity(qm)])(qi).shape == (panda.n, 1)
 
 
+def test_rnea_without_gravity(cpr):
+    """rnea(..., gravity=False) = M a + C v; with v = a = None it is exactly zero (folded)."""
+    q, v, a = (ca.SX.sym(s, cpr.n) for s in "qva")
+    assert rnea(cpr.tree, q, None, None, gravity=False).is_zero()
+    f = ca.Function("f", [q, v, a], [rnea(cpr.tree, q, v, a, gravity=False)])
+    rng = np.random.default_rng(6)
+    for qi in cpr.sample_configurations(10, seed=6):
+        vi, ai = rng.normal(size=(2, cpr.n))
+        assert _rel(f(qi, vi, ai), np.array(cpr.M(qi)) @ ai + np.array(cpr.C(qi, vi)) @ vi) <= TOL
+
+
+def test_folding_scalars():
+    """Exact zeros and unit factors never reach CasADi (what keeps the generated ABA small);
+    bad argument sizes name the argument."""
+    x, y = ca.SX.sym("x"), ca.SX.sym("y")
+    assert mul(0.0, x) == 0.0 and isinstance(mul(x, 0.0), float)
+    assert ca.is_equal(mul(1.0, x), x) and ca.is_equal(mul(x, -1.0), -x, 1)
+    assert ca.is_equal(dot((0.0, -1.0, 2.0), (y, x, y)), -x + 2.0 * y, 2)
+    assert split(None, 3, "v") == [0.0, 0.0, 0.0]
+    with pytest.raises(ValueError, match="tau: expected shape \\(2, 1\\)"):
+        split(ca.SX.sym("t", 3), 2, "tau")
+    with pytest.raises(ValueError, match="q: expected 2 entries"):
+        split([x], 2, "q")
+
+
 # ------------------------------------------------------------------ snapping
 def test_snapping_ur5(ur5):
     raw, snapped = ur5.pin_model_raw, ur5.pin_model
@@ -255,8 +231,7 @@ def test_snapping_effect_bounded(name, request):
 
 def test_snapping_unaligned_axis(tmp_path):
     """A joint axis within snap_tol of a coordinate axis is snapped (and pin_model agrees)."""
-    text = _chain_urdf().replace('<axis xyz="0 1 0"/>', '<axis xyz="1e-12 1 -2e-12"/>')
-    robot = load_urdf(_write(tmp_path, text))
+    robot = load_urdf(_two_link(tmp_path, axis="1e-12 1 -2e-12"))
     raw_j = robot.pin_model_raw.joints[2]
     assert raw_j.shortname() == "JointModelRevoluteUnaligned"
     assert list(robot.pin_model.joints[2].extract().axis) == [0.0, 1.0, 0.0]
@@ -290,44 +265,19 @@ def test_generation_is_fast_and_lean(panda):
     assert fM.n_instructions() < 1000 and ffd.n_instructions() < 2500
 
 
-TREE_URDF = """<robot name="tree">
-  <link name="base"/>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
-    <origin xyz="0 0 0.1" rpy="0.3 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <link name="l1"><inertial><origin xyz="0 0.05 0.1"/><mass value="3"/>
-    <inertia ixx="0.05" ixy="0" ixz="0" iyy="0.04" iyz="0.001" izz="0.03"/></inertial></link>
-  <joint name="j2a" type="revolute"><parent link="l1"/><child link="l2a"/>
-    <origin xyz="0.2 0.1 0" rpy="0 0 0.7"/><axis xyz="1 0 0"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <link name="l2a"><inertial><origin xyz="0.1 0 0"/><mass value="1"/>
-    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.02"/></inertial></link>
-  <joint name="j3" type="continuous"><parent link="l2a"/><child link="l3"/>
-    <origin xyz="0.25 0 0"/><axis xyz="0 0 -1"/></joint>
-  <link name="l3"><inertial><origin xyz="0.05 0.02 0"/><mass value="0.5"/>
-    <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.003" iyz="0" izz="0.003"/></inertial></link>
-  <joint name="j2b" type="prismatic"><parent link="l1"/><child link="l2b"/>
-    <origin xyz="-0.2 0 0.1"/><axis xyz="0 0.6 0.8"/>
-    <limit lower="-0.1" upper="0.1" effort="1" velocity="1"/></joint>
-  <link name="l2b"><inertial><origin xyz="0 0 0.05"/><mass value="0.7"/>
-    <inertia ixx="0.004" ixy="0" ixz="0" iyy="0.004" iyz="0" izz="0.001"/></inertial></link>
-</robot>
-"""
-
-
-def test_branching_tree(tmp_path):
+def test_branching_tree():
     """Two branches off l1 (revolute, continuous about -z; prismatic): M has zeros
     between branches and every term matches pinocchio."""
-    robot = load_urdf(_write(tmp_path, TREE_URDF))
+    robot = load_urdf(DATA / "tree.urdf")
     assert robot.joint_names == ["j1", "j2a", "j3", "j2b"]
     assert max(_compare_with_pinocchio(robot, 50, seed=9).values()) <= TOL
     Mq = np.array(robot.M(robot.sample_configurations(1)[0]))
     assert Mq[1, 3] == 0.0 and Mq[2, 3] == 0.0
 
 
-def test_locked_continuous_joint(tmp_path):
+def test_locked_continuous_joint():
     """Locking a continuous joint uses (cos, sin) of the value in the reference q."""
-    path = _write(tmp_path, CPR_URDF)
+    path = DATA / "cpr.urdf"
     robot = load_urdf(path, locked_joints={"j_cont": 0.7})
     assert robot.joint_names == ["j_pris", "j_rev"]
     full = load_urdf(path)
@@ -354,7 +304,6 @@ def test_ur5_panda_attributes(ur5, panda, erd):
     assert json.loads(json.dumps(src)) == src
     assert src["kind"] == "urdf" and pathlib.Path(src["path"]).is_absolute()
     assert src["locked_joints"] == PANDA_LOCKED and src["snap_tol"] == 1e-9
-    import hashlib
     assert src["sha256"] == hashlib.sha256(pathlib.Path(src["path"]).read_bytes()).hexdigest()
     assert (erd / "ur_description").is_dir()
     assert load_urdf(src["path"], PANDA_LOCKED, name="panda").name == "panda"
@@ -375,11 +324,11 @@ def test_missing_file(tmp_path):
 ])
 def test_unsupported_urdf_joint_types(tmp_path, jtype, words):
     with pytest.raises(ModelError, match=f"joint 'j2' has {words}"):
-        load_urdf(_write(tmp_path, _chain_urdf(j2_type=jtype)))
+        load_urdf(_two_link(tmp_path, j2_type=jtype))
 
 
 def test_mimic_joint(tmp_path):
-    path = _write(tmp_path, _chain_urdf(extra='<mimic joint="j1"/>'))
+    path = _two_link(tmp_path, mimic="j1")
     with pytest.raises(ModelError, match="joint 'j2' is a mimic joint"):
         load_urdf(path)
     robot = load_urdf(path, locked_joints={"j2": 0.25})        # a locked mimic joint is fine
@@ -388,7 +337,7 @@ def test_mimic_joint(tmp_path):
 
 def test_unknown_locked_joint(tmp_path):
     with pytest.raises(ModelError, match="locked joint 'j9'"):
-        load_urdf(_write(tmp_path, _chain_urdf()), locked_joints={"j9": 0.0})
+        load_urdf(_two_link(tmp_path), locked_joints={"j9": 0.0})
 
 
 @pytest.mark.parametrize("joint", [pin.JointModelFreeFlyer(), pin.JointModelSpherical(),
@@ -411,24 +360,24 @@ def test_floating_base_root_joint(erd):
 
 def test_zero_mass_link(tmp_path):
     with pytest.raises(ModelError, match="link 'l2' \\(moved by joint 'j2'\\) has mass 0.0"):
-        load_urdf(_write(tmp_path, _chain_urdf(mass2=0.0)))
+        load_urdf(_two_link(tmp_path, mass2=0.0))
 
 
 def test_negative_mass_link(tmp_path):
     with pytest.raises(ModelError, match="link 'l2' has negative mass"):
-        load_urdf(_write(tmp_path, _chain_urdf(mass2=-1.0)))
+        load_urdf(_two_link(tmp_path, mass2=-1.0))
 
 
 @pytest.mark.parametrize("ixx", [-0.01, 0.0])
 def test_inertia_not_positive_definite(tmp_path, ixx):
     with pytest.raises(ModelError, match="link 'l2' .*not positive definite"):
-        load_urdf(_write(tmp_path, _chain_urdf(ixx2=ixx)))
+        load_urdf(_two_link(tmp_path, ixx2=ixx))
 
 
 def test_inertia_snapped_to_singular(tmp_path):
     with pytest.raises(ModelError, match="link 'l2' .*after snapping"):
-        load_urdf(_write(tmp_path, _chain_urdf(ixx2=1e-10)))
-    assert load_urdf(_write(tmp_path, _chain_urdf(ixx2=1e-10)), snap_tol=1e-12).n == 2
+        load_urdf(_two_link(tmp_path, ixx2=1e-10))
+    assert load_urdf(_two_link(tmp_path, ixx2=1e-10), snap_tol=1e-12).n == 2
 
 
 def test_singular_mass_matrix():
