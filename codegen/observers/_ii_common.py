@@ -104,17 +104,50 @@ def beta_jacobians(beta, s_y, s_x):
     return ca.jacobian(beta, s_y), ca.jacobian(beta, s_x)
 
 
-def christoffel_column_matrix(robot, q, i):
-    """C(q, e_i) (n x n): by the symmetry C(q, x) e_i = C(q, e_i) x [S003 P2] it gives column i
-    of C(q, x) for every x at the cost of one Christoffel evaluation."""
-    e = ca.DM.zeros(robot.n, 1)
-    e[i] = 1.0
-    return robot.coriolis(q, e)
-
-
 def frobenius_sq(A):
     """||A||_F^2 = sum of squared entries (upper bound of the squared spectral norm)."""
     return ca.sumsqr(A)
+
+
+def lemma2_names(scalars, a_name, b_name, n):
+    """Parameter names of an I&I observer: the scalars, then the Lemma-2 coefficients a_ji
+    (``a_name``_j_i, row-major j, i) and b_jim (``b_name``_j_i_m, C order j, i, m)."""
+    return (list(scalars) + [f"{a_name}_{j}_{i}" for j in range(n) for i in range(n)]
+            + [f"{b_name}_{j}_{i}_{m}" for j in range(n) for i in range(n) for m in range(n)])
+
+
+def lemma2_values(scalars, a, b):
+    """Flat parameter values in the order of ``lemma2_names``: scalars, a (n, n), b (n, n, n)."""
+    return list(scalars) + list(np.asarray(a).reshape(-1)) + list(np.asarray(b).reshape(-1))
+
+
+def split_params(p, n, scalars):
+    """(dict of scalars, a (n x n), b list of n (n x n) matrices b[m][j, i]) from the flat p
+    laid out as ``lemma2_names``."""
+    s = {k: p[i] for i, k in enumerate(scalars)}
+    o = len(scalars)
+    a = ca.reshape(p[o:o + n * n], n, n).T                              # row-major -> [j, i]
+    o += n * n
+    flat = p[o:o + n ** 3]                                              # index j n^2 + i n + m
+    b = [ca.vertcat(*[ca.horzcat(*[flat[j * n * n + i * n + m] for i in range(n)])
+                      for j in range(n)]) for m in range(n)]
+    return s, a, b
+
+
+def lemma2_bound(k1, a, b, x):
+    """Deltabar_ji(x) = k1 a_ji + sum_m |x_m| b_jim, entrywise  [S003 Lemma 2, DERIVED]."""
+    bound = k1 * a
+    for m in range(len(b)):
+        bound = bound + ca.fabs(x[m]) * b[m]
+    return bound
+
+
+def filter_symbols(n, n_p):
+    """Symbols x (3n+1), y (n), u = tau (n), p (n_p) of an I&I observer and the blocks
+    (xi, first filter state, second filter state, r) of x = [xi; .; .; r]."""
+    x = ca.SX.sym("x", 3 * n + 1)
+    y, u, p = ca.SX.sym("y", n), ca.SX.sym("tau", n), ca.SX.sym("p", n_p)
+    return x, y, u, p, (x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n])
 
 
 def names(robot):

@@ -37,22 +37,20 @@ r = r0 (a parameter). A filter state with s_y(0) != y(0) (Table I) is set throug
 from __future__ import annotations
 
 import casadi as ca
-import numpy as np
 
 from ..design import ii_speed_bounds
 from ..spec import ObserverSpec
-from ..symbolic import ldl_solve
+from ..symbolic import christoffel_column_matrix, ldl_solve
 from ._ii_common import random_inputs  # noqa: F401  (cross-check inputs, targets.random_inputs)
-from ._ii_common import (DEFAULT_N, beta_directional, christoffel_column_matrix, frobenius_sq,
-                         quadrature_beta, resolve_wrap)
+from ._ii_common import (DEFAULT_N, beta_directional, filter_symbols, frobenius_sq, lemma2_bound,
+                         lemma2_names, lemma2_values, quadrature_beta, resolve_wrap, split_params)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 
 
 def p_names(n):
     """Parameter names: the scalars, then a_ji (row-major j, i), then b_jim (C order j, i, m)."""
-    return (list(SCALARS) + [f"dy_k1_{j}_{i}" for j in range(n) for i in range(n)]
-            + [f"dy_sx_{j}_{i}_{m}" for j in range(n) for i in range(n) for m in range(n)])
+    return lemma2_names(SCALARS, "dy_k1", "dy_sx", n)
 
 
 def h_column(robot, q, x, k1, i):
@@ -61,18 +59,6 @@ def h_column(robot, q, x, k1, i):
     e = ca.DM.zeros(n, 1)
     e[i] = 1.0
     return ldl_solve(robot.mass_matrix(q), k1 * e - ca.mtimes(christoffel_column_matrix(robot, q, i), x))
-
-
-def split_params(p, n):
-    """(dict of scalars, a (n x n), b list of n (n x n) matrices b[m][j, i]) from the flat p."""
-    s = {k: p[i] for i, k in enumerate(SCALARS)}
-    o = len(SCALARS)
-    a = ca.reshape(p[o:o + n * n], n, n).T                              # row-major -> [j, i]
-    o += n * n
-    flat = p[o:o + n ** 3]                                              # index j n^2 + i n + m
-    b = [ca.vertcat(*[ca.horzcat(*[flat[j * n * n + i * n + m] for i in range(n)])
-                      for j in range(n)]) for m in range(n)]
-    return s, a, b
 
 
 def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=None,
@@ -93,13 +79,10 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     periodic = resolve_wrap(robot, wrap)
     N_period = int(N_period or N)
     pn = p_names(n)
-    p_default = ([k1, k2, k3, c_r, design.k_m, design.k_M, design.deltabar_x, r0]
-                 + list(np.asarray(design.dy_k1).reshape(-1))
-                 + list(np.asarray(design.dy_sx).reshape(-1)))
-    x = ca.SX.sym("x", 3 * n + 1)
-    y, u, p = ca.SX.sym("y", n), ca.SX.sym("tau", n), ca.SX.sym("p", len(pn))
-    s, a, b = split_params(p, n)
-    xi, s_y, s_x, r = x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n]
+    p_default = lemma2_values([k1, k2, k3, c_r, design.k_m, design.k_M, design.deltabar_x, r0],
+                              design.dy_k1, design.dy_sx)
+    x, y, u, p, (xi, s_y, s_x, r) = filter_symbols(n, len(pn))
+    s, a, b = split_params(p, n, SCALARS)
     K1 = s["k1"]
 
     def col(i, q, v):
@@ -112,9 +95,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     My = robot.mass_matrix(y)
     MDx = robot.coriolis(y, e_x)                                        # M Delta_x [S003 (22)]
     MDy = K1 * ca.DM.eye(n) - robot.coriolis(y, s_x) - ca.mtimes(My, dbdy)   # M Delta_y [S003 (16)]
-    dbar_y = K1 * a
-    for m in range(n):
-        dbar_y = dbar_y + ca.fabs(s_x[m]) * b[m]                        # Lemma 2 [DERIVED]
+    dbar_y = lemma2_bound(K1, a, b, s_x)                                # Lemma 2 [DERIVED]
     g = r ** 2 * s["k_M"] ** 2 / (K1 * s["k_m"])
     psi1 = s["k2"] + r ** 2 / 2 + g * frobenius_sq(dbar_y)              # [S003 (53)]
     psi2 = s["k3"] + r ** 2 / 2 * frobenius_sq(dbdy) + g * s["deltabar_x"] ** 2   # [S003 (54)]
