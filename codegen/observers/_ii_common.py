@@ -109,6 +109,15 @@ def frobenius_sq(A):
     return ca.sumsqr(A)
 
 
+def designed_bounds(bounds, design, robot, samples=None, refine=True):
+    """``bounds`` when given, else ``design(robot, samples=, refine=)`` (design.ii_speed_bounds or
+    design.ii_aov_bounds): offline sups sampled at ``samples`` configurations (default 2000 for
+    n <= 3 joints, 300 above) and refined locally unless ``refine`` is False."""
+    if bounds is not None:
+        return bounds
+    return design(robot, samples=samples or (2000 if robot.n <= 3 else 300), refine=refine)
+
+
 def lemma2_names(scalars, a_name, b_name, n):
     """Parameter names of an I&I observer: the scalars, then the Lemma-2 coefficients a_ji
     (``a_name``_j_i, row-major j, i) and b_jim (``b_name``_j_i_m, C order j, i, m)."""

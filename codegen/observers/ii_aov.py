@@ -34,8 +34,9 @@ from ..design import ii_aov_bounds
 from ..spec import ObserverSpec
 from ..symbolic import christoffel_column_matrix, cholesky_velocity, skew_S
 from ._ii_common import random_inputs  # noqa: F401  (cross-check inputs, targets.random_inputs)
-from ._ii_common import (DEFAULT_N, beta_directional, filter_symbols, frobenius_sq, lemma2_bound,
-                         lemma2_names, lemma2_values, quadrature_beta, resolve_wrap, split_params)
+from ._ii_common import (DEFAULT_N, beta_directional, designed_bounds, filter_symbols,
+                         frobenius_sq, lemma2_bound, lemma2_names, lemma2_values, quadrature_beta,
+                         resolve_wrap, split_params)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 
@@ -75,8 +76,7 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
         raise ValueError(f"k1 must be > 4, got {k1}")
     if not (r0 >= c_r > 0):
         raise ValueError(f"need r0 >= c_r > 0, got r0={r0}, c_r={c_r}")
-    samples = samples or (2000 if robot.n <= 3 else 300)    # offline sups: sampled + refined
-    design = bounds if bounds is not None else ii_aov_bounds(robot, samples=samples, refine=refine)
+    design = designed_bounds(bounds, ii_aov_bounds, robot, samples, refine)
     n = robot.n
     periodic = resolve_wrap(robot, wrap)
     N_period = int(N_period or N)

@@ -27,7 +27,7 @@ Implementation choices:
   spectral norm (so (37) still holds) that is smooth and cheap in C; Lemma 2 bounds exactly
   the Frobenius norm, and Deltabar_x = max(k_c/k_m, k_cF/k_M) keeps (54) dominating
   ||M Delta_x||_F (= k_c/k_m of Lemma 1 whenever k_M k_c/k_m >= k_cF, e.g. the seed's arm).
-- Deltabar_y(s_x) = k1 a + sum_m |s_x,m| b^(m) entrywise, a and b designed offline (design.py).
+- Deltabar_y(s_x) = k1 a + sum_m |s_x,m| b^(m) entrywise, a and b designed offline (design.ii).
 
 State x = [xi; s_y; s_x; r] (3n+1), y = q, u = tau, estimate est = [s_x; xhat]: the first n
 entries are the observer's output s_x (seed 003 §II-B), the last n the unfiltered xhat.
@@ -42,8 +42,9 @@ from ..design import ii_speed_bounds
 from ..spec import ObserverSpec
 from ..symbolic import christoffel_column_matrix, ldl_solve
 from ._ii_common import random_inputs  # noqa: F401  (cross-check inputs, targets.random_inputs)
-from ._ii_common import (DEFAULT_N, beta_directional, filter_symbols, frobenius_sq, lemma2_bound,
-                         lemma2_names, lemma2_values, quadrature_beta, resolve_wrap, split_params)
+from ._ii_common import (DEFAULT_N, beta_directional, designed_bounds, filter_symbols,
+                         frobenius_sq, lemma2_bound, lemma2_names, lemma2_values, quadrature_beta,
+                         resolve_wrap, split_params)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 
@@ -73,8 +74,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
         raise ValueError(f"k1 must be > 4 [S003 (55)], got {k1}")
     if not (r0 > c_r > 0):
         raise ValueError(f"need r0 > c_r > 0 [S003 (38)], got r0={r0}, c_r={c_r}")
-    samples = samples or (2000 if robot.n <= 3 else 300)    # offline sups: sampled + refined
-    design = bounds if bounds is not None else ii_speed_bounds(robot, samples=samples, refine=refine)
+    design = designed_bounds(bounds, ii_speed_bounds, robot, samples, refine)
     n = robot.n
     periodic = resolve_wrap(robot, wrap)
     N_period = int(N_period or N)
