@@ -19,6 +19,7 @@ from importlib import resources
 from pathlib import Path
 
 import casadi as ca
+
 from . import __version__
 from .discretize import discretize, estimate
 from .spec import ObserverSpec
