@@ -20,7 +20,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from . import __version__
+from .version import __version__
 from .discretize import discretize, estimate
 from .spec import ObserverSpec
 from .target import sanitize
@@ -110,7 +110,7 @@ def emit(target, out_dir, spec=None):
     if isinstance(target, ObserverSpec):
         target, spec = target.target(), target
     if spec is None:
-        from . import build_spec
+        from .targets import build_spec
         spec = build_spec(target)
     if target.params:
         spec = with_params(spec, target.params)
