@@ -11,7 +11,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from codegen.reference import SEED_SOURCES, reference_observer, reference_robot
-from codegen.reference.robots import file_sha256
+from codegen.reference.urdf import file_sha256
 
 pin = pytest.importorskip("pinocchio")
 

@@ -30,7 +30,7 @@ from . import discretize
 from .robots import SEED_SOURCES, reference_robot
 
 # a family is a module of this package named like the symbolic one (codegen/observers/<family>.py)
-_NOT_FAMILIES = {"discretize", "robots", "elastic"}
+_NOT_FAMILIES = {"discretize", "robots", "rigid", "urdf", "dh", "elastic", "hyperdual"}
 FAMILIES = {m.name: importlib.import_module(f"{__name__}.{m.name}")
             for m in pkgutil.iter_modules(__path__)
             if m.name not in _NOT_FAMILIES and not m.name.startswith("_")}

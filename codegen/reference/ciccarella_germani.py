@@ -8,25 +8,23 @@ matrix of the linear Phi (O3, O4; SPEC §8.4), and solved by a plain LU (np.lina
 -- not the block forward substitution of the generated code.
 
 Parameters: one gain per row of Phi (channel-major), then ``rcond_min`` (unused here: the
-reference has no conditioning guard). The variant is read from the spec's y names by
-``reference.elastic.reference_observer``, which sets ``robot.cg_variant``.
+reference has no conditioning guard). The variant is the spec's declared option
+(codegen.options.VariantOptions), bound by ``configure``.
 """
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 
-from .elastic import ElasticRobot
+from ._family import bound
+
+VARIANTS = ("O1", "O2", "O3", "O4")
 
 
 def configure(robot, options):
-    """The variant the spec declares (codegen.options.VariantOptions), recorded on the
-    reference robot."""
-    if options.variant not in ("O1", "O2", "O3", "O4"):
-        raise ValueError(f"unknown Ciccarella-Germani variant {options.variant!r} (O1..O4)")
-    robot.cg_variant = options.variant
-    return sys.modules[__name__]
+    """This family bound to the variant the spec declares (codegen.options.VariantOptions)."""
+    if options.variant not in VARIANTS:
+        raise ValueError(f"unknown Ciccarella-Germani variant {options.variant!r} (one of {VARIANTS})")
+    return bound(__name__, variant=options.variant)
 
 
 def _phi_Q(robot, variant, x):
@@ -62,8 +60,7 @@ def _H_and_rows(robot, variant, x):
     return np.concatenate([x3, robot.K @ (x1 - x3)]), [i for i in range(2 * n) for _ in range(2)]
 
 
-def rhs(robot, x, y, u, p):
-    variant = robot.cg_variant
+def rhs(robot, x, y, u, p, variant):
     H, row_error = _H_and_rows(robot, variant, x)
     e = y - H
     v = p[:robot.nx] * e[row_error]
@@ -79,7 +76,7 @@ def init(robot, y0, est0, p):
     return np.array(est0, dtype=float)
 
 
-def sizes(robot):
+def sizes(robot, variant):
     n = robot.n
-    ny = {"O1": n, "O4": n, "O2": 2 * n, "O3": 2 * n}[robot.cg_variant]
+    ny = {"O1": n, "O4": n, "O2": 2 * n, "O3": 2 * n}[variant]
     return {"nx": 4 * n, "ny": ny, "nu": n, "nest": 4 * n}

@@ -22,14 +22,10 @@ p = [k1, k2, k3, c_r, deltabar_p, r0, a (n^2 row-major), b (n^3, j,i,m)]; est = 
 """
 from __future__ import annotations
 
-import sys
-
-from functools import partial
-from types import SimpleNamespace
-
 import numpy as np
 
-from .ii_speed import check_periodic, column_nodes
+from ._family import bound
+from .ii_speed import column_nodes, quadrature
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 DEFAULT_N = 16
@@ -165,14 +161,5 @@ def sizes(robot):
 
 
 def configure(robot, options):
-    """The family with the spec's quadrature (N, interval reduction, N_period), see
-    reference/ii_speed.configure."""
-    return bound(options.N, check_periodic(robot, options.periodic), options.N_period)
-
-
-def bound(N, periodic=None, N_period=None):
-    """This family with the quadrature fixed (see reference/ii_speed.py ``bound``)."""
-    kw = dict(N=N, periodic=periodic, N_period=N_period)
-    return SimpleNamespace(rhs=partial(rhs, **kw), output=partial(output, **kw),
-                           init=partial(init, **kw), sizes=sizes, N=N, periodic=periodic,
-                           N_period=N_period)
+    """This family bound to the spec's quadrature (reference/ii_speed.py ``quadrature``)."""
+    return bound(__name__, **quadrature(robot, options))

@@ -27,9 +27,9 @@ b (n^3, C order j,i,m)].
 """
 from __future__ import annotations
 
-import sys
-
 import numpy as np
+
+from ._family import bound
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 DEFAULT_N = 16
@@ -172,18 +172,13 @@ def check_periodic(robot, periodic):
     return [bool(v) for v in flags]
 
 
+def quadrature(robot, options):
+    """The spec's quadrature (codegen.options.QuadratureOptions) as keyword options of rhs,
+    output and init: order N, per-joint interval reduction (checked against this robot's
+    periodicity), N_period."""
+    return dict(N=options.N, periodic=check_periodic(robot, options.periodic), N_period=options.N_period)
+
+
 def configure(robot, options):
-    """The family with the spec's quadrature (codegen.options.QuadratureOptions): order N,
-    per-joint interval reduction (checked against this robot's periodicity), N_period."""
-    return bound(options.N, check_periodic(robot, options.periodic), options.N_period)
-
-
-def bound(N, periodic=None, N_period=None):
-    """This family with the quadrature fixed (order N, per-joint ``periodic`` reduction,
-    N_period trapezoid nodes per period)."""
-    from functools import partial
-    from types import SimpleNamespace
-    kw = dict(N=N, periodic=periodic, N_period=N_period)
-    return SimpleNamespace(rhs=partial(rhs, **kw), output=partial(output, **kw),
-                           init=partial(init, **kw), sizes=sizes, N=N, periodic=periodic,
-                           N_period=N_period)
+    """This family bound to the spec's quadrature (see ``quadrature``)."""
+    return bound(__name__, **quadrature(robot, options))

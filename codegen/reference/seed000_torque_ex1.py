@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._law import constant_state
+
 P_NAMES = ()
+rhs, init = constant_state(0)
 
 
 def extra_torque(t):
@@ -26,16 +29,8 @@ def torque(robot, y, extra):
     return np.asarray(robot.g(q), dtype=float).reshape(n) + extra(t)
 
 
-def rhs(robot, x, y, u, p):
-    return np.zeros(0)
-
-
 def output(robot, x, y, u, p):
     return torque(robot, y, extra_torque)
-
-
-def init(robot, y0, est0, p):
-    return np.zeros(0)
 
 
 def sizes(robot):

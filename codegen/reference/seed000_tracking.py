@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._law import constant_state, parameters
+
 
 def _quintic(t, q0, q1, T):
     """(q_d, qd_d, qdd_d) of the rest-to-rest quintic at time t."""
@@ -25,12 +27,7 @@ def _quintic(t, q0, q1, T):
     return q0 + h * dq, dh * dq, ddh * dq
 
 
-def rhs(robot, x, y, u, p):
-    return np.zeros(0)
-
-
-def init(robot, y0, est0, p):
-    return np.zeros(0)
+rhs, init = constant_state(0)
 
 
 def sizes(robot):
@@ -40,8 +37,7 @@ def sizes(robot):
 
 def output(robot, x, y, u, p):
     n = robot.n
-    if len(p) != 4 * n + 2:
-        raise ValueError(f"seed000_tracking: expected {4 * n + 2} parameters, got {len(p)}")
+    p = parameters("seed000_tracking", p, 4 * n + 2)
     q, qh, t = y[:n], y[n:2 * n], float(y[2 * n])
     q0, q1 = p[:n], p[n:2 * n]
     T, lam = float(p[2 * n]), float(p[2 * n + 1])
