@@ -78,6 +78,9 @@ class ElasticRobot:
     def _Dy3_pin(self, x, d):
         """D y3 by pinocchio's analytic ABA derivatives (URDF robots): exact first order."""
         rob = self.rigid
+        if not hasattr(rob, "pin_q"):
+            raise ValueError(f"elastic robot {self.name!r}: derivatives of y3 need a DH (hyper-dual) or "
+                             f"URDF (pinocchio) rigid part, got {type(rob).__name__}")
         pin = rob._pin
         x1, x2, x3, _ = self.split(x)
         d1, d2, d3, _ = self.split(d)

@@ -62,9 +62,6 @@ class HyperDual:
     def __sub__(self, o):
         return self + (-HyperDual.lift(o))
 
-    def __rsub__(self, o):
-        return HyperDual.lift(o) - self
-
     @staticmethod
     def _product(x, y, op):
         """Leibniz rule of a bilinear ``op`` (elementwise or matrix product)."""

@@ -73,6 +73,27 @@ def _split(robot, nm, x, y, p):
 
 
 def rhs(robot, x, y, u, p, nm):
+    """[zhat1'; zhat2'; zeta'; thetahat']  [S002 (12), (13), (17)].
+
+    Parameters
+    ----------
+    robot : reference robot with CoM kinematics (n joints)
+    x : (4r,) array
+        [zhat1 (m); zhat2 (m/s); zeta (N s); thetahat (1/kg)].
+    y : (n + r,) array
+        [q (rad); f_f (N)].
+    u : (n,) array
+        tau, N m (unused).
+    p : (4r + 4,) array
+        [alpha; lambda; gamma; thetahat0 (r each); zhat1_from_y0; projection; theta_min;
+        theta_max].
+    nm : NonMinimal
+        The bound rows, joints and a.
+
+    Returns
+    -------
+    (4r,) array
+    """
     r, q, ff, zh1, zh2, zeta, th, al, la, ga = _split(robot, nm, x, y, p)
     pi = robot.com_positions(q)[nm.rows]
     k1, k2 = la + al, la * al
@@ -83,6 +104,8 @@ def rhs(robot, x, y, u, p, nm):
 
 
 def output(robot, x, y, u, p, nm):
+    """est = [qd_hat (n_o, rad/s); nuhat (r, m/s); thetahat (r)], qd_hat by the left
+    pseudo-inverse of J_n (A2-6); arguments as in ``rhs``."""
     r, q, ff, zh1, zh2, zeta, th, al, la, ga = _split(robot, nm, x, y, p)
     nuhat = zh2 + zeta * th
     Jn = robot.com_jacobian(q)[nm.rows][:, nm.joints]
@@ -91,7 +114,8 @@ def output(robot, x, y, u, p, nm):
 
 
 def jump(robot, x, y, p, nm):
-    """thetahat clipped into [theta_min, theta_max] when projection = 1 (identity otherwise)."""
+    """x+ (4r,): thetahat clipped into [theta_min, theta_max] when projection = 1 (identity
+    otherwise); arguments as in ``rhs``."""
     r = len(nm.rows)
     if p[4 * r + 1] == 0.0:
         return np.array(x, dtype=float)
@@ -102,6 +126,21 @@ def jump(robot, x, y, p, nm):
 
 
 def init(robot, y0, est0, p, nm):
+    """x(0) = [zhat1_from_y0 pi(q0); J_n(q0) qd_hat(0); 0; thetahat0]  (SPEC §3.2).
+
+    Parameters
+    ----------
+    robot, p, nm
+        As in ``rhs``.
+    y0 : (n + r,) array
+        [q(0) (rad); f_f(0) (N)].
+    est0 : (n_o + 2r,) array
+        [qd_hat(0) (rad/s); nuhat(0); thetahat(0)] (only qd_hat(0) is read).
+
+    Returns
+    -------
+    (4r,) array
+    """
     r, n = len(nm.rows), robot.n
     q0 = y0[:n]
     Jn = robot.com_jacobian(q0)[nm.rows][:, nm.joints]
@@ -110,5 +149,6 @@ def init(robot, y0, est0, p, nm):
 
 
 def sizes(robot, nm):
+    """{"nx": 4r, "ny": n + r, "nu": n, "nest": n_o + 2r}."""
     r, n = len(nm.rows), robot.n
     return {"nx": 4 * r, "ny": n + r, "nu": n, "nest": len(nm.joints) + 2 * r}

@@ -31,11 +31,29 @@ rhs, init = constant_state(0)
 
 
 def sizes(robot):
+    """{"nx": 0, "ny": 2n + 1, "nu": 0, "nest": n}."""
     n = robot.n
     return {"nx": 0, "ny": 2 * n + 1, "nu": 0, "nest": n}
 
 
 def output(robot, x, y, u, p):
+    """The Example-3 torque [S000 eq. after Fig. 5] (module docstring).
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    x : (0,) array
+    y : (2n + 1,) array
+        [q (rad); x2hat (rad/s); t (s)].
+    u : (0,) array
+    p : (4n + 2,) array
+        [q_start; q_goal (rad); T_move (s); lambda (1/s); kp (n); kd (n)].
+
+    Returns
+    -------
+    (n,) array
+        N m.
+    """
     n = robot.n
     p = parameters("seed000_tracking", p, 4 * n + 2)
     q, qh, t = y[:n], y[n:2 * n], float(y[2 * n])

@@ -48,24 +48,9 @@ def _h0(robot, q, v, r0, r1, r2, KP, KD):
 
 
 def output(robot, x, y, u, p):
-    """Motor torque u = sat(u_s + u_f)  [S004 (4.17)-(4.23)], [CODE-CP].
-
-    Parameters
-    ----------
-    robot : reference elastic robot over a DH rigid part (n joints)
-    x : (1,) array
-        Dummy state (unused).
-    y : (9n,) array
-        The elastic state and q_d with four derivatives (reference/spong_fl.py ``law_inputs``).
-    u : (0,) array
-    p : (4n + 1,) array
-        [K_P (n, 1/s^2); K_D (n, 1/s); K_f (eta, eta' per joint); u_max (N m)].
-
-    Returns
-    -------
-    (n,) array
-        Motor torques, N m.
-    """
+    """Motor torques u = sat(u_s + u_f) (n,), N m  [S004 (4.17)-(4.23)], [CODE-CP]; arguments as
+    in reference/spong_fl.py ``output`` but p = [K_P (n, 1/s^2); K_D (n, 1/s); K_f (eta, eta'
+    per joint); u_max (N m)]."""
     n = robot.n
     xs, r, p = law_inputs("spong_manifold", robot, y, p)
     KP, KD, Kf, umax = p[:n], p[n:2 * n], p[2 * n:4 * n].reshape(n, 2), float(p[4 * n])

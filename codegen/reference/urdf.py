@@ -14,12 +14,23 @@ from .rigid import ReferenceRobot
 
 
 def file_sha256(path):
-    """sha256 of the raw bytes of a file (hex)."""
+    """sha256 (hex str) of the raw bytes of the file at ``path`` (str or Path)."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def snap(a, tol):
-    """Round-off cleanup: |x| < tol -> 0 and |1 - |x|| < tol -> sign(x)."""
+    """Round-off cleanup of an array: |x| < tol -> 0 and |1 - |x|| < tol -> sign(x).
+
+    Parameters
+    ----------
+    a : array_like
+    tol : float
+
+    Returns
+    -------
+    ndarray
+        A copy, the shape of ``a``.
+    """
     a = np.array(a, dtype=float, copy=True)
     a[np.abs(a) < tol] = 0.0
     near_one = np.abs(1.0 - np.abs(a)) < tol
@@ -33,6 +44,17 @@ class UrdfRobot(ReferenceRobot):
     Our coordinates: one per degree of freedom (angle for revolute and continuous
     joints, position for prismatic ones). Continuous joints are (cos, sin) in
     pinocchio (nq = 2), converted by :meth:`pin_q`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The URDF file.
+    sha256 : str or None
+        Expected sha256 of the file (ValueError if it changed).
+    locked_joints : dict
+        Joint name -> value (rad or m) of joints fixed in a reduced model.
+    snap_tol : float
+        Round-off snapped in joint placements and inertias (``snap``); 0: none.
     """
 
     def __init__(self, path, sha256=None, locked_joints=None, snap_tol=1e-9):
@@ -106,17 +128,21 @@ class UrdfRobot(ReferenceRobot):
         return q_pin
 
     def M(self, q):
+        """M(q) (n, n), kg m^2, by pinocchio's crba (symmetrised)."""
         M = self._pin.crba(self.model, self.data, self.pin_q(q))
         return np.triu(M) + np.triu(M, 1).T
 
     def C(self, q, v):
+        """Christoffel C(q, v) (n, n) by pinocchio's computeCoriolisMatrix."""
         return np.array(self._pin.computeCoriolisMatrix(self.model, self.data, self.pin_q(q),
                                                         np.asarray(v, dtype=float)))
 
     def g(self, q):
+        """g(q) (n,), N m, by pinocchio's computeGeneralizedGravity."""
         return np.array(self._pin.computeGeneralizedGravity(self.model, self.data, self.pin_q(q)))
 
     def nle(self, q, v):
+        """C(q, v) v + g(q) (n,), N m, by pinocchio's nonLinearEffects."""
         return np.array(self._pin.nonLinearEffects(self.model, self.data, self.pin_q(q),
                                                    np.asarray(v, dtype=float)))
 
@@ -139,11 +165,10 @@ class UrdfRobot(ReferenceRobot):
         return 0.25 * (self._drnea_dq(q, a + b, z) - self._drnea_dq(q, a - b, z))
 
     def forward_dynamics(self, q, v, tau):
-        """qdd = aba(q, v, tau - F v)."""
+        """qdd = aba(q, v, tau - F v)  [S000 (1)] (n,), rad/s^2; q, v, tau as ReferenceRobot's."""
         v = np.asarray(v, dtype=float)
         tau = np.asarray(tau, dtype=float)
         return np.array(self._pin.aba(self.model, self.data, self.pin_q(q), v, tau - self.F @ v))
-
 
     # ------------------------------------------------------------ link CoM kinematics (seed 002)
     dim = 3
