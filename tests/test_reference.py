@@ -73,18 +73,21 @@ def test_source_import_is_independent():
 
 
 def test_reference_runs_without_casadi_or_models():
-    """Importing the reference and stepping an observer loads neither CasADi nor ``models``
-    (nor any other codegen module than the reference and the plain-data ones)."""
-    code = ("import sys, json; from codegen.reference import reference_observer, SEED_SOURCES; "
-            "spec = json.loads(sys.argv[1]); ref = reference_observer(spec, hold='zoh'); "
+    """Importing the reference and stepping an observer loads neither CasADi nor ``models``, and
+    of ours only the reference and the plain-data modules (beyond what ``import codegen`` loads)."""
+    code = ("import sys, json; import codegen; package = set(sys.modules); "
+            "from codegen.reference import reference_observer; "
+            "ref = reference_observer(json.loads(sys.argv[1]), hold='zoh'); "
             "ref.reset([0.1, 0.2], [1.0, 0.0]); ref.run([[0.1, 0.2]] * 3, [[1.0, 2.0]] * 3); "
-            "print(json.dumps(sorted(sys.modules)))")
+            "print(json.dumps([sorted(sys.modules), sorted(set(sys.modules) - package)]))")
     out = subprocess.run([sys.executable, "-c", code, json.dumps(fake_spec(SEED_SOURCES["seed000_2r"]))],
                          cwd=Path(__file__).parents[1], capture_output=True, text=True, check=True)
-    loaded = json.loads(out.stdout)
-    ours = [m for m in loaded if m.split(".")[0] in ("codegen", "models")]
-    assert "casadi" not in loaded
-    assert all(m in ("codegen",) + tuple(ALLOWED_OURS) or m.startswith("codegen.reference") for m in ours), ours
+    loaded, added = json.loads(out.stdout)
+    assert "casadi" not in loaded and not any(m.split(".")[0] == "models" for m in loaded)
+    ours = [m for m in added if m.split(".")[0] == "codegen"]
+    assert "codegen.reference.robots" in ours
+    assert all(m in ALLOWED_OURS or m.startswith("codegen.reference") for m in ours), ours
+
 
 # ---------------------------------------------------------------------------- observer
 def test_reduced_order_equations_and_init():
