@@ -219,7 +219,7 @@ def test_quadrature_converges():
     """beta and its derivatives (reduced intervals) converge with N to the adaptive value on
     the whole [0, y_i], |y_i| up to 3 pi; small at the default N on the 2-DoF arm."""
     from codegen.observers._ii_common import DEFAULT_N
-    from codegen.sim.scenarios.seed003 import quadrature_study
+    from codegen.sim.studies import quadrature_study
     t = quadrature_study(robots=("seed003_2r_abs",), Ns=(4, 8, 16, 24), samples=2)["seed003_2r_abs"]
     for k in range(3):
         assert t[4][k] > t[8][k] > t[16][k] > t[24][k]
