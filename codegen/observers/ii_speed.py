@@ -43,7 +43,8 @@ from ..design import ii_speed_bounds
 from ..options import QuadratureOptions
 from ..spec import ObserverSpec
 from ..symbolic import ldl_solve
-from ._ii_common import (DEFAULT_N, ii_inputs, beta_directional, christoffel_column_matrix, frobenius_sq,
+from ._ii_common import DEFAULT_N  # public: default quadrature nodes N (docs/quadrature.md)
+from ._ii_common import (ii_inputs, beta_directional, christoffel_column_matrix, frobenius_sq,
                          quadrature_beta, resolve_wrap)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")

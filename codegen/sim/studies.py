@@ -54,6 +54,34 @@ is real in the proof (eta is not monotone) but has not shown up as a loss of con
 """
 
 
+def adaptive_beta(robot, y, s_y, s_x, k1, epsabs=1e-14, epsrel=1e-13):
+    """beta, dbeta/ds_y, dbeta/ds_x of the I&I observers by adaptive quadrature
+    (scipy.integrate.quad_vec) of the exact integrands on the whole [0, y_i]  [S003 (12), (14), (15)].
+
+    Parameters
+    ----------
+    robot : reference robot (codegen.reference.reference_robot)
+    y, s_y, s_x : (n,) measured angle, filter states (rad, rad/s)
+    k1 : gain of H = M^{-1} (k1 I - C)
+
+    Returns
+    -------
+    (n + 2 n^2,) array: [beta, dbeta/ds_y (row-major n x n), dbeta/ds_x (row-major n x n)]
+    """
+    from scipy.integrate import quad_vec
+
+    from ..reference import ii_speed as ref
+
+    def integrand(sig, i):
+        z = np.array(s_y, dtype=float)
+        z[i] = sig
+        Hi, dq, dx = ref.h_column_derivatives(robot, z, s_x, k1, i)
+        dq[:, i] = 0.0
+        return np.concatenate([Hi, dq.ravel(), dx.ravel()])
+    return sum(quad_vec(lambda s, i=i: integrand(s, i), 0.0, y[i], epsabs=epsabs, epsrel=epsrel,
+                        limit=1000)[0] for i in range(len(y)))
+
+
 def quadrature_study(robots=("seed003_2r_abs", "ur5"), Ns=range(2, 17), samples=4, seed=0,
                      write=None, y_range=3 * np.pi):
     """beta, dbeta/ds_y, dbeta/ds_x (reference formulas, N nodes, interval reduction of the
@@ -64,8 +92,6 @@ def quadrature_study(robots=("seed003_2r_abs", "ur5"), Ns=range(2, 17), samples=
     {robot: {N: (err_beta, err_dsy, err_dsx, err_beta_nowrap)}}: worst relative errors over
     ``samples`` random (y, s_y, s_x), the last one without reduction (N-node Gauss-Legendre on
     [0, y_i]); with ``write`` a path, writes the markdown table there."""
-    from scipy.integrate import quad_vec
-
     from models import load_robot
 
     from ..reference import reference_robot
@@ -83,15 +109,7 @@ def quadrature_study(robots=("seed003_2r_abs", "ur5"), Ns=range(2, 17), samples=
             s_y = np.mod(y + rng.normal(scale=0.5, size=n) + np.pi, 2 * np.pi) - np.pi
             s_x = rng.normal(scale=2.0, size=n)
 
-            def integrand(sig, i):
-                z = s_y.copy()
-                z[i] = sig
-                Hi, dq, dx = ref.h_column_derivatives(robot, z, s_x, k1, i)
-                dq[:, i] = 0.0
-                return np.concatenate([Hi, dq.ravel(), dx.ravel()])
-
-            exact = sum(quad_vec(lambda s, i=i: integrand(s, i), 0.0, y[i], epsabs=1e-14,
-                                 epsrel=1e-13, limit=1000)[0] for i in range(n))
+            exact = adaptive_beta(robot, y, s_y, s_x, k1)
             eb, esy, esx = exact[:n], exact[n:n + n * n].reshape(n, n), exact[n + n * n:].reshape(n, n)
             for N in Ns:
                 b, _, dsy, dsx = ref.beta_and_derivatives(robot, y, s_y, s_x, k1, N, True, periodic)

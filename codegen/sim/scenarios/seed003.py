@@ -92,8 +92,9 @@ def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True, N=None,
     t = np.arange(N) * dt
     tr = {"t": t, "x": X, "states": S, "est": E}
     summary = summarize(tr, n)
-    summary.update({"dt": dt, "T": T, "method": "rk4", "hold": HOLD, "plant_substeps": 10, "N_quadrature": sp_ii.options.N,
-                    "N_period": sp_ii.options.N_period, "wrap": list(sp_ii.options.periodic),
+    summary.update({"dt": dt, "T": T, "method": disc.method, "hold": disc.hold, "plant_substeps": 10,
+                    "N_quadrature": sp_ii.options.N, "N_period": sp_ii.options.N_period,
+                    "wrap": list(sp_ii.options.periodic),
                     "reference": bool(reference), "wall_s": round(wall, 3),
                     "k_m": sp_ii.design["k_m"], "k_M": sp_ii.design["k_M"],
                     "k_c": sp_ii.design["k_c"]})
