@@ -99,24 +99,37 @@ def panels(path, x, rows, title="", cols=1, cell=(8.0, 2.6), xlabel="t [s]"):
     return _save(fig, path)
 
 
-def per_joint(path, t, truth, estimates, ylabel="qd{} [rad/s]", truth_label="true", title=""):
+def per_joint(path, t, truth, estimates, ylabel="qd{} [rad/s]", truth_label="true", title="", zoom=None):
     """Per joint i: the true signal (solid) and each estimate (dashed, dash-dotted, ...).
 
     Parameters
     ----------
     t : (N,) s;  truth : (N, n);  estimates : dict label -> (N, >= n) (first n columns drawn)
     ylabel : axis label per joint, ``{}`` replaced by the joint number (1-based)
+    zoom : (t0, t1) in s, optional
+        Adds the same curves over [t0, t1] in an inset box of each axes [S000 Fig. 7].
     """
     plt = _plt()
     n = truth.shape[1]
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n), sharex=True, squeeze=False)
     for i, ax in enumerate(axes[:, 0]):
-        ax.plot(t, truth[:, i], "k-", lw=1.4, label=truth_label)
-        for (name, E), ls in zip(estimates.items(), STYLES):
-            ax.plot(t, E[:, i], linestyle=ls, lw=1.1, label=name)
+        boxes = [ax]
+        if zoom is not None:
+            box = ax.inset_axes([0.55, 0.5, 0.42, 0.45])
+            sel = (t >= zoom[0]) & (t <= zoom[1])
+            box.set_xlim(*zoom)
+            ax.indicate_inset_zoom(box, edgecolor="gray")
+            box.tick_params(labelsize=7)
+            box.grid(alpha=0.3)
+            boxes.append((box, sel))
+        for target in boxes:
+            a, sel = (target, slice(None)) if target is ax else target
+            a.plot(t[sel], truth[sel, i], "k-", lw=1.4, label=truth_label)
+            for (name, E), ls in zip(estimates.items(), STYLES):
+                a.plot(t[sel], E[sel, i], linestyle=ls, lw=1.1, label=name)
         ax.set_ylabel(ylabel.format(i + 1))
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(loc="best", fontsize=8)
+    axes[0, 0].legend(loc="lower left", fontsize=8)
     axes[0, 0].set_title(title)
     axes[-1, 0].set_xlabel("t [s]")
     return _save(fig, path)
