@@ -8,6 +8,8 @@ PNG and returns the path:
     panels               traces on stacked (or gridded) axes          [S002 Figs. 1-4, S003 Figs. 4, 5]
     positions_and_bound  positions, speed norms and the bound r vbar [S000 Figs. 4, 6]
     tracking             tracking errors and torques                  [S000 Example 3]
+    elastic_errors       link/motor position/velocity errors, 2 x 2   [S004 Figs. 3, 4, 8-17]
+    joint_trajectory     q_d and its derivatives 1..3, 2 x 2          [S004 Figs. 2, 7]
 """
 from __future__ import annotations
 
@@ -180,3 +182,41 @@ def positions_and_bound(path, t, q, qd, est, r, vbar, q_ref=None, title=""):
     a2.grid(alpha=0.3)
     a2.legend(loc="best", fontsize=8)
     return _save(fig, path)
+
+
+ELASTIC_QUANTITIES = (("Link", "position", "rad", 0), ("Motor", "position", "rad", 2),
+                      ("Link", "velocity", "rad/s", 1), ("Motor", "velocity", "rad/s", 3))
+
+
+def elastic_errors(path, t, E, title=""):
+    """Estimation errors x - xhat of an elastic robot, one curve per joint, on a 2 x 2 grid:
+    link positions, motor positions (top), link velocities, motor velocities (bottom)
+    [S004 Figs. 3, 4, 8-17].
+
+    Parameters
+    ----------
+    t : (N,) s
+    E : (N, 4n) errors in the state order [q1; q1'; q2; q2'] (rad, rad/s)
+    """
+    n = E.shape[1] // 4
+    rows = [Panel({f"{who} {i + 1} {what} error": E[:, block * n + i] for i in range(n)},
+                  ylabel=f"{who.lower()} {what} error [{unit}]")
+            for who, what, unit, block in ELASTIC_QUANTITIES]
+    return panels(path, t, rows, title=title, cols=2, cell=(5.2, 3.0))
+
+
+def joint_trajectory(path, t, R, n, title=""):
+    """Desired joint trajectory: position, acceleration (top), velocity, jerk (bottom), one
+    curve per joint [S004 Figs. 2, 7].
+
+    Parameters
+    ----------
+    t : (N,) s
+    R : (N, >= 4n) rows [q_d, its 1st, 2nd, 3rd derivative, ...] (rad, rad/s, rad/s^2, rad/s^3)
+    n : int, number of joints
+    """
+    order = ((0, "position", "rad"), (2, "acceleration", "rad/s^2"), (1, "velocity", "rad/s"),
+             (3, "jerk", "rad/s^3"))
+    rows = [Panel({f"Link {i + 1} {what}": R[:, k * n + i] for i in range(n)}, ylabel=f"{what} [{unit}]")
+            for k, what, unit in order]
+    return panels(path, t, rows, title=title, cols=2, cell=(5.2, 3.0))
