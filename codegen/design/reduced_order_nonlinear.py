@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .configurations import ConfigurationStats, refine_max, sample_points
+from .configurations import ConfigurationStats, c0_batch, refine_max, sample_points
 from .reduced_order import _lambda_min_F
 
 
@@ -152,15 +152,18 @@ def nonlinear_gain(robot, eta=1.0, v_max=2.0, fit_samples=300, samples=2000, see
 
 
 def gain_for(g, C, eta, v_max):
-    """(k0, maximiser) of (12') for K1 = C phi(y): sampled on g.stats' points, then refined."""
+    """(k0, maximiser) of (12') for K1 = C phi(y): sampled on g.stats' points, then refined
+    (c0 from every start of the power method at each refined point, not a warm start)."""
     lamF = _lambda_min_F(g.stats.robot)
 
     def need(c0, lmin_q):
         return (c0 * (v_max + eta) - lamF) / (0.5 * lmin_q)
 
+    def at(q):
+        return need(c0_batch(g.stats._eval(np.atleast_2d(q))[1], g.n)[0][0], g.q_eigs(C, q)[0][0])
+
     vals = need(g.stats.c0s, g.q_eigs(C, g.stats.points)[0])
-    return refine_max(lambda q: need(g.stats.at(q)[2], g.q_eigs(C, q)[0][0]), g.stats.robot,
-                      g.stats.points, vals, refine=10)
+    return refine_max(at, g.stats.robot, g.stats.points, vals, refine=10)
 
 
 def verify(robot, design, samples=5000, seed=7):
