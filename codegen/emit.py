@@ -22,7 +22,7 @@ import casadi as ca
 
 from .version import __version__
 from .discretize import discretize, estimate
-from .spec import ObserverSpec
+from .spec import ObserverSpec, real_number
 from .target import sanitize
 
 HOLD_TEXT = {
@@ -162,7 +162,7 @@ def with_params(spec, params):
                          f"known: {spec.p_names}")
     p = spec.p_default.copy()
     for k, v in params.items():
-        p[spec.p_names.index(k)] = float(v)
+        p[spec.p_names.index(k)] = real_number(f"params[{k!r}]", v)
     return dataclasses.replace(spec, p_default=p)
 
 
@@ -214,12 +214,15 @@ def template_values(meta):
 
 
 def _slot_macros(P, names):
-    """``#define <P>_<KIND>_<NAME> <index>`` per slot of x, y, u, p, est."""
+    """``#define <P>_<KIND>_<NAME> <index>`` per slot of x, y, u, p, est.
+
+    Names equal after sanitising (k_m and k_M; x and x.) get the slot index as a suffix,
+    repeated until the macro is new (x_2, x, x. -> X_2, X, X_2_2): each macro is defined once."""
     out, used = [], set()
     for kind, slots in names.items():
         for i, nm in enumerate(slots):
             macro = f"{P}_{kind.upper()}_{sanitize(nm).upper()}"
-            if macro in used:  # names differing only in case or punctuation (k_m, k_M)
+            while macro in used:
                 macro = f"{macro}_{i}"
             used.add(macro)
             out.append(f"#define {macro} {i}")

@@ -19,9 +19,30 @@ class ObserverError(RuntimeError):
     """The C step returned a non-zero status (the state was left unchanged)."""
 
 
+def _floats(name, value, expected):
+    """value as a float64 array, or ValueError naming ``name``: text, dicts, complex numbers
+    and integers beyond a double are refused (numpy would raise without the name, or silently
+    drop an imaginary part)."""
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as e:              # ragged nesting
+        raise ValueError(f"{name}: expected {expected}, got {type(value).__name__} ({e})") from None
+    if a.dtype.kind == "c" or (a.dtype.kind == "O" and any(isinstance(v, complex) for v in a.flat)):
+        raise ValueError(f"{name}: expected {expected}, got complex numbers")
+    try:
+        if a.dtype.kind not in "biufO":
+            raise TypeError(a.dtype)
+        return a.astype(float)
+    except OverflowError:
+        raise ValueError(f"{name}: a value is too large for a double (expected {expected})") from None
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected {expected}, got {type(value).__name__} "
+                         f"{str(value)[:60]!r}") from None
+
+
 def as_vector(name, value, size):
     """value as a finite float64 vector of length size, or ValueError naming ``name``."""
-    a = np.asarray(value, dtype=float)
+    a = _floats(name, value, f"{size} real numbers")
     if a.shape not in ((size,), (size, 1), (1, size)):
         raise ValueError(f"{name}: expected shape ({size},), got {np.shape(value)}")
     a = a.reshape(size)
@@ -31,7 +52,8 @@ def as_vector(name, value, size):
 
 
 def as_matrix(name, value, cols, rows=None):
-    a = np.asarray(value, dtype=float)
+    """value as a finite C-contiguous float64 (rows, cols) array, or ValueError naming ``name``."""
+    a = _floats(name, value, f"an (N, {cols}) array of real numbers")
     if a.ndim != 2 or a.shape[1] != cols or (rows is not None and a.shape[0] != rows):
         want = f"({rows if rows is not None else 'N'}, {cols})"
         raise ValueError(f"{name}: expected shape {want}, got {np.shape(value)}")
