@@ -3,8 +3,9 @@
 Bytes room: nothing here knows any particular observer. The C wrapper, header, Makefile and
 CMakeLists.txt are the template files of ``codegen/templates/`` (package data) with their
 ``{{name}}`` placeholders filled from the metadata (``template_values``); CasADi writes the kernels.
-The folder is written to a temporary sibling and renamed into place, so a failure never leaves
-half a target; the process's working directory is never changed. Same inputs give
+The folder is written to a temporary sibling and swapped into place in one step
+(``codegen.atomic``), so a failure never leaves half a target and a concurrent reader never
+finds it absent; the process's working directory is never changed. Same inputs give
 byte-identical files.
 """
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import casadi as ca
 
+from .atomic import replace_dir
 from .version import __version__
 from .discretize import discretize, estimate
 from .spec import ObserverSpec, real_number
@@ -141,11 +143,7 @@ def emit(target, out_dir, spec=None):
             (tmp / name.format(prefix=prefix)).write_text(render(template, values))
         (tmp / f"{prefix}.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
         final = out_dir / prefix
-        old = None
-        if final.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{prefix}.old.", dir=out_dir))
-            os.replace(final, old / prefix)
-        os.replace(tmp, final)
+        old = replace_dir(tmp, final)    # one step: the folder is never absent nor mixed
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
         return final

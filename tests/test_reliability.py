@@ -92,7 +92,6 @@ def test_two_processes_building_the_same_target(spec_of, tmp_path):
     results = {m: (k, errors) for m, k, errors in (q.get(timeout=300) for _ in procs)}
     for p in procs:
         p.join()
-    print(results)
     assert results["emit"][0] == 40 and results["build"][0] >= 40, results
     errors = results["emit"][1] + results["build"][1]
     assert not errors, f"{len(errors)} failures, first: {errors[:3]}"
