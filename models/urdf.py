@@ -96,6 +96,13 @@ def _check_urdf_xml(path, locked):
         raise ModelError(f"{path}: not a valid URDF (XML error: {e})") from None
     if root.tag != "robot":
         raise ModelError(f"{path}: not a URDF (root element <{root.tag}>, expected <robot>)")
+    for kind in ("link", "joint"):
+        seen = set()
+        for e in root.findall(kind):
+            if e.get("name") in seen or e.get("name") is None:
+                raise ModelError(f"{path}: {kind} {e.get('name')!r} is defined twice or has no name "
+                                 f"(URDF {kind} names are unique)")
+            seen.add(e.get("name"))
     for j in root.iter("joint"):
         name, jtype = j.get("name"), j.get("type")
         if jtype is None:                      # <joint> inside <transmission> etc.
