@@ -113,7 +113,7 @@ def _slots_are_unique_identifiers(robot):
     assert all(re.fullmatch(r"[A-Z_][A-Z0-9_]*", m) for m in macros), macros
 
 
-@settings(max_examples=100, deadline=None, derandomize=True,
+@settings(max_examples=60, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(joints=chains())
 def test_random_urdf_loads_and_matches_pinocchio_or_is_refused_naming_an_element(joints, tmp_path):
