@@ -1,4 +1,4 @@
-"""`python -m codegen list | generate | build | check | simulate | bench`."""
+"""`python -m codegen list | generate | build | check | simulate | bench | sanitize`."""
 from __future__ import annotations
 
 import argparse
@@ -107,6 +107,11 @@ def cmd_simulate(args):
     return scenarios.run(args.name, reference=args.reference, out=args.out)
 
 
+def cmd_sanitize(args):
+    from .check import sanitize
+    return sanitize.run(args.runs, args.seconds)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m codegen", description=__doc__)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -143,10 +148,14 @@ def main(argv=None):
     s.add_argument("name")
     s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     s.add_argument("--out", default=str(repo_root() / "build" / "sim"))
+    sa = sub.add_parser("sanitize", help="C harness and sample targets under ASan/UBSan on edge-case "
+                        "CSVs, and a libFuzzer campaign of their step")
+    sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
+    sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
     args = ap.parse_args(argv)
     try:
         return {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
-                "bench": cmd_bench, "simulate": cmd_simulate}[args.cmd](args)
+                "bench": cmd_bench, "simulate": cmd_simulate, "sanitize": cmd_sanitize}[args.cmd](args)
     except BuildError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
