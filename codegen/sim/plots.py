@@ -98,3 +98,19 @@ def tracking(path, t, e, tau, title=""):
         a.legend(loc="best", fontsize=8)
     a1.set_title(title)
     return _save(fig, path)
+
+
+def joint_zoom(path, t, truth, estimates, window, title=""):
+    """One joint's true velocity (solid) and each estimate over the time window (t0, t1)."""
+    plt = _plt()
+    m = (t >= window[0]) & (t <= window[1])
+    fig, ax = plt.subplots(figsize=(8, 3.4))
+    ax.plot(t[m], truth[m], "k-", lw=1.6, label="true")
+    for (name, e), ls in zip(estimates.items(), ["--", "-.", ":", (0, (5, 1)), (0, (3, 1, 1, 1))] * 3):
+        ax.plot(t[m], e[m], linestyle=ls, lw=1.1, label=name)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("qd [rad/s]")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    return _save(fig, path)
