@@ -1,6 +1,8 @@
-"""CasADi helpers shared by observer families: quadrature and structured solves.
+"""CasADi helpers shared by observer families and the gain design: quadrature, structured
+solves, Lie derivatives and a few mechanics helpers.
 
-Self-contained sections; each one only uses casadi and numpy.
+Self-contained sections; each one only uses casadi and numpy (the mechanics helpers take any
+robot with ``n``, ``mass_matrix(q)`` and ``coriolis(q, v)``, e.g. a models.RobotModel).
 """
 from __future__ import annotations
 
@@ -274,3 +276,61 @@ def block_lower_by_dependence(phi_blocks, x, col_blocks):
     c0 = np.cumsum([0] + list(col_blocks))
     return not any(ca.depends_on(phi, x[int(c0[a + 1]):]) for a, phi in enumerate(phi_blocks)
                    if c0[a + 1] < c0[-1])
+
+
+# ============================================================================ mechanics helpers
+def christoffel_column_matrix(robot, q, i):
+    """C(q, e_i) (n x n): by the symmetry C(q, x) e_i = C(q, e_i) x [S003 P2] it gives column i
+    of C(q, x) for every x at the cost of one Christoffel evaluation."""
+    e = ca.DM.zeros(robot.n, 1)
+    e[i] = 1.0
+    return robot.coriolis(q, e)
+
+
+def christoffel_slices(robot, q):
+    """[C(q, e_1) ... C(q, e_n)] (n x n^2): the 3-tensor C_ijk(q) = C(q, e_k)_ij side by side."""
+    return ca.horzcat(*[christoffel_column_matrix(robot, q, k) for k in range(robot.n)])
+
+
+def cholesky_velocity(robot, q):
+    """(M, T, T^{-1}) at q: M^{-1} = T T^T with T lower-triangular, T^{-1} = T^T M  [SPEC §5].
+
+    Parameters
+    ----------
+    robot : RobotModel (n joints)
+    q : SX (n,) configuration [rad or m]
+
+    Returns
+    -------
+    (M (n, n), T (n, n), T^{-1} (n, n)) as SX; pbar = T^{-1} qd is the Cholesky velocity."""
+    Mq = robot.mass_matrix(q)
+    T = chol_lower(ldl_solve(Mq, ca.DM.eye(robot.n)))
+    return Mq, T, ca.mtimes(T.T, Mq)
+
+
+@lru_cache(maxsize=32)
+def _skew_function(robot):
+    """CasADi Function (q, b) -> S(q, b) of pure symbols (AD needs them), cached per robot."""
+    n = robot.n
+    q, v = ca.SX.sym("q", n), ca.SX.sym("v", n)
+    Mq, T, _ = cholesky_velocity(robot, q)
+    Tb = ca.mtimes(T, v)
+    S = (-ca.mtimes(ca.mtimes(T.T, Mq), ca.jtimes(T, q, Tb))
+         - ca.mtimes(ca.mtimes(T.T, robot.coriolis(q, Tb)), T))
+    return ca.Function("S", [q, v], [S])
+
+
+def skew_S(robot, q, b):
+    """S(q, b) = -T^T M Tdot(b) - T^T C(q, T b) T, Tdot(b) = sum_k dT/dq_k (T b)_k: the
+    skew-symmetric Coriolis matrix in Cholesky velocities [DERIVED, SPEC §5].
+
+    Parameters
+    ----------
+    robot : RobotModel (n joints)
+    q : SX or DM (n,) configuration [rad or m]
+    b : SX or DM (n,) Cholesky velocity
+
+    Returns
+    -------
+    S (n, n), with Cbar(q, a) b = S(q, b) a."""
+    return _skew_function(robot)(q, b)

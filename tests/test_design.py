@@ -1,4 +1,10 @@
-"""Gain design of the reduced-order observer for the seed-000 robot (SPEC §1.2)."""
+"""Gain design of the reduced-order observer for the seed-000 robot (SPEC §1.2), and the
+design package's place in the import graph (DESIGN §1: no back-edges)."""
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -37,3 +43,33 @@ def test_seed000_scheduled_gains_table():
 def test_design_rejects_bad_arguments():
     with pytest.raises(ValueError, match="eta and v_max"):
         reduced_order_gain(load_robot("seed000_2r"), eta=0.0)
+
+
+def _imported_modules(path, package):
+    """Absolute names of every module ``path`` imports, at any depth (lazy imports included)."""
+    names = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            parts = package.split(".")
+            base = parts[:len(parts) - node.level + 1] if node.level else []
+            mod = ".".join(base + ([node.module] if node.module else []))
+            names += [mod] + [f"{mod}.{a.name}" for a in node.names]
+    return names
+
+
+def test_design_and_symbolic_never_import_observers():
+    """design imports only symbolic (and numerics); neither reaches codegen.observers."""
+    root = Path(__file__).parents[1] / "codegen"
+    files = [(f, "codegen.design") for f in (root / "design").glob("*.py")] + [(root / "symbolic.py", "codegen")]
+    assert len(files) >= 6
+    for f, package in files:
+        bad = [m for m in _imported_modules(f, package)
+               if m.startswith("codegen.") and not m.startswith(("codegen.design", "codegen.symbolic"))]
+        assert not bad, f"{f.name} imports {bad}"
+    code = ("import sys, codegen.design, codegen.symbolic; "
+            "print([m for m in sys.modules if m.startswith('codegen.observers')])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).parents[1])
+    assert out.stdout.strip() == "[]"

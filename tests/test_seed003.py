@@ -32,6 +32,22 @@ def _random_state(robot, y, scale=1.0, r=(0.05, 0.5)):
                            RNG.normal(size=n) * 3 * scale, [RNG.uniform(*r)]])
 
 
+def test_cholesky_velocity_and_skew_S():
+    """SPEC §5: M^{-1} = T T^T (T lower), T^{-1} = T^T M, and S(q, b) skew-symmetric
+    (symbolic helpers shared by the AOV observer and its bounds)."""
+    from codegen.symbolic import cholesky_velocity, skew_S
+    robot = load_robot("seed003_2r_abs")
+    q, b = ca.SX.sym("q", 2), ca.SX.sym("b", 2)
+    f = ca.Function("f", [q, b], [*cholesky_velocity(robot, q), skew_S(robot, q, b)])
+    for _ in range(5):
+        M, T, Tinv, S = (np.array(v) for v in f(RNG.uniform(-np.pi, np.pi, 2), RNG.normal(size=2)))
+        assert T[0, 1] == 0.0 and np.all(np.diag(T) > 0)
+        assert np.allclose(T @ T.T @ M, np.eye(2), atol=1e-12)
+        assert np.allclose(Tinv @ T, np.eye(2), atol=1e-12)
+        assert np.abs(S + S.T).max() <= 1e-12 * max(np.abs(S).max(), 1.0)
+        assert np.abs(S).max() > 1e-6                  # not trivially zero
+
+
 def test_eq59_is_transposed_christoffel_symbolic():
     """SPEC §4.2 / A3-1: (59) = M^{-1}(k1 I - C^T) with the models' Christoffel C (CasADi side)."""
     robot = load_robot("seed003_2r_abs")

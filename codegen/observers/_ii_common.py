@@ -33,7 +33,8 @@ import casadi as ca
 
 import numpy as np
 
-from ..options import InputRanges
+from ..options import InputRanges, QuadratureOptions
+from ..spec import ObserverSpec
 from ..symbolic import integrate, periodic_integrate, wrap_angle
 
 DEFAULT_N = 16         # Gauss-Legendre nodes per integral (docs/quadrature.md)
@@ -105,22 +106,99 @@ def beta_jacobians(beta, s_y, s_x):
     return ca.jacobian(beta, s_y), ca.jacobian(beta, s_x)
 
 
-def christoffel_column_matrix(robot, q, i):
-    """C(q, e_i) (n x n): by the symmetry C(q, x) e_i = C(q, e_i) x [S003 P2] it gives column i
-    of C(q, x) for every x at the cost of one Christoffel evaluation."""
-    e = ca.DM.zeros(robot.n, 1)
-    e[i] = 1.0
-    return robot.coriolis(q, e)
-
-
 def frobenius_sq(A):
     """||A||_F^2 = sum of squared entries (upper bound of the squared spectral norm)."""
     return ca.sumsqr(A)
 
 
-def names(robot):
-    """Joint-suffixed name lists used by both families."""
-    return list(robot.joint_names)
+def designed_bounds(bounds, design, robot, samples=None, refine=True):
+    """``bounds`` when given, else ``design(robot, samples=, refine=)`` (design.ii_speed_bounds or
+    design.ii_aov_bounds): offline sups sampled at ``samples`` configurations (default 2000 for
+    n <= 3 joints, 300 above) and refined locally unless ``refine`` is False."""
+    if bounds is not None:
+        return bounds
+    return design(robot, samples=samples or (2000 if robot.n <= 3 else 300), refine=refine)
+
+
+def lemma2_names(scalars, a_name, b_name, n):
+    """Parameter names of an I&I observer: the scalars, then the Lemma-2 coefficients a_ji
+    (``a_name``_j_i, row-major j, i) and b_jim (``b_name``_j_i_m, C order j, i, m)."""
+    return (list(scalars) + [f"{a_name}_{j}_{i}" for j in range(n) for i in range(n)]
+            + [f"{b_name}_{j}_{i}_{m}" for j in range(n) for i in range(n) for m in range(n)])
+
+
+def lemma2_values(scalars, a, b):
+    """Flat parameter values in the order of ``lemma2_names``: scalars, a (n, n), b (n, n, n)."""
+    return list(scalars) + list(np.asarray(a).reshape(-1)) + list(np.asarray(b).reshape(-1))
+
+
+def split_params(p, n, scalars):
+    """(dict of scalars, a (n x n), b list of n (n x n) matrices b[m][j, i]) from the flat p
+    laid out as ``lemma2_names``."""
+    s = {k: p[i] for i, k in enumerate(scalars)}
+    o = len(scalars)
+    a = ca.reshape(p[o:o + n * n], n, n).T                              # row-major -> [j, i]
+    o += n * n
+    flat = p[o:o + n ** 3]                                              # index j n^2 + i n + m
+    b = [ca.vertcat(*[ca.horzcat(*[flat[j * n * n + i * n + m] for i in range(n)])
+                      for j in range(n)]) for m in range(n)]
+    return s, a, b
+
+
+def lemma2_bound(k1, a, b, x):
+    """Deltabar_ji(x) = k1 a_ji + sum_m |x_m| b_jim, entrywise  [S003 Lemma 2, DERIVED]."""
+    bound = k1 * a
+    for m in range(len(b)):
+        bound = bound + ca.fabs(x[m]) * b[m]
+    return bound
+
+
+def filter_symbols(n, n_p):
+    """Symbols x (3n+1), y (n), u = tau (n), p (n_p) of an I&I observer and the blocks
+    (xi, first filter state, second filter state, r) of x = [xi; .; .; r]."""
+    x = ca.SX.sym("x", 3 * n + 1)
+    y, u, p = ca.SX.sym("y", n), ca.SX.sym("tau", n), ca.SX.sym("p", n_p)
+    return x, y, u, p, (x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n])
+
+
+def ii_spec(family, robot, filters, est_names, functions, p_names, p_default, quadrature, c_r,
+            design, estimate):
+    """The ObserverSpec of an I&I family: state [xi; filter a; filter b; r], y = q, u = tau.
+
+    Parameters
+    ----------
+    family : str
+    robot : RobotModel
+    filters : (str, str)
+        Names of the two n-vector filter states (e.g. ("s_y", "s_x")).
+    est_names : list of str
+        Names of the 2n estimate slots.
+    functions : (casadi.Function, casadi.Function, casadi.Function)
+        rhs(x, y, u, p), output(x, y, u, p), init(y0, est0, p).
+    p_names, p_default : list of str, sequence of float
+        Runtime parameters and their designed defaults.
+    quadrature : (int, list of bool, int, object)
+        N, per-joint periodic reduction flags, N_period, and the ``wrap`` request as given.
+    c_r : float
+        Lower bound of the dynamic scaling r (the cross-check draws r in [2 c_r, 2 c_r + 0.02]).
+    design : dataclass with ``as_dict``
+        The designed bounds.
+    estimate : str
+        What the estimate is, for the report.
+    """
+    N, periodic, N_period, wrap = quadrature
+    j = list(robot.joint_names)
+    rhs, output, init = functions
+    return ObserverSpec(
+        family=family, robot=robot,
+        x_names=[f"xi_{q}" for q in j] + [f"{filters[0]}_{q}" for q in j] + [f"{filters[1]}_{q}" for q in j]
+        + ["r"], y_names=[f"q_{q}" for q in j], u_names=[f"tau_{q}" for q in j], p_names=p_names,
+        est_names=est_names, p_default=p_default, rhs=rhs, output=output, init=init,
+        options=QuadratureOptions(N=N, periodic=periodic, N_period=N_period),
+        inputs=ii_inputs(robot.n, c_r),
+        design={**design.as_dict(), "quadrature": "gauss-legendre", "period_rule": "trapezoid",
+                "wrap": wrap if isinstance(wrap, (str, bool)) else list(map(bool, wrap)),
+                "norms": "frobenius", "estimate": estimate})
 
 
 def ii_inputs(n, c_r):

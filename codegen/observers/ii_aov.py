@@ -26,76 +26,44 @@ xi = T(y0)^{-1} qd_hat0 - beta(y0, y0, phat), r = r0.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import casadi as ca
-import numpy as np
 
 from ..design import ii_aov_bounds
-from ..options import QuadratureOptions
-from ..spec import ObserverSpec
-from ..symbolic import chol_lower, ldl_solve
-from ._ii_common import (DEFAULT_N, ii_inputs, beta_directional, christoffel_column_matrix, frobenius_sq,
-                         quadrature_beta, resolve_wrap)
+from ..symbolic import christoffel_column_matrix, cholesky_velocity, skew_S
+from ._ii_common import (DEFAULT_N, beta_directional, designed_bounds, filter_symbols,
+                         frobenius_sq, ii_spec, lemma2_bound, lemma2_names, lemma2_values,
+                         quadrature_beta, resolve_wrap, split_params)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 
 
 def p_names(n):
     """The scalars, then a_ji (row-major j, i), then b_jim (C order j, i, m)."""
-    return (list(SCALARS) + [f"dq_k1_{j}_{i}" for j in range(n) for i in range(n)]
-            + [f"dq_p_{j}_{i}_{m}" for j in range(n) for i in range(n) for m in range(n)])
+    return lemma2_names(SCALARS, "dq_k1", "dq_p", n)
 
 
-def cholesky_velocity(robot, q):
-    """(M, T, T^{-1}) at q: M^{-1} = T T^T with T lower-triangular, T^{-1} = T^T M."""
-    Mq = robot.mass_matrix(q)
-    T = chol_lower(ldl_solve(Mq, ca.DM.eye(robot.n)))
-    return Mq, T, ca.mtimes(T.T, Mq)
-
-
-_FUNS = {}
-
-
-def _aov_functions(robot):
-    """CasADi Functions of pure symbols (AD needs them): Hbar columns and S, cached per robot."""
-    key = id(robot)
-    if key not in _FUNS:
-        n = robot.n
-        q, v, k1 = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("k1")
-        Mq, T, Tinv = cholesky_velocity(robot, q)
-        cols = []
-        for i in range(n):
-            e = ca.DM.zeros(n, 1)
-            e[i] = 1.0
-            dT = ca.jtimes(T, q, e)
-            h = (k1 * Tinv[:, i] - ca.mtimes(ca.mtimes(T.T, Mq), ca.mtimes(dT, v))
-                 - ca.mtimes(T.T, ca.mtimes(christoffel_column_matrix(robot, q, i), ca.mtimes(T, v))))
-            cols.append(ca.Function(f"hbar{i}", [q, v, k1], [h]))
-        Tb = ca.mtimes(T, v)
-        S = (-ca.mtimes(ca.mtimes(T.T, Mq), ca.jtimes(T, q, Tb))
-             - ca.mtimes(ca.mtimes(T.T, robot.coriolis(q, Tb)), T))
-        _FUNS[key] = (robot, cols, ca.Function("S", [q, v], [S]))
-    return _FUNS[key]
+@lru_cache(maxsize=32)
+def _hbar_functions(robot):
+    """CasADi Functions of pure symbols (AD needs them): the Hbar columns, cached per robot."""
+    n = robot.n
+    q, v, k1 = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("k1")
+    Mq, T, Tinv = cholesky_velocity(robot, q)
+    cols = []
+    for i in range(n):
+        e = ca.DM.zeros(n, 1)
+        e[i] = 1.0
+        dT = ca.jtimes(T, q, e)
+        h = (k1 * Tinv[:, i] - ca.mtimes(ca.mtimes(T.T, Mq), ca.mtimes(dT, v))
+             - ca.mtimes(T.T, ca.mtimes(christoffel_column_matrix(robot, q, i), ca.mtimes(T, v))))
+        cols.append(ca.Function(f"hbar{i}", [q, v, k1], [h]))
+    return cols
 
 
 def hbar_column(robot, q, p, k1, i):
     """Hbar_i(q, p) = k1 T^{-1} e_i - T^T M (dT/dq_i) p - T^T C(q, e_i) T p  [DERIVED, SPEC §5]."""
-    return _aov_functions(robot)[1][i](q, p, k1)
-
-
-def skew_S(robot, q, b):
-    """S(q, b) = -T^T M Tdot(b) - T^T C(q, T b) T  (skew-symmetric) [DERIVED, SPEC §5]."""
-    return _aov_functions(robot)[2](q, b)
-
-
-def split_params(p, n):
-    s = {k: p[i] for i, k in enumerate(SCALARS)}
-    o = len(SCALARS)
-    a = ca.reshape(p[o:o + n * n], n, n).T
-    o += n * n
-    flat = p[o:o + n ** 3]
-    b = [ca.vertcat(*[ca.horzcat(*[flat[j * n * n + i * n + m] for i in range(n)])
-                      for j in range(n)]) for m in range(n)]
-    return s, a, b
+    return _hbar_functions(robot)[i](q, p, k1)
 
 
 def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=None,
@@ -106,18 +74,14 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
         raise ValueError(f"k1 must be > 4, got {k1}")
     if not (r0 >= c_r > 0):
         raise ValueError(f"need r0 >= c_r > 0, got r0={r0}, c_r={c_r}")
-    samples = samples or (2000 if robot.n <= 3 else 300)    # offline sups: sampled + refined
-    design = bounds if bounds is not None else ii_aov_bounds(robot, samples=samples, refine=refine)
+    design = designed_bounds(bounds, ii_aov_bounds, robot, samples, refine)
     n = robot.n
     periodic = resolve_wrap(robot, wrap)
     N_period = int(N_period or N)
     pn = p_names(n)
-    p_default = ([k1, k2, k3, c_r, design.deltabar_p, r0] + list(np.asarray(design.dq_k1).reshape(-1))
-                 + list(np.asarray(design.dq_p).reshape(-1)))
-    x = ca.SX.sym("x", 3 * n + 1)
-    y, u, p = ca.SX.sym("y", n), ca.SX.sym("tau", n), ca.SX.sym("p", len(pn))
-    s, a, b = split_params(p, n)
-    xi, qhat, phat, r = x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n]
+    p_default = lemma2_values([k1, k2, k3, c_r, design.deltabar_p, r0], design.dq_k1, design.dq_p)
+    x, y, u, p, (xi, qhat, phat, r) = filter_symbols(n, len(pn))
+    s, a, b = split_params(p, n, SCALARS)
     K1 = s["k1"]
 
     def col(i, q, v):
@@ -132,9 +96,7 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     Hb_phat = ca.horzcat(*[col(i, y, phat) for i in range(n)])
     DpT = ca.horzcat(*[ca.mtimes(skew_S(robot, y, T[:, k]), pbh - phat) for k in range(n)])  # Cbar(y, pbh - phat)
     DqT = ca.mtimes(Hb_phat - dbdq, T)
-    dbar_q = K1 * a
-    for m in range(n):
-        dbar_q = dbar_q + ca.fabs(phat[m]) * b[m]
+    dbar_q = lemma2_bound(K1, a, b, phat)
     T2 = frobenius_sq(T)
     psi1 = s["k2"] + r ** 2 / 2 * T2 + r ** 2 / K1 * T2 * frobenius_sq(dbar_q)
     psi2 = s["k3"] + r ** 2 / 2 * frobenius_sq(ca.mtimes(dbdq, T)) + r ** 2 / K1 * T2 * s["deltabar_p"] ** 2
@@ -151,17 +113,9 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     x0 = ca.vertcat(ca.mtimes(Tinv0, est0[n:]) - beta0, y0, phat0, s["r0"])
 
     j = list(robot.joint_names)
-    return ObserverSpec(
-        family="ii_aov", robot=robot,
-        x_names=[f"xi_{q}" for q in j] + [f"qhat_{q}" for q in j] + [f"phat_{q}" for q in j] + ["r"],
-        y_names=[f"q_{q}" for q in j], u_names=[f"tau_{q}" for q in j], p_names=pn,
-        est_names=[f"qd_f_{q}" for q in j] + [f"qd_hat_{q}" for q in j], p_default=p_default,
-        rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
-        output=ca.Function("output", [x, y, u, p], [ca.vertcat(ca.mtimes(T, phat), qd_hat)]),
-        init=ca.Function("init", [y0, est0, p], [x0]),
-        options=QuadratureOptions(N=N, periodic=periodic, N_period=N_period),
-        inputs=ii_inputs(n, c_r),
-        design={**design.as_dict(), "quadrature": "gauss-legendre", "period_rule": "trapezoid",
-                "wrap": wrap if isinstance(wrap, (str, bool)) else list(map(bool, wrap)),
-                "norms": "frobenius", "estimate": "[T(y) phat; T(y) pbarhat]"},
-    )
+    return ii_spec("ii_aov", robot, ("qhat", "phat"),
+                   [f"qd_f_{q}" for q in j] + [f"qd_hat_{q}" for q in j],
+                   (ca.Function("rhs", [x, y, u, p], [xdot]),
+                    ca.Function("output", [x, y, u, p], [ca.vertcat(ca.mtimes(T, phat), qd_hat)]),
+                    ca.Function("init", [y0, est0, p], [x0])),
+                   pn, p_default, (N, periodic, N_period, wrap), c_r, design, "[T(y) phat; T(y) pbarhat]")

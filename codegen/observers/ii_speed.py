@@ -20,14 +20,14 @@ Implementation choices:
   unpivoted LDL^T solve per quadrature node, no symbolic inverse.
 - beta by N-node Gauss-Legendre (``N``, a generation parameter), the intervals of 2 pi-periodic
   joints reduced to |rho| <= pi plus whole periods (``wrap``, ``N_period``; _ii_common and
-  docs/quadrature.md; recorded in info["wrap"], info["periodic"], info["N_period"], which the
+  docs/quadrature.md; declared as ``spec.options`` (codegen.options.QuadratureOptions), which the
   reference's configure() reads); dbeta/dy exact (13);
   dbeta/ds_y alpha2 + dbeta/ds_x alpha3 by one forward AD sweep of the quadrature (14),(15).
 - Norms of matrices in (38), (53), (54) are Frobenius norms [DERIVED]: an upper bound of the
   spectral norm (so (37) still holds) that is smooth and cheap in C; Lemma 2 bounds exactly
   the Frobenius norm, and Deltabar_x = max(k_c/k_m, k_cF/k_M) keeps (54) dominating
   ||M Delta_x||_F (= k_c/k_m of Lemma 1 whenever k_M k_c/k_m >= k_cF, e.g. the seed's arm).
-- Deltabar_y(s_x) = k1 a + sum_m |s_x,m| b^(m) entrywise, a and b designed offline (design.py).
+- Deltabar_y(s_x) = k1 a + sum_m |s_x,m| b^(m) entrywise, a and b designed offline (design.ii).
 
 State x = [xi; s_y; s_x; r] (3n+1), y = q, u = tau, estimate est = [s_x; xhat]: the first n
 entries are the observer's output s_x (seed 003 §II-B), the last n the unfiltered xhat.
@@ -37,22 +37,19 @@ r = r0 (a parameter). A filter state with s_y(0) != y(0) (Table I) is set throug
 from __future__ import annotations
 
 import casadi as ca
-import numpy as np
 
 from ..design import ii_speed_bounds
-from ..options import QuadratureOptions
-from ..spec import ObserverSpec
-from ..symbolic import ldl_solve
-from ._ii_common import (DEFAULT_N, ii_inputs, beta_directional, christoffel_column_matrix, frobenius_sq,
-                         quadrature_beta, resolve_wrap)
+from ..symbolic import christoffel_column_matrix, ldl_solve
+from ._ii_common import (DEFAULT_N, beta_directional, designed_bounds, filter_symbols,
+                         frobenius_sq, ii_spec, lemma2_bound, lemma2_names, lemma2_values,
+                         quadrature_beta, resolve_wrap, split_params)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 
 
 def p_names(n):
     """Parameter names: the scalars, then a_ji (row-major j, i), then b_jim (C order j, i, m)."""
-    return (list(SCALARS) + [f"dy_k1_{j}_{i}" for j in range(n) for i in range(n)]
-            + [f"dy_sx_{j}_{i}_{m}" for j in range(n) for i in range(n) for m in range(n)])
+    return lemma2_names(SCALARS, "dy_k1", "dy_sx", n)
 
 
 def h_column(robot, q, x, k1, i):
@@ -61,18 +58,6 @@ def h_column(robot, q, x, k1, i):
     e = ca.DM.zeros(n, 1)
     e[i] = 1.0
     return ldl_solve(robot.mass_matrix(q), k1 * e - ca.mtimes(christoffel_column_matrix(robot, q, i), x))
-
-
-def split_params(p, n):
-    """(dict of scalars, a (n x n), b list of n (n x n) matrices b[m][j, i]) from the flat p."""
-    s = {k: p[i] for i, k in enumerate(SCALARS)}
-    o = len(SCALARS)
-    a = ca.reshape(p[o:o + n * n], n, n).T                              # row-major -> [j, i]
-    o += n * n
-    flat = p[o:o + n ** 3]                                              # index j n^2 + i n + m
-    b = [ca.vertcat(*[ca.horzcat(*[flat[j * n * n + i * n + m] for i in range(n)])
-                      for j in range(n)]) for m in range(n)]
-    return s, a, b
 
 
 def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=None,
@@ -87,19 +72,15 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
         raise ValueError(f"k1 must be > 4 [S003 (55)], got {k1}")
     if not (r0 > c_r > 0):
         raise ValueError(f"need r0 > c_r > 0 [S003 (38)], got r0={r0}, c_r={c_r}")
-    samples = samples or (2000 if robot.n <= 3 else 300)    # offline sups: sampled + refined
-    design = bounds if bounds is not None else ii_speed_bounds(robot, samples=samples, refine=refine)
+    design = designed_bounds(bounds, ii_speed_bounds, robot, samples, refine)
     n = robot.n
     periodic = resolve_wrap(robot, wrap)
     N_period = int(N_period or N)
     pn = p_names(n)
-    p_default = ([k1, k2, k3, c_r, design.k_m, design.k_M, design.deltabar_x, r0]
-                 + list(np.asarray(design.dy_k1).reshape(-1))
-                 + list(np.asarray(design.dy_sx).reshape(-1)))
-    x = ca.SX.sym("x", 3 * n + 1)
-    y, u, p = ca.SX.sym("y", n), ca.SX.sym("tau", n), ca.SX.sym("p", len(pn))
-    s, a, b = split_params(p, n)
-    xi, s_y, s_x, r = x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n]
+    p_default = lemma2_values([k1, k2, k3, c_r, design.k_m, design.k_M, design.deltabar_x, r0],
+                              design.dy_k1, design.dy_sx)
+    x, y, u, p, (xi, s_y, s_x, r) = filter_symbols(n, len(pn))
+    s, a, b = split_params(p, n, SCALARS)
     K1 = s["k1"]
 
     def col(i, q, v):
@@ -112,9 +93,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     My = robot.mass_matrix(y)
     MDx = robot.coriolis(y, e_x)                                        # M Delta_x [S003 (22)]
     MDy = K1 * ca.DM.eye(n) - robot.coriolis(y, s_x) - ca.mtimes(My, dbdy)   # M Delta_y [S003 (16)]
-    dbar_y = K1 * a
-    for m in range(n):
-        dbar_y = dbar_y + ca.fabs(s_x[m]) * b[m]                        # Lemma 2 [DERIVED]
+    dbar_y = lemma2_bound(K1, a, b, s_x)                                # Lemma 2 [DERIVED]
     g = r ** 2 * s["k_M"] ** 2 / (K1 * s["k_m"])
     psi1 = s["k2"] + r ** 2 / 2 + g * frobenius_sq(dbar_y)              # [S003 (53)]
     psi2 = s["k3"] + r ** 2 / 2 * frobenius_sq(dbdy) + g * s["deltabar_x"] ** 2   # [S003 (54)]
@@ -131,17 +110,9 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     x0 = ca.vertcat(xhat0 - beta0, y0, sx0, s["r0"])
 
     j = list(robot.joint_names)
-    return ObserverSpec(
-        family="ii_speed", robot=robot,
-        x_names=[f"xi_{q}" for q in j] + [f"s_y_{q}" for q in j] + [f"s_x_{q}" for q in j] + ["r"],
-        y_names=[f"q_{q}" for q in j], u_names=[f"tau_{q}" for q in j], p_names=pn,
-        est_names=[f"s_x_{q}" for q in j] + [f"qd_hat_{q}" for q in j], p_default=p_default,
-        rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
-        output=ca.Function("output", [x, y, u, p], [ca.vertcat(s_x, xhat)]),
-        init=ca.Function("init", [y0, est0, p], [x0]),
-        options=QuadratureOptions(N=N, periodic=periodic, N_period=N_period),
-        inputs=ii_inputs(n, c_r),
-        design={**design.as_dict(), "quadrature": "gauss-legendre", "period_rule": "trapezoid",
-                "wrap": wrap if isinstance(wrap, (str, bool)) else list(map(bool, wrap)),
-                "norms": "frobenius", "estimate": "[s_x; xhat]"},
-    )
+    return ii_spec("ii_speed", robot, ("s_y", "s_x"),
+                   [f"s_x_{q}" for q in j] + [f"qd_hat_{q}" for q in j],
+                   (ca.Function("rhs", [x, y, u, p], [xdot]),
+                    ca.Function("output", [x, y, u, p], [ca.vertcat(s_x, xhat)]),
+                    ca.Function("init", [y0, est0, p], [x0])),
+                   pn, p_default, (N, periodic, N_period, wrap), c_r, design, "[s_x; xhat]")
