@@ -1,4 +1,4 @@
-"""`python -m codegen list | generate | build | check | simulate | bench`."""
+"""`python -m codegen list | generate | build | check | simulate | compare | bench`."""
 from __future__ import annotations
 
 import argparse
@@ -139,6 +139,30 @@ def cmd_simulate(args):
     return scenarios.run(args.name, reference=args.reference, out=args.out)
 
 
+def cmd_compare(args):
+    """Observers and tuned baselines on a scenario or a CSV: table, figures, JSON."""
+    from .compare import compare, load_run
+    from .recording import RecordingError
+    try:
+        rec, robot, design, title = load_run(args.source, robot=args.robot, T=args.T,
+                                             quantization=args.quantization, noise=args.noise,
+                                             mismatch=args.mismatch)
+        families = [f for f in args.observers.split(",") if f]
+        bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
+        cmp = compare(rec, robot, families=families, design=design, t_ss=args.t_ss, level=args.level,
+                      baseline_names=bl, reference=args.reference, title=title)
+    except (RecordingError, ValueError, KeyError) as e:
+        print(f"error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
+        return 2
+    print(cmp.table())
+    out = Path(args.out)
+    paths = cmp.figures(out)
+    (out / "compare.json").write_text(json.dumps({"title": title, "t_ss": cmp.t_ss, "level": cmp.level,
+                                                  "rows": cmp.rows()}, indent=2, default=float) + "\n")
+    print(f"figures and compare.json in {out.resolve()} ({', '.join(p.name for p in paths)})")
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m codegen", description=__doc__)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -175,10 +199,24 @@ def main(argv=None):
     s.add_argument("name")
     s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     s.add_argument("--out", default=str(repo_root() / "build" / "sim"))
+    cp = sub.add_parser("compare", help="observers against tuned baselines on a scenario or a CSV")
+    cp.add_argument("source", help="mujoco-ur5, mujoco-panda, or a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>])")
+    cp.add_argument("--robot", help="robot of a CSV: catalog name or a .urdf path")
+    cp.add_argument("--observers", default="reduced_order,nicosia_tomei", help="comma-separated families")
+    cp.add_argument("--baselines", help="comma-separated (default: all of codegen.baselines)")
+    cp.add_argument("--quantization", type=float, default=0.0, help="encoder step (rad)")
+    cp.add_argument("--noise", type=float, default=0.0, help="Gaussian noise std (rad)")
+    cp.add_argument("--mismatch", type=float, default=0.0,
+                    help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
+    cp.add_argument("--T", type=float, help="scenario length (s, default 20)")
+    cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, default half the run)")
+    cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
+    cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
+    cp.add_argument("--out", default=str(repo_root() / "build" / "compare"))
     args = ap.parse_args(argv)
     try:
         return {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
-                "bench": cmd_bench, "simulate": cmd_simulate}[args.cmd](args)
+                "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare}[args.cmd](args)
     except BuildError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

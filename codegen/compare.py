@@ -185,3 +185,58 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         params, est = tune(name, Y, t, truth, t_ss, dt)
         entries.append(Entry(name, "baseline", params, est, metrics.summarize(t, est, truth, t_ss, level)))
     return Comparison(t=t, truth=truth, entries=entries, t_ss=t_ss, level=level, title=title)
+
+
+def robot_by_name(name):
+    """A catalog robot, or a URDF robot when ``name`` is a path to a .urdf file; ValueError
+    naming the valid choices otherwise."""
+    from models import load_robot, names
+    if name in names():
+        return load_robot(name)
+    if str(name).endswith(".urdf") and Path(name).is_file():
+        return load_robot(urdf=name)
+    raise ValueError(f"unknown robot {name!r}; valid: {', '.join(names())} or a path to a .urdf file")
+
+
+def design_inputs(quantization=0.0, noise=0.0, uncertainty=0.0):
+    """Keyword arguments of ``observers.build`` describing the sensor (rad) and the relative
+    model uncertainty."""
+    return {}
+
+
+def load_run(source, robot=None, T=None, quantization=0.0, noise=0.0, mismatch=0.0, seed=0):
+    """(Recording, robot, design inputs, title) of a MuJoCo scenario name or a recorded CSV.
+
+    Parameters
+    ----------
+    source : str
+        ``mujoco-ur5``, ``mujoco-panda`` or a CSV path (``codegen.recording`` format).
+    robot : str, optional
+        For a CSV (required): catalog name or URDF path of the recorded robot.
+    T : float, optional
+        Length of a scenario run (s).
+    quantization, noise : float
+        Sensor of a scenario (applied), or of the CSV (told to the design only) (rad).
+    mismatch : float
+        Plant mass/inertia error of a scenario; the relative model uncertainty for a CSV.
+    seed : int
+        Seed of a scenario's reference phases and noise.
+    """
+    from .recording import read_csv
+    from .sim.scenarios import mujoco
+    if source in mujoco.SCENARIOS:
+        name = source.removeprefix("mujoco-")
+        if robot not in (None, name):
+            raise ValueError(f"robot: scenario {source} is {name}, got --robot {robot}")
+        rec = mujoco.recording(name, T or mujoco.T_DEFAULT, quantization, noise, mismatch, seed)
+        title = (f"MuJoCo {name}: quantisation {quantization:g} rad, noise {noise:g} rad, "
+                 f"mismatch {mismatch:g}")
+        return rec, robot_by_name(name), design_inputs(quantization, noise, mismatch), title
+    if not str(source).endswith(".csv"):
+        raise ValueError(f"source: expected a scenario ({', '.join(mujoco.SCENARIOS)}) or a .csv file, "
+                         f"got {source!r}")
+    if robot is None:
+        raise ValueError("robot: a CSV needs --robot (the robot it was recorded on)")
+    model = robot_by_name(robot)
+    rec = read_csv(source, model.joint_names)
+    return rec, model, design_inputs(quantization, noise, mismatch), f"{Path(source).name} ({model.name})"
