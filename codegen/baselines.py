@@ -331,8 +331,9 @@ BASELINES = {cls.name: cls for cls in (BackwardDifference, Butterworth, Kalman, 
 
 # the grids codegen.compare tunes each baseline's own parameter over (log-spaced)
 GRIDS = {
-    "butterworth": [2.0, 3.0, 5.0, 7.0, 10.0, 15.0, 20.0, 30.0, 50.0, 70.0, 100.0, 150.0, 200.0],
-    "kalman": [float(v) for v in np.logspace(-1, 9, 21)],
+    "butterworth": [2.0, 3.0, 5.0, 7.0, 10.0, 15.0, 20.0, 30.0, 50.0, 70.0, 100.0, 150.0, 200.0,
+                    300.0, 400.0],
+    "kalman": [float(v) for v in np.logspace(-3, 12, 31)],
     "levant": [float(v) for v in np.logspace(-1, 5, 19)],
 }
 

@@ -103,6 +103,25 @@ class Comparison:
                                  title=f"{self.title} joint {joint}")]
 
 
+def parse_observer(text):
+    """``"family[:name=value[:name=value...]]"`` -> (family, {name: float value}).
+
+    >>> parse_observer("nicosia_tomei:kd=50:kp=625")
+    ('nicosia_tomei', {'kd': 50.0, 'kp': 625.0})
+    """
+    family, *pairs = str(text).split(":")
+    given = {}
+    for pair in pairs:
+        name, eq, value = pair.partition("=")
+        try:
+            given[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"observers: expected name=number after {family!r}, got {pair!r}") from None
+        if not eq or not name.strip():
+            raise ValueError(f"observers: expected name=number after {family!r}, got {pair!r}")
+    return family.strip(), given
+
+
 def run_observer(spec, Y, U, dt, reference=False):
     """Estimate (N, nest) of an observer spec over samples Y, U: compiled C (loop in C) or the
     numpy reference; (estimate of NaN, message) when the observer fails."""
@@ -121,13 +140,17 @@ def run_observer(spec, Y, U, dt, reference=False):
 
 
 def tune(name, Y, t, truth, t_ss, dt, grid=None):
-    """The baseline ``name`` run over each value of its grid; returns (params, estimate) of the
-    value with the lowest RMS after t_ss (the only value for an untuned baseline)."""
+    """The baseline ``name`` run over each value of its grid that it accepts at this dt; returns
+    (params, estimate) of the value with the lowest RMS after t_ss (the only value for an
+    untuned baseline)."""
     cls = baselines.BASELINES[name]
     values = [None] if cls.tuned is None else (grid or baselines.GRIDS[name])
     best = None
     for v in values:
-        b = cls(Y.shape[1], dt) if v is None else cls(Y.shape[1], dt, **{cls.tuned: v})
+        try:
+            b = cls(Y.shape[1], dt) if v is None else cls(Y.shape[1], dt, **{cls.tuned: v})
+        except ValueError:
+            continue                    # a value this sample time cannot take (cutoff >= Nyquist)
         b.reset(Y[0])
         est = b.run(Y)
         r = metrics.rms_after(t, est - truth, t_ss)
@@ -148,9 +171,11 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     robot : models.RobotModel
         The nominal model the observers are built on.
     families : sequence of str
-        Observer families (``codegen.observers.FAMILIES``) with y = q, u = tau, est = qd_hat.
+        Observer families (``codegen.observers.FAMILIES``) with y = q, u = tau, est = qd_hat,
+        each optionally with given build arguments, ``"reduced_order:k0=25"`` (see
+        ``parse_observer``).
     design : dict, optional
-        Extra keyword arguments of ``observers.build`` (design inputs, gains).
+        Keyword arguments of ``observers.build`` for every family (design inputs).
     t_ss : float, optional
         Start of the steady-state window (s); default half the run.
     level : float
@@ -173,14 +198,18 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     t, Y, U, truth, dt = rec.t, rec.q, rec.tau, rec.qd, rec.dt
     t_ss = float(t[-1] / 2 if t_ss is None else t_ss)
     entries = []
-    for fam in families:
-        spec = observers.build(fam, robot, **(design or {}))
+    for item in families:
+        fam, given = parse_observer(item)
+        try:
+            spec = observers.build(fam, robot, **{**(design or {}), **given})
+        except TypeError as e:
+            raise ValueError(f"observers: {item!r}: {e}") from None
         if spec.nest != robot.n or spec.ny != robot.n:
             raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
                              f"nest = {spec.nest})")
         est, note = run_observer(spec, Y, U, dt, reference)
         params = {k: float(v) for k, v in zip(spec.p_names, spec.p_default)}
-        entries.append(Entry(fam, "observer", params, est, metrics.summarize(t, est, truth, t_ss, level), note))
+        entries.append(Entry(item, "observer", params, est, metrics.summarize(t, est, truth, t_ss, level), note))
     for name in baseline_names or baselines.BASELINES:
         params, est = tune(name, Y, t, truth, t_ss, dt)
         entries.append(Entry(name, "baseline", params, est, metrics.summarize(t, est, truth, t_ss, level)))

@@ -140,13 +140,13 @@ def ur5_quantised():
     baseline tuned on the run (codegen.compare)."""
     from codegen.compare import compare, load_run
     rec, robot, _, title = load_run("mujoco-ur5", T=3.0, quantization=1e-4)
-    return compare(rec, robot, families=("reduced_order",), design={"k0": 25.0}, t_ss=1.0, title=title)
+    return compare(rec, robot, families=("reduced_order:k0=25",), t_ss=1.0, title=title)
 
 
 def test_observer_beats_the_tuned_baselines_on_mujoco(ur5_quantised):
     """Measured over 20 s: RMS 1.75e-3 against 2.6e-3 for the best tuned baseline (Kalman),
     below 1e-2 at 0.21 s, gain 1 +- 1e-6, lag 2 us. Asserted with margins on 3 s."""
-    obs, best = ur5_quantised["reduced_order"].metrics, ur5_quantised.best_baseline()
+    obs, best = ur5_quantised["reduced_order:k0=25"].metrics, ur5_quantised.best_baseline()
     assert best.name in ("kalman", "levant")
     assert obs["rms"] < 0.9 * best.metrics["rms"]
     assert obs["t_conv"] < 0.3
