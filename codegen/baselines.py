@@ -249,15 +249,34 @@ class Kalman(Baseline):
         X[0], X[1], X[2] = y0, est0, 0.0
         P[:] = np.diag([self.r, self.v0 ** 2, self.a0 ** 2])
 
-    def _step(self, y):
-        X, P = self._split()
+    def _gain(self):
+        """Advance the shared covariance P over one sample; returns the Kalman gain K (3,)."""
+        _, P = self._split()
         A = self._A
-        X[:] = A @ X                                          # predict
-        P[:] = A @ P @ A.T + self._Q
+        P[:] = A @ P @ A.T + self._Q                          # predict
         K = P[:, 0] / (P[0, 0] + self.r)                      # update with H = [1, 0, 0]
-        X += np.outer(K, y - X[0])
         P[:] = P - np.outer(K, P[0])
+        return K
+
+    def _step(self, y, K=None):
+        X, _ = self._split()
+        K = self._gain() if K is None else K
+        X[:] = self._A @ X
+        X += np.outer(K, y - X[0])
         return X[1]
+
+    def _run(self, Y):
+        """As _step per row; once the gain has settled (P does not depend on the data) it is
+        reused instead of advancing P."""
+        out = np.empty_like(Y)
+        K_prev, settled = None, False
+        for k in range(len(Y)):
+            if not settled:
+                K = self._gain()
+                settled = K_prev is not None and np.allclose(K, K_prev, rtol=1e-15, atol=0.0)
+                K_prev = K
+            out[k] = self._step(Y[k], K)
+        return out
 
 
 # Levant's non-recursive coefficients lambda_0 .. lambda_n for n = 1, 2, 3 [Levant 2003, §6]
