@@ -97,10 +97,12 @@ class Comparison:
         out = Path(out)
         errs = {e.name: e.est - self.truth for e in self.entries}
         zoom = zoom or (self.t_ss, min(self.t[-1], self.t_ss + 0.5))
+        m = (self.t >= zoom[0]) & (self.t <= zoom[1])
+        curves = {"true": self.truth[m, joint], **{e.name: e.est[m, joint] for e in self.entries}}
         return [plots.error_norms(out / "errors.png", self.t, errs, levels=(self.level,), title=self.title),
-                plots.joint_zoom(out / f"joint{joint}.png", self.t, self.truth[:, joint],
-                                 {e.name: e.est[:, joint] for e in self.entries}, zoom,
-                                 title=f"{self.title} joint {joint}")]
+                plots.panels(out / f"joint{joint}.png", self.t[m],
+                             [plots.Panel(curves, ylabel=f"qd{joint + 1} [rad/s]")],
+                             title=f"{self.title}, joint {joint + 1}", cell=(8, 3.4))]
 
 
 def parse_observer(text):
@@ -123,16 +125,14 @@ def parse_observer(text):
 
 
 def run_observer(spec, Y, U, dt, reference=False):
-    """Estimate (N, nest) of an observer spec over samples Y, U: compiled C (loop in C) or the
-    numpy reference; (estimate of NaN, message) when the observer fails."""
+    """Estimate (N, nest) of an observer spec over samples Y, U with the default discretisation
+    at dt: compiled C (the loop in C) or the numpy reference; (estimate of NaN, message) when
+    the observer fails."""
     from .runtime import ObserverError
+    from .sim.blocks import block
+    from .target import discretization
     try:
-        if reference:
-            from .reference import reference_observer
-            obs = reference_observer(spec, dt=dt)
-        else:
-            from . import compile_observer
-            obs = compile_observer(spec, dt=dt)
+        obs = block(spec, discretization(None, dt=dt), reference=reference)
         obs.reset(Y[0])
         return obs.run(Y, U), ""
     except (ObserverError, FloatingPointError) as e:

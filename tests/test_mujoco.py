@@ -161,3 +161,26 @@ def test_baselines_tuned_and_ordered(ur5_quantised):
     assert 0 < m["butterworth"]["lag"] and m["butterworth"]["lag"] > 10 * abs(m["kalman"]["lag"])
     rows = ur5_quantised.rows()
     assert min(r["rms_over_best_baseline"] for r in rows if r["kind"] == "baseline") == 1.0
+
+
+def test_simulate_mujoco_scenario_with_options(tmp_path, capsys):
+    """`simulate mujoco-ur5 --T 1 --quantization 1e-4` writes the run as a compare CSV that
+    `compare --robot ur5` reads back to the same table; seed scenarios refuse the options."""
+    import json
+
+    from codegen.cli import main
+    assert main(["simulate", "mujoco-ur5", "--T", "1", "--quantization", "1e-4", "--out", str(tmp_path)]) == 0
+    folder = tmp_path / "mujoco-ur5"
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["quantization"] == 1e-4 and set(summary["methods"]) >= {"reduced_order", "kalman"}
+    rec = read_csv(folder / "run.csv", load_robot("ur5").joint_names)
+    assert np.allclose(rec.q / 1e-4, np.round(rec.q / 1e-4), atol=1e-6)    # quantised
+    capsys.readouterr()
+    assert main(["compare", str(folder / "run.csv"), "--robot", "ur5", "--out", str(tmp_path / "c")]) == 0
+    table = capsys.readouterr().out
+    rows = json.loads((tmp_path / "c" / "compare.json").read_text())["rows"]
+    assert [r["rms"] for r in rows] == pytest.approx([summary["methods"][r["name"]]["rms"] for r in rows],
+                                                     rel=1e-12)
+    assert "kalman" in table and (tmp_path / "c" / "errors.png").is_file()
+    with pytest.raises(SystemExit, match="takes no option --quantization"):
+        main(["simulate", "seed000-ex1a", "--quantization", "1e-4", "--out", str(tmp_path)])
