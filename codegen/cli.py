@@ -110,17 +110,37 @@ def cmd_simulate(args):
     return scenarios.run(args.name, reference=args.reference, out=args.out, **options)
 
 
+def _compare_source(args):
+    """(Recording, robot, title) of ``compare``'s source: a mujoco-* scenario run with the
+    sensor and mismatch options, or a recorded CSV of ``--robot``."""
+    from .compare import robot_by_name
+    from .recording import read_csv
+    from .sim.scenarios import mujoco
+    if args.source in mujoco.SCENARIOS:
+        name = args.source.removeprefix("mujoco-")
+        if args.robot not in (None, name):
+            raise ValueError(f"robot: scenario {args.source} is {name}, got --robot {args.robot}")
+        rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
+        return rec, robot_by_name(name), mujoco.title(name, args.quantization, args.noise, args.mismatch)
+    if not str(args.source).endswith(".csv"):
+        raise ValueError(f"source: expected a scenario ({', '.join(mujoco.SCENARIOS)}) or a .csv file, "
+                         f"got {args.source!r}")
+    if args.robot is None:
+        raise ValueError("robot: a CSV needs --robot (the robot it was recorded on)")
+    robot = robot_by_name(args.robot)
+    return read_csv(args.source, robot.joint_names), robot, f"{Path(args.source).name} ({robot.name})"
+
+
 def cmd_compare(args):
     """Observers and tuned baselines on a scenario or a CSV: table, figures, JSON."""
-    from .compare import compare, load_run
+    from .compare import compare, design_inputs
     from .recording import RecordingError
     try:
-        rec, robot, design, title = load_run(args.source, robot=args.robot, T=args.T,
-                                             quantization=args.quantization, noise=args.noise,
-                                             mismatch=args.mismatch)
+        rec, robot, title = _compare_source(args)
         families = [f for f in args.observers.split(",") if f]
         bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
-        cmp = compare(rec, robot, families=families, design=design, t_ss=args.t_ss, level=args.level,
+        cmp = compare(rec, robot, families=families, t_ss=args.t_ss, level=args.level,
+                      design=design_inputs(args.quantization, args.noise, args.mismatch),
                       baseline_names=bl, reference=args.reference, title=title)
     except (RecordingError, ValueError, KeyError) as e:
         print(f"error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)

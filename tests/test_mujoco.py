@@ -138,9 +138,10 @@ def test_compare_cli_errors(tmp_path, capsys):
 def ur5_quantised():
     """3 s of MuJoCo ur5 with a 1e-4 rad encoder: reduced-order observer at k0 = 25 and every
     baseline tuned on the run (codegen.compare)."""
-    from codegen.compare import compare, load_run
-    rec, robot, _, title = load_run("mujoco-ur5", T=3.0, quantization=1e-4)
-    return compare(rec, robot, families=("reduced_order:k0=25",), t_ss=1.0, title=title)
+    from codegen.compare import compare
+    from codegen.sim.scenarios import mujoco
+    rec = mujoco.recording("ur5", T=3.0, quantization=1e-4)
+    return compare(rec, load_robot("ur5"), families=("reduced_order:k0=25",), t_ss=1.0)
 
 
 def test_observer_beats_the_tuned_baselines_on_mujoco(ur5_quantised):

@@ -69,25 +69,32 @@ def recording(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0
     return Recording(t=true.t, q=Y, tau=true.tau, qd=true.qd, joint_names=true.joint_names)
 
 
+def title(robot_name, quantization=0.0, noise=0.0, mismatch=0.0):
+    """The heading of a run's table and figures."""
+    return (f"MuJoCo {robot_name}: quantisation {quantization:g} rad, noise {noise:g} rad, "
+            f"mismatch {mismatch:g}")
+
+
 def experiment(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0, seed=0,
                reference=False, out=None):
     """Run the comparison; write the run (``run.csv``, the compare CSV format), the figures
     and ``table.txt`` into ``out``; return the summary (one row per method)."""
-    from ...compare import compare, load_run
-    rec, robot, design, title = load_run(f"mujoco-{robot_name}", T=T, quantization=quantization,
-                                         noise=noise, mismatch=mismatch, seed=seed)
-    cmp = compare(rec, robot, design=design, reference=reference, title=title)
+    from models import load_robot
+
+    from ...compare import compare, design_inputs
+    rec = recording(robot_name, T, quantization, noise, mismatch, seed)
+    cmp = compare(rec, load_robot(robot_name), design=design_inputs(quantization, noise, mismatch),
+                  reference=reference, title=title(robot_name, quantization, noise, mismatch))
     if out is not None:
         out = Path(out)
         rec.write_csv(out / "run.csv")
         cmp.figures(out)
         (out / "table.txt").write_text(cmp.table() + "\n")
     best = cmp.best_baseline()
-    summary = {"robot": robot_name, "T": T, "quantization": quantization, "noise": noise,
-               "mismatch": mismatch, "best_baseline": best.name if best else None,
-               "table": "\n" + cmp.table(),
-               "methods": {r.pop("name"): r for r in json.loads(json.dumps(cmp.rows(), default=float))}}
-    return summary
+    return {"robot": robot_name, "T": T, "quantization": quantization, "noise": noise,
+            "mismatch": mismatch, "best_baseline": best.name if best else None,
+            "table": "\n" + cmp.table(),
+            "methods": {r.pop("name"): r for r in json.loads(json.dumps(cmp.rows(), default=float))}}
 
 
 def _scenario(robot_name):
