@@ -89,15 +89,22 @@ class Store:
         fid = digest(fingerprint, 12)
         known = self.fingerprints()
         if fid not in known:
-            _atomic_text(self.out / "fingerprints.json",
-                         json.dumps({**known, fid: fingerprint}, indent=1, sort_keys=True, default=float) + "\n")
+            self.put("fingerprints.json", {**known, fid: fingerprint})
         return fid
 
-    def fingerprints(self):
+    def put(self, name, value):
+        """Write JSON ``value`` beside the results (atomically)."""
+        _atomic_text(self.out / name, json.dumps(value, indent=1, sort_keys=True, default=float) + "\n")
+
+    def get(self, name, default=None):
+        """The JSON file ``name`` beside the results, or ``default``."""
         try:
-            return json.loads((self.out / "fingerprints.json").read_text())
+            return json.loads((self.out / name).read_text())
         except FileNotFoundError:
-            return {}
+            return default
+
+    def fingerprints(self):
+        return self.get("fingerprints.json", {})
 
 
 def _atomic_text(path, text):
