@@ -157,7 +157,7 @@ def run(source, workers=None, scheduler=None, out=None, progress=True, client=No
     """
     from ..build import repo_root
     from ..compare import robot_by_name
-    from .work import run_batch, true_run
+    from .work import run_batch, true_run, warm
     sweep = plan.load(source)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 0):
         raise ValueError(f"workers must be a whole number >= 0, got {workers!r}")
@@ -179,7 +179,8 @@ def run(source, workers=None, scheduler=None, out=None, progress=True, client=No
     failed, t0 = 0, time.perf_counter()
     with _bar(len(todo), progress) as bar:
         if workers == 0 and client is None and not scheduler:
-            runs = {}
+            warm()
+            t0, runs = time.perf_counter(), {}
             for key, batch in jobs:
                 if key not in runs:
                     runs = {key: true_run(*common, *key)}        # batches come grouped by true run
@@ -196,12 +197,13 @@ def _distributed(client, workers, scheduler, jobs, common, targets, sweep, store
     """Run the batches on Dask, writing each as it finishes; (failed cells, start time)."""
     from distributed import as_completed
 
-    from .work import run_batch, true_run
+    from .work import run_batch, true_run, warm
     own = client is None
     cluster = None
     if own:
         client, cluster = _cluster(workers, scheduler)
     try:
+        client.run(warm)
         t0 = time.perf_counter()
         shipped = client.scatter([targets], broadcast=True)[0]
         runs, futures, sizes = {}, [], {}

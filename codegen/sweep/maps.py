@@ -93,7 +93,7 @@ def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=N
         pos = [(np.interp(np.log(v), np.log(xs), np.arange(len(xs))), r)
                for r, level in enumerate(ys) for v in des.get(level, []) if v > 0]
         if pos:
-            ax.plot(*zip(*pos), "wo", mfc="none", ms=9, mew=2, label=f"designed {x}")
+            ax.plot(*zip(*pos), "o", color="darkorange", mfc="none", ms=10, mew=2.5, label=f"designed {x}")
     ax.legend(loc="upper left", bbox_to_anchor=(0, -0.25), ncol=2, fontsize=8, frameon=False)
     ax.set_title(title or f"{method}: {metric} over {x} x {y}", fontsize=9)
     path = Path(path)

@@ -50,6 +50,18 @@ def observer(target):
     return _LOADED[target["sha"]]
 
 
+def warm():
+    """Import what a cell needs (so that timings exclude a worker's first imports)."""
+    import importlib
+    for m in ("scipy.signal", "scipy.optimize", "codegen.compare", "codegen.sim.sensors",
+              "codegen.sim.mujoco_plant", "mujoco"):
+        try:
+            importlib.import_module(m)
+        except ImportError:     # the MuJoCo plant is optional
+            pass
+    return os.getpid()
+
+
 def true_run(robot_name, plant, T, mismatch, seed, dt):
     """The plant's true run (a Recording with true q, qd and the applied tau).
 
