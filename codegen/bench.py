@@ -200,8 +200,9 @@ def seed004_cg(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
 def sweep_ur5(path=None, modes=(0, 1, 2)):
     """The example sweep (``sweeps/ur5_quantisation.toml``: reduced-order on MuJoCo's ur5, 500
     cells) computed in-process (0), on a LocalCluster of 1 and of 2 workers: cells/s of each
-    (cluster start and worker imports excluded, true runs included), the 2-vs-1-worker ratio
-    (issue 14 asks >= 1.7) and whether every mode gave identical rows."""
+    (cluster start and worker imports excluded, true runs included), cells per CPU-second of the
+    cell computations (what a mode costs per cell, whatever else the machine runs), the
+    2-vs-1-worker ratio (issue 14 asks >= 1.7) and whether every mode gave identical rows."""
     import tempfile
 
     from . import sweep
@@ -211,8 +212,11 @@ def sweep_ur5(path=None, modes=(0, 1, 2)):
         for w in modes:
             res = sweep.run(path, workers=w, out=Path(tmp) / f"w{w}", progress=False)
             row["cells"] = res.cells
-            row[f"cells_per_s_{w}w" if w else "cells_per_s_in_process"] = res.computed / res.seconds
-            frames.append(res.frame().drop(columns="worker"))
+            frame = res.frame()
+            mode = f"{w}w" if w else "in_process"
+            row[f"cells_per_s_{mode}"] = res.computed / res.seconds
+            row[f"cells_per_cpu_s_{mode}"] = len(frame) / frame["cpu_s"].sum()
+            frames.append(frame.drop(columns=["worker", "cpu_s"]))
     if {1, 2} <= set(modes):
         row["ratio_2w_over_1w"] = row["cells_per_s_2w"] / row["cells_per_s_1w"]
     row["identical"] = all(f.equals(frames[0]) for f in frames)

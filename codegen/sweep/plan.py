@@ -171,8 +171,11 @@ def load(source):
             raise ValueError(f"{k} must be a positive integer, got {v!r}")
     if not 0 <= s.steady < s.T:
         raise ValueError(f"t_ss must be in [0, T), got {s.t_ss!r} (T = {s.T})")
-    if "seed" in axes:
-        axes["seed"] = [int(x) for x in axes["seed"]]
+    for k, v in axes.items():          # one type per axis: the cell ids do not see 0 vs 0.0
+        if isinstance(v, list):
+            axes[k] = [int(x) for x in v] if k == "seed" else [float(x) for x in v]
+    if not isinstance(s.map, dict) or set(s.map) - {"x", "y", "metric", "method"}:
+        raise ValueError(f"map: expected a table with x, y, metric, method, got {s.map!r}")
     for k in ("noise", "quantization", "dt"):
         for v in (axes.get(k) if isinstance(axes.get(k), list) else ()):
             if v < 0 or (k == "dt" and v == 0):

@@ -30,7 +30,7 @@ def schema(gains):
     cols += [(g, pa.float64()) for g in gains]
     cols += [(m, types[t]) for m, t in METRICS]
     cols += [("params", pa.string()), ("note", pa.string()), ("fingerprint", pa.string()),
-             ("worker", pa.int64())]
+             ("worker", pa.int64()), ("cpu_s", pa.float64())]
     return pa.schema(cols)
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -114,7 +115,8 @@ def run_cell(cell, rec, target, t_ss, level):
 
 def run_batch(cells, true, targets, t_ss, level):
     """Rows (dicts) of a batch of cells sharing one true run; the measured run is made once
-    per sensor setting (the cells come sorted by it)."""
+    per sensor setting (the cells come sorted by it). ``worker`` (pid) and ``cpu_s`` (CPU
+    seconds of this thread on the cell) say where and at what cost a row was computed."""
     from ..sim.sensors import measured
     rows, last = [], (None, None)
     for c in cells:
@@ -122,5 +124,7 @@ def run_batch(cells, true, targets, t_ss, level):
         if last[0] != sensor:
             last = (sensor, measured(true, *sensor))
         target = targets.get((c["method"], c["dt"])) if c["kind"] == "observer" else None
-        rows.append({**c, **run_cell(c, last[1], target, t_ss, level), "worker": os.getpid()})
+        t0 = time.thread_time()
+        row = run_cell(c, last[1], target, t_ss, level)
+        rows.append({**c, **row, "worker": os.getpid(), "cpu_s": time.thread_time() - t0})
     return rows
