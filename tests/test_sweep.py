@@ -135,3 +135,19 @@ def test_client_killed_then_restarted_computes_only_the_rest(tmp_path):
     res = sweep.run(cfg, workers=0, out=out, progress=False)
     assert (res.skipped, res.computed) == (before, 32 - before)
     _once(out, res)
+
+
+def test_store_parts_are_whole_or_absent(tmp_path):
+    import pandas as pd
+    store = Store(tmp_path)
+    row = {"cell": "abc", "method": "backward", "kind": "baseline", "family": "backward", "noise": 0.0,
+           "quantization": 0.0, "mismatch": 0.0, "seed": 0, "dt": 1e-3, "est0": None, "p": {},
+           "rms": 1.0, "max": 2.0, "t_conv": 0.1, "gain": 1.0, "lag": 0.0, "diverged": False,
+           "params": {}, "note": "", "worker": 1, "cpu_s": 0.01}
+    store.write([row], ("k0",), "fp")
+    (store.results / ".part-dead.tmp").write_bytes(b"PAR1 half a file")     # a killed writer
+    assert store.done() == {"abc"}
+    assert list(pd.read_parquet(store.results)["cell"]) == ["abc"]          # pandas skips it too
+    store.start(plan.load(SMALL), {"code": "x"})
+    assert not list(store.results.glob(".*"))
+    assert (tmp_path / "sweep.json").is_file() and list(store.fingerprints()) != []

@@ -96,7 +96,7 @@ def prepare(sweep, robot, out):
                         if k not in plan.AXES and isinstance(v, list)}, **given}
         spec = build(item, fam, given, None if not sweep.designed else next(sweep.points()))
         methods.append(plan.Method(item, "observer", fam, given, tuple(spec.p_names)))
-        for i, dt in enumerate(dts):
+        for dt in dts:
             name = f"{robot.name}_{fam}_{plan.digest([item, dt], 8)}"
             folder = emit(spec.target(discretization(None, dt=dt), name=name), Path(out) / "targets", spec=spec)
             targets[(item, dt)] = payload(folder, compiler_flags(spec))

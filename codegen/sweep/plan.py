@@ -9,6 +9,9 @@
     batch = 16                     # cells per Dask task
     samples = 1                    # draws of the random axes per grid point
     seed = 0                       # seed of those draws
+    designed = true                # false: no gain design (every gain from the axes or the item)
+    retries = 3                    # Dask retries of a failed task
+    [map]                          # optional: x, y, metric, method of map.png and best.txt
 
     [axes]                         # a list (grid), a number, {lin|log = [a, b, n]} (grid),
     k0 = {log = [5, 500, 12]}      # or {uniform|loguniform = [a, b]} (random)
@@ -169,6 +172,10 @@ def load(source):
         v = getattr(s, k)
         if isinstance(v, bool) or not isinstance(v, int) or v < 1:
             raise ValueError(f"{k} must be a positive integer, got {v!r}")
+    if isinstance(s.retries, bool) or not isinstance(s.retries, int) or s.retries < 0:
+        raise ValueError(f"retries must be a whole number >= 0, got {s.retries!r}")
+    if not isinstance(s.designed, bool):
+        raise ValueError(f"designed must be true or false, got {s.designed!r}")
     if not 0 <= s.steady < s.T:
         raise ValueError(f"t_ss must be in [0, T), got {s.t_ss!r} (T = {s.T})")
     for k, v in axes.items():          # one type per axis: the cell ids do not see 0 vs 0.0
