@@ -201,7 +201,8 @@ def sweep_ur5(path=None, modes=(0, 1, 2)):
     """The example sweep (``sweeps/ur5_quantisation.toml``: reduced-order on MuJoCo's ur5, 500
     cells) computed in-process (0), on a LocalCluster of 1 and of 2 workers: cells/s of each
     (cluster start and worker imports excluded, true runs included), cells per CPU-second of the
-    cell computations (what a mode costs per cell, whatever else the machine runs), the
+    cell computations (what a mode costs per cell, whatever else the machine runs), their ratio
+    (the cores the mode had: on a shared machine the 2 workers may get no more than 1), the
     2-vs-1-worker ratio (issue 14 asks >= 1.7) and whether every mode gave identical rows."""
     import tempfile
 
@@ -216,6 +217,7 @@ def sweep_ur5(path=None, modes=(0, 1, 2)):
             mode = f"{w}w" if w else "in_process"
             row[f"cells_per_s_{mode}"] = res.computed / res.seconds
             row[f"cells_per_cpu_s_{mode}"] = len(frame) / frame["cpu_s"].sum()
+            row[f"cores_used_{mode}"] = row[f"cells_per_s_{mode}"] / row[f"cells_per_cpu_s_{mode}"]
             frames.append(frame.drop(columns=["worker", "cpu_s"]))
     if {1, 2} <= set(modes):
         row["ratio_2w_over_1w"] = row["cells_per_s_2w"] / row["cells_per_s_1w"]
