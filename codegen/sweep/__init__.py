@@ -26,7 +26,7 @@ from pathlib import Path
 from . import plan
 from .store import Store
 
-__all__ = ["run", "SweepResult"]
+__all__ = ["SweepResult", "run"]
 
 
 @dataclass
@@ -53,7 +53,7 @@ def _code_version():
     from ..version import __version__
     try:
         git = subprocess.run(["git", "-C", str(repo_root()), "describe", "--always", "--dirty"],
-                             capture_output=True, text=True, timeout=10).stdout.strip()
+                             capture_output=True, text=True, timeout=10, check=False).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         git = ""
     return {"codegen": __version__, "git": git}

@@ -72,8 +72,9 @@ def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=N
     Returns the path."""
     import matplotlib
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from pathlib import Path
+
+    import matplotlib.pyplot as plt
     method, piv = table(frame, x, y, metric, method)
     Z = np.log10(piv.to_numpy(dtype=float))
     xs, ys = np.asarray(piv.columns, dtype=float), np.asarray(piv.index, dtype=float)

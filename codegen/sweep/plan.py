@@ -29,11 +29,11 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 PLANTS = ("model", "mujoco")
 PLANT_AXES = ("mismatch", "seed", "dt")          # a true run per point of these
