@@ -7,6 +7,7 @@ assert a speed).
     seed003_ii_ur5   the I&I speed observer on ur5: generation, compile, ns per RHS vs the reference
     seed004_cg       Ciccarella-Germani O1 on elastic robots: generation, compile, cross-check,
                      ns per RHS vs the reference, gates
+    sweep_ur5        the 500-cell ur5 sweep in-process, on 1 and on 2 Dask workers: cells/s, ratio
 
 ``main`` prints the table and the scenario rows and writes them as JSON
 ({"observer_rhs": [...], "scenarios": {"seed000": ..., "seed003": ..., "seed004": [...]}}).
@@ -196,7 +197,35 @@ def seed004_cg(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
     return rows
 
 
-SCENARIOS = {"seed000": seed000_loop, "seed003": seed003_ii_ur5, "seed004": seed004_cg}
+def sweep_ur5(path=None, modes=(0, 1, 2)):
+    """The example sweep (``sweeps/ur5_quantisation.toml``: reduced-order on MuJoCo's ur5, 500
+    cells) computed in-process (0), on a LocalCluster of 1 and of 2 workers: cells/s of each
+    (cluster start and worker imports excluded, true runs included), cells per CPU-second of the
+    cell computations (what a mode costs per cell, whatever else the machine runs), their ratio
+    (the cores the mode had: on a shared machine the 2 workers may get no more than 1), the
+    2-vs-1-worker ratio (issue 14 asks >= 1.7) and whether every mode gave identical rows."""
+    import tempfile
+
+    from . import sweep
+    path = Path(path or repo_root() / "sweeps" / "ur5_quantisation.toml")
+    row, frames = {"sweep": path.name}, []
+    with tempfile.TemporaryDirectory() as tmp:
+        for w in modes:
+            res = sweep.run(path, workers=w, out=Path(tmp) / f"w{w}", progress=False)
+            row["cells"] = res.cells
+            frame = res.frame()
+            mode = f"{w}w" if w else "in_process"
+            row[f"cells_per_s_{mode}"] = res.computed / res.seconds
+            row[f"cells_per_cpu_s_{mode}"] = len(frame) / frame["cpu_s"].sum()
+            row[f"cores_used_{mode}"] = row[f"cells_per_s_{mode}"] / row[f"cells_per_cpu_s_{mode}"]
+            frames.append(frame.drop(columns=["worker", "cpu_s"]))
+    if {1, 2} <= set(modes):
+        row["ratio_2w_over_1w"] = row["cells_per_s_2w"] / row["cells_per_s_1w"]
+    row["identical"] = all(f.equals(frames[0]) for f in frames)
+    return row
+
+
+SCENARIOS = {"seed000": seed000_loop, "seed003": seed003_ii_ur5, "seed004": seed004_cg, "sweep_ur5": sweep_ur5}
 
 
 # ---------------------------------------------------------------------------- report

@@ -1,4 +1,4 @@
-"""`python -m codegen list | generate | build | check | simulate | compare | bench | sanitize`."""
+"""`python -m codegen list | generate | build | check | simulate | compare | sweep | bench | sanitize`."""
 from __future__ import annotations
 
 import argparse
@@ -154,6 +154,24 @@ def cmd_compare(args):
     return 0
 
 
+def cmd_sweep(args):
+    """A Monte-Carlo sweep on Dask (codegen.sweep): results, map and best-gain table in --out."""
+    from . import sweep
+    from .sweep import maps, plan
+    try:
+        spec = plan.load(args.file)
+        res = sweep.run(args.file, workers=args.workers, scheduler=args.scheduler, out=args.out)
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(f"{res.cells} cells: {res.computed} computed in {res.seconds:.1f} s "
+          f"({res.computed / max(res.seconds, 1e-9):.1f} cells/s), {res.skipped} already done, "
+          f"{res.failed} failed; results in {res.out / 'results'}")
+    for p in maps.write(res.out, spec):
+        print(f"wrote {p}")
+    return 0 if res.failed == 0 else 1
+
+
 def cmd_sanitize(args):
     from .check import sanitize
     return sanitize.run(args.runs, args.seconds)
@@ -213,6 +231,13 @@ def main(argv=None):
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     cp.add_argument("--out", default=str(repo_root() / "build" / "compare"))
+    sw = sub.add_parser("sweep", help="Monte-Carlo sweep of observers and baselines on Dask (resumable)")
+    sw.add_argument("file", help="the sweep file (TOML; see codegen.sweep.plan)")
+    where = sw.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="local cluster of N worker processes (default: one "
+                       "per CPU; 0: in this process, no Dask)")
+    where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:8786)")
+    sw.add_argument("--out", help="output folder (default build/sweeps/<name>)")
     sa = sub.add_parser("sanitize", help="C harness and sample targets under ASan/UBSan on edge-case "
                         "CSVs, and a libFuzzer campaign of their step")
     sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
@@ -221,7 +246,7 @@ def main(argv=None):
     try:
         return {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
                 "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare,
-                "sanitize": cmd_sanitize}[args.cmd](args)
+                "sweep": cmd_sweep, "sanitize": cmd_sanitize}[args.cmd](args)
     except BuildError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

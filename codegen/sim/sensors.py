@@ -64,3 +64,29 @@ class Sensor:
         if self._held is None or k % self.every == 0:
             self.measure(k, q, np.empty(len(q)))
         return self._held.copy()
+
+
+def measured(rec, quantization=0.0, noise=0.0, seed=0):
+    """A recording as the sensor gives it: q of ``rec`` (the truth) sampled every sample with
+    seeded Gaussian noise ``noise`` (rad) and quantised to ``quantization`` (rad); t, tau and
+    the true qd kept.
+
+    Parameters
+    ----------
+    rec : codegen.recording.Recording
+        The true run.
+    quantization, noise : float
+        Encoder step and Gaussian standard deviation (rad); 0: none.
+    seed : int
+        Seed of the noise.
+
+    Returns
+    -------
+    codegen.recording.Recording
+    """
+    from ..recording import Recording
+    sensor = Sensor(noise_std=noise, quantum=quantization, seed=seed)
+    Y = np.empty_like(rec.q)
+    for k, q in enumerate(rec.q):
+        sensor.measure(k, q, Y[k])
+    return Recording(t=rec.t, q=Y, tau=rec.tau, qd=rec.qd, joint_names=rec.joint_names)

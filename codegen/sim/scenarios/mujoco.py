@@ -22,8 +22,6 @@ import json
 from functools import lru_cache
 from pathlib import Path
 
-import numpy as np
-
 ROBOTS = ("ur5", "panda")
 T_DEFAULT = 20.0
 DT = 1e-3
@@ -57,16 +55,10 @@ def recording(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0
     -------
     codegen.recording.Recording
     """
-    from ...recording import Recording
-    from ..sensors import Sensor
+    from ..sensors import measured
     if robot_name not in ROBOTS:
         raise ValueError(f"robot: the MuJoCo scenarios have {', '.join(ROBOTS)}, got {robot_name!r}")
-    true = _true_run(robot_name, float(T), float(mismatch), int(seed))
-    sensor = Sensor(noise_std=noise, quantum=quantization, seed=seed)
-    Y = np.empty_like(true.q)
-    for k, q in enumerate(true.q):
-        sensor.measure(k, q, Y[k])
-    return Recording(t=true.t, q=Y, tau=true.tau, qd=true.qd, joint_names=true.joint_names)
+    return measured(_true_run(robot_name, float(T), float(mismatch), int(seed)), quantization, noise, seed)
 
 
 def title(robot_name, quantization=0.0, noise=0.0, mismatch=0.0):
