@@ -48,7 +48,8 @@ class Case:
 
 
 def edge_cases(ny, nu, nest, dt):
-    """The edge-case CSVs of a target with ``ny`` measurements and ``nu`` inputs."""
+    """The edge-case CSVs of a target with ``ny`` measurements, ``nu`` inputs and ``nest``
+    estimates (for the est0 case), rows ``dt`` (s) apart: a list of :class:`Case`."""
     header = ",".join(["t"] + [f"y{i}" for i in range(ny)] + [f"u{i}" for i in range(nu)])
 
     def rows(n=8, y="0.1", u="0.5", at=None, where="y"):
@@ -105,8 +106,26 @@ def _sample_targets(out):
 
 
 def sanitized(target_dir, program, tool, flags, cache):
-    """``c_harness/<program>.c`` and the target's C compiled and linked in one command with
-    ``flags`` (cached by content); returns the executable."""
+    """``c_harness/<program>.c`` and the target's C compiled and linked in one command.
+
+    Parameters
+    ----------
+    target_dir : pathlib.Path
+        Folder of an emitted target.
+    program : str
+        Harness stem: "run_csv" or "fuzz_step".
+    tool : codegen.build.Compiler
+        The C compiler (``codegen.build.compiler``).
+    flags : list of str
+        Compiler flags (sanitizers, libFuzzer).
+    cache : pathlib.Path
+        Cache folder; the build is cached by content (``codegen.build.cached_build``).
+
+    Returns
+    -------
+    pathlib.Path
+        The executable.
+    """
     files = read_target(target_dir)
     prefix = target_dir.name
     sources = sorted(n for n in files if n.endswith(".c") and n.startswith(prefix))
@@ -125,7 +144,8 @@ def _env():
 
 
 def run_case(exe, case, work):
-    """Run run_csv on one Case; returns None if it behaved as documented, else why not."""
+    """Run the run_csv executable ``exe`` on one Case ``case`` in the scratch folder ``work``;
+    returns None if it behaved as documented, else why not (str)."""
     src, dst = work / "in.csv", work / "out.csv"
     src.write_bytes(case.text.encode())
     dst.unlink(missing_ok=True)
@@ -145,9 +165,27 @@ def run_case(exe, case, work):
 
 
 def fuzz(exe, runs, seconds, work, seed=1):
-    """A libFuzzer campaign of ``runs`` inputs (at most ``seconds``); returns (runs done,
-    seconds taken, None or the finding: what fuzz_step or a sanitizer reported and the input,
-    code coverage reached: libFuzzer's "cov")."""
+    """A libFuzzer campaign of the fuzzer executable ``exe``.
+
+    Parameters
+    ----------
+    exe : pathlib.Path
+        The fuzz_step executable (``sanitized``).
+    runs : int
+        Number of inputs to run.
+    seconds : float
+        Time limit, s.
+    work : pathlib.Path
+        Folder for libFuzzer's artifacts (a crashing input).
+    seed : int
+        libFuzzer's ``-seed``.
+
+    Returns
+    -------
+    tuple
+        (runs done, seconds taken, None or the finding: what fuzz_step or a sanitizer reported
+        and the input, code coverage reached: libFuzzer's "cov").
+    """
     t0 = time.perf_counter()
     p = subprocess.run([str(exe), f"-runs={runs}", f"-max_total_time={seconds}", f"-seed={seed}",
                         "-max_len=2048", f"-artifact_prefix={work}/", "-print_final_stats=1"],

@@ -15,6 +15,19 @@ import numpy as np
 
 @dataclass
 class Sensor:
+    """Joint-position sensor (module docstring): sample-and-hold, seeded Gaussian noise, quantiser.
+
+    Parameters
+    ----------
+    noise_std : float or (n,) array
+        sigma per channel (rad); 0: no noise.
+    quantum : float
+        Quantisation step Delta (rad); 0: no quantisation.
+    every : int
+        Sample period in simulation steps (>= 1).
+    seed : int
+        Seed of the noise stream.
+    """
     noise_std: float | np.ndarray = 0.0   # sigma per channel (rad), 0: no noise
     quantum: float = 0.0                  # Delta (rad), 0: no quantisation
     every: int = 1                        # sample period in simulation steps
@@ -33,6 +46,7 @@ class Sensor:
         return bool(np.any(np.asarray(self.noise_std) > 0))
 
     def reset(self):
+        """Restart the noise stream from ``seed`` and forget the held sample."""
         self._rng = np.random.default_rng(self.seed)
         self._held = None
         self._noise = None

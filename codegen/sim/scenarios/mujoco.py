@@ -62,15 +62,30 @@ def recording(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0
 
 
 def title(robot_name, quantization=0.0, noise=0.0, mismatch=0.0):
-    """The heading of a run's table and figures."""
+    """The heading of a run's table and figures: ``robot_name``, ``quantization`` and ``noise``
+    (rad), ``mismatch`` (relative)."""
     return (f"MuJoCo {robot_name}: quantisation {quantization:g} rad, noise {noise:g} rad, "
             f"mismatch {mismatch:g}")
 
 
 def experiment(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0, seed=0,
                reference=False, out=None):
-    """Run the comparison; write the run (``run.csv``, the compare CSV format), the figures
-    and ``table.txt`` into ``out``; return the summary (one row per method)."""
+    """Run the comparison of observers and tuned baselines on one MuJoCo run.
+
+    Parameters
+    ----------
+    robot_name, T, quantization, noise, mismatch, seed
+        The run, as in ``recording``.
+    reference : bool
+        Observers by the numpy reference instead of the compiled C.
+    out : path-like, optional
+        Folder for the run (``run.csv``, the compare CSV format), the figures and ``table.txt``.
+
+    Returns
+    -------
+    dict
+        The summary: the run's settings, the best baseline, the table and one row per method.
+    """
     from models import load_robot
 
     from ...compare import compare, design_inputs
