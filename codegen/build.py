@@ -17,7 +17,7 @@ from collections import namedtuple
 from functools import lru_cache
 from pathlib import Path
 
-C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic"]
+C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Wdouble-promotion"]
 # -fno-semantic-interposition: let gcc inline CasADi's non-static helpers (casadi_sq) under -fPIC
 SHARED_FLAGS = ["-fPIC", "-shared", "-fno-semantic-interposition"]
 NATIVE_FLAGS = ["-march=native"]

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..trajectory import demo_trajectory
+
 
 def random_inputs(spec, count, seed=0):
     """Random (X, Y, U) for cross-checks at the physical scales the family declares in
@@ -43,3 +45,15 @@ def random_inputs(spec, count, seed=0):
     for name, lo, hi in ir.x_integer:
         X[:, spec.x_names.index(name)] = rng.integers(int(lo), int(hi) + 1, size=count)
     return X, Y, U
+
+
+def run_inputs(spec, count, dt, seed=0):
+    """Inputs (Y, U) of a run of ``count`` samples, ``dt`` apart: when y = q and u = tau, the
+    built-in smooth motion (codegen.trajectory) with sensor noise (1e-3 rad, 1e-2 N m);
+    otherwise the family's random inputs (``random_inputs``)."""
+    rng = np.random.default_rng(seed + 1)
+    if spec.ny == spec.nu == spec.robot.n:
+        _, Q, _, TAU = demo_trajectory(spec.robot, T=(count - 1) * dt, dt=dt, seed=seed)
+        return Q + 1e-3 * rng.normal(size=Q.shape), TAU + 1e-2 * rng.normal(size=TAU.shape)
+    _, Y, U = random_inputs(spec, count, seed + 2)
+    return Y, U
