@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .build import BuildError, ToolError, repo_root, run_tool
+from .emit import MATH_FUNCTIONS
 
 FIRMWARE_SRC = Path(__file__).resolve().parent.parent / "c_harness" / "cortex_m"
 # CPU of the firmware Makefile -> (name, the precision its FPU runs)
@@ -39,10 +40,9 @@ PACKAGES = {"gcc-arm-none-eabi": "arm-none-eabi-gcc", "libnewlib-arm-none-eabi":
             "qemu-system-arm": "qemu-system-arm"}
 NS_PER_TICK = 40.0        # the mps2 timer runs at 25 MHz
 TOLERANCE = {"double": 1e-15, "float": 1e-4}   # relative to the host build over the run
-# double-precision runtime routines: none may be linked into single-precision firmware
-DOUBLE_ROUTINES = re.compile(r"^(__aeabi_[dfi]?(?:dadd|dsub|drsub|dmul|ddiv|dcmp\w*|d2\w+|\w+2d|cdcmp\w*)"
-                             r"|(?:a?(?:sin|cos|tan)h?|atan2|exp|expm1|log1?p?|pow|sqrt|fabs|fmod|hypot)"
-                             r")$")
+# double-precision routines (soft-float helpers, double libm; gcc fuses sin and cos into sincos):
+# a single-precision firmware links none
+DOUBLE_ROUTINES = re.compile(rf"^(?:__aeabi_(?:c?d\w+|\w*2d)|{MATH_FUNCTIONS}|sincos)$")
 
 
 class EmbeddedError(ToolError):

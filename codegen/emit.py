@@ -48,7 +48,7 @@ def _num(x, precision="double"):
     x = float(x)
     single = precision == "float"
     if not math.isfinite(x) or (single and abs(x) > float(np.finfo(np.float32).max)):
-        raise ValueError(f"default value {x!r} is not finite in {precision} precision")
+        raise ValueError(f"non-finite default value {x!r} in {precision} precision")
     s = str(np.float32(x)) if single else repr(x)
     s = s if ("e" in s or "." in s) else s + ".0"
     return s + "f" if single else s
@@ -83,10 +83,11 @@ def _float_literal(match):
 
 # a C floating constant without suffix (1., .5, 2.5e-03, 1e3), not part of a name or a version
 _FLOATING_LITERAL = re.compile(r"(?<![\w.])((?:\d+\.\d*|\.\d+)(?:[eE][+-]?\d+)?|\d+[eE][+-]?\d+)(?![\w.])")
-# a call of a C99 <math.h> function that has a float variant (sin( -> sinf(); not casadi_sin(
-_MATH_CALL = re.compile(r"(?<![\w.])(a?(?:sin|cos|tan)h?|atan2|exp2?|expm1|log(?:10|1p|2|b)?|cbrt|fabs|hypot|pow"
-                        r"|sqrt|erfc?|[lt]gamma|ceil|floor|nearbyint|rint|round|trunc|fmod|remainder"
-                        r"|copysign|fdim|fmax|fmin|fma)\(")
+# the C99 <math.h> functions with a float variant (name + "f"); a call of one (not casadi_sin()
+MATH_FUNCTIONS = (r"a?(?:sin|cos|tan)h?|atan2|exp2?|expm1|log(?:10|1p|2|b)?|cbrt|fabs|hypot|pow|sqrt"
+                  r"|erfc?|[lt]gamma|ceil|floor|nearbyint|rint|round|trunc|fmod|remainder|copysign|fdim"
+                  r"|fmax|fmin|fma")
+_MATH_CALL = re.compile(rf"(?<![\w.])({MATH_FUNCTIONS})\(")
 
 
 def _void_unused(code):
