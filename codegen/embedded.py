@@ -8,10 +8,10 @@ Bytes room: this module knows CPUs, boards and files, nothing of any particular 
     rec = embedded.verify("generated/ur5_reduced_order_float", "m4f", Y, U)
     rec["instructions_per_step"], rec["rel_diff_host"], rec["stack_peak_bytes"]
 
-The firmware (``firmware.c``, ``startup.c``, ``mps2.ld``) is built and its QEMU command line made
-by ``c_harness/cortex_m/Makefile`` (flags and boards live there only: ``make info``), reads the
-inputs from the host through semihosting and prints each
-estimate as its IEEE bit pattern, so the comparison with the host is exact. Instructions are
+The firmware (``firmware.c``, ``startup.c``, ``mps2.ld``) is built, and its QEMU command line
+made, by ``c_harness/cortex_m/Makefile`` (flags and boards live there only: ``make info``); it
+reads the inputs from the host through semihosting and prints each estimate as its IEEE bit
+pattern, so the comparison with the host is exact. Instructions are
 counted with QEMU's ``-icount shift=0`` (one instruction = 1 ns of virtual time) read through the
 board's 25 MHz timer, scaled by a loop of known length the firmware times first (TCG plugins would
 count them too, but Debian's qemu-system-arm ships none, nor the header to build one).
@@ -29,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .build import BuildError, ToolError, repo_root, run_tool
+from .build import BuildError, ToolError, build, repo_root, run_tool
 from .emit import MATH_FUNCTIONS
+from .runtime import load
 
 FIRMWARE_SRC = Path(__file__).resolve().parent.parent / "c_harness" / "cortex_m"
 # CPU of the firmware Makefile -> (name, the precision its FPU runs)
@@ -38,7 +39,6 @@ CPUS = {"m4f": ("cortex-m4f", "float"), "m7": ("cortex-m7", "double")}
 # Debian package -> how to tell it is installed
 PACKAGES = {"gcc-arm-none-eabi": "arm-none-eabi-gcc", "libnewlib-arm-none-eabi": "libc.a",
             "qemu-system-arm": "qemu-system-arm"}
-NS_PER_TICK = 40.0        # the mps2 timer runs at 25 MHz
 TOLERANCE = {"double": 1e-15, "float": 1e-4}   # relative to the host build over the run
 # double-precision routines (soft-float helpers, double libm; gcc fuses sin and cos into sincos):
 # a single-precision firmware links none
@@ -64,9 +64,15 @@ def missing_packages():
     return missing
 
 
-def _make(target_dir, cpu, build_dir, goal):
+def _cpu(cpu):
+    """(name, precision) of a CPU of the firmware Makefile, or ValueError."""
     if cpu not in CPUS:
         raise ValueError(f"cpu must be one of {sorted(CPUS)}, got {cpu!r}")
+    return CPUS[cpu]
+
+
+def _make(target_dir, cpu, build_dir, goal):
+    _cpu(cpu)
     missing = missing_packages()
     if missing:
         raise BuildError(f"ARM toolchain missing: apt-get install {' '.join(missing)} (or `make embedded`)")
@@ -76,11 +82,15 @@ def _make(target_dir, cpu, build_dir, goal):
     return run_tool(cmd, f"{goal} of the firmware of {Path(target_dir).name} for {cpu}").stdout
 
 
-def _meta(target_dir):
+def _meta_path(target_dir):
     path = next(iter(sorted(Path(target_dir).glob("*.json"))), None)
     if path is None:
         raise BuildError(f"target_dir: {target_dir} is not a generated target (no metadata .json)")
-    return json.loads(path.read_text())
+    return path
+
+
+def _meta(target_dir):
+    return json.loads(_meta_path(target_dir).read_text())
 
 
 def firmware(target_dir, cpu, build_dir=None):
@@ -187,10 +197,11 @@ def verify(target_dir, cpu, Y, U, host=None, double=None, build_dir=None):
         static_ram_bytes, stack_peak_bytes, instructions_per_step (mean over the steps),
         instructions_per_step_max, instructions_per_tick (measured), rel_diff_host (relative
         difference from the host build over the run), bit_identical, tolerance, double_routines
-        (linked double-precision routines of a float firmware: must be none), ok.
+        (linked double-precision routines of a float firmware: must be none), rel_diff_double
+        (when ``double`` is given), ok (within tolerance, stack not exhausted, no double routine).
     """
     meta = _meta(target_dir)
-    name, native = CPUS[cpu] if cpu in CPUS else (None, None)
+    name, native = _cpu(cpu)
     precision = meta.get("precision", "double")
     if precision != native:
         raise ValueError(f"cpu: {cpu} runs {native} targets, {meta['prefix']} is {precision}")
@@ -200,23 +211,25 @@ def verify(target_dir, cpu, Y, U, host=None, double=None, build_dir=None):
     flash, ram = memory(fw["elf"])
     out = run(fw, Y, U, precision)
     per_tick = out["calib_insns"] / out["calib_ticks"]
-    rel = run_relative_error(out["est"], host)
-    return {"cpu": name, "board": fw["board"], "cflags": fw["cflags"], "steps": out["steps"], "flash_bytes": flash, "static_ram_bytes": ram,
-            "stack_peak_bytes": out["stack"], "stack_size_bytes": out["stack_size"],
-            "instructions_per_step": round(out["ticks"] * per_tick / out["steps"]),
-            "instructions_per_step_max": round(out["max_ticks"] * per_tick),
-            "instructions_per_tick": per_tick, "rel_diff_host": rel,
-            "bit_identical": bool(np.array_equal(out["est"], host)), "tolerance": TOLERANCE[precision],
-            "double_routines": linked_double_routines(fw["elf"]) if precision == "float" else [],
-            **({} if double is None else {"rel_diff_double": run_relative_error(out["est"], double)}),
-            "ok": bool(rel <= TOLERANCE[precision] and out["stack"] < out["stack_size"])}
+    rec = {"cpu": name, "board": fw["board"], "cflags": fw["cflags"], "steps": out["steps"],
+           "flash_bytes": flash, "static_ram_bytes": ram,
+           "stack_peak_bytes": out["stack"], "stack_size_bytes": out["stack_size"],
+           "instructions_per_step": round(out["ticks"] * per_tick / out["steps"]),
+           "instructions_per_step_max": round(out["max_ticks"] * per_tick),
+           "instructions_per_tick": per_tick,
+           "rel_diff_host": run_relative_error(out["est"], host), "tolerance": TOLERANCE[precision],
+           "bit_identical": bool(np.array_equal(out["est"], host)),
+           "double_routines": linked_double_routines(fw["elf"]) if precision == "float" else []}
+    if double is not None:
+        rec["rel_diff_double"] = run_relative_error(out["est"], double)
+    rec["ok"] = bool(rec["rel_diff_host"] <= rec["tolerance"] and out["stack"] < out["stack_size"]
+                     and not rec["double_routines"])
+    return rec
 
 
 def host_run(target_dir, Y, U):
     """Estimates (N, nest) of the host build of a target over inputs Y, U (from Y[0], default
     parameters, zero estimate: as the firmware)."""
-    from .build import build
-    from .runtime import load
     obs = load(target_dir, build(target_dir))
     obs.reset(Y[0])
     return obs.run(Y, U)
@@ -224,7 +237,7 @@ def host_run(target_dir, Y, U):
 
 def record(target_dir, rec):
     """Write ``rec`` into the target's metadata JSON under "embedded" -> rec["cpu"] (atomically)."""
-    path = next(iter(sorted(Path(target_dir).glob("*.json"))))
+    path = _meta_path(target_dir)
     meta = json.loads(path.read_text())
     meta.setdefault("embedded", {})[rec["cpu"]] = rec
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
@@ -260,6 +273,7 @@ def verify_target(spec, target, out, steps=300, build_dir=None):
 
     from .check import run_inputs
     from .emit import emit
+
     def named(prec):   # an explicit name gets the precision suffix of the default names
         return target.name if target.name is None or prec == "double" else f"{target.name}_{prec}"
     folders = {cpu: emit(replace(target, precision=prec, name=named(prec)), out, spec=spec)
