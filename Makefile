@@ -7,7 +7,7 @@ PY := $(VENV)/bin/python
 ARM_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
-.PHONY: generate test bench clean check embedded arm-toolchain
+.PHONY: generate test sanitize c-tools bench clean check embedded arm-toolchain
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -22,8 +22,16 @@ $(VENV)/.installed-bench: $(VENV)/.installed
 generate: $(VENV)/.installed
 	$(PY) -m codegen generate
 
-test: $(VENV)/.installed
+test: $(VENV)/.installed c-tools
 	$(PY) -m pytest
+	$(PY) -m codegen sanitize
+
+# the C under ASan/UBSan on edge-case CSVs and a libFuzzer campaign (also part of `make test`)
+sanitize: $(VENV)/.installed c-tools
+	$(PY) -m codegen sanitize
+
+c-tools:
+	sh c_harness/install-tools.sh
 
 check: $(VENV)/.installed
 	$(PY) -m codegen check

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..options import InputRanges, NonMinimalOptions
 from ..spec import ObserverSpec
-from ._nonminimal import nonminimal
+from ._nonminimal import nonminimal  # public: p rows, J_n and the CoM forces f_f of a robot (SPEC §3.1)
 
 # [S002 Table II]: alpha, lambda, gamma, thetahat(0) for j = 1..4 (zhat(0) = 0, zeta(0) = 0)
 TABLE_II = {"alpha": [30.0, 30.0, 30.0, 30.0], "lambda": [12.0, 12.0, 12.0, 12.0],
