@@ -12,6 +12,30 @@ import casadi as ca
 import numpy as np
 
 
+# ============================================================================ shared routines
+def routine(name, inputs, outputs):
+    """A Function that stays one routine in generated C (common subexpressions eliminated).
+
+    Calling it on SX makes a call node instead of inlining its body (``never_inline``), so
+    CasADi's code generator emits the body once however often it is called (e.g. once per
+    quadrature node), and forward AD through the calls emits one forward-derivative routine.
+
+    Parameters
+    ----------
+    name : str
+        Name of the routine (C comment and CasADi name).
+    inputs : list of SX
+        Pure symbols.
+    outputs : list of SX
+        Expressions of ``inputs``.
+
+    Returns
+    -------
+    casadi.Function
+    """
+    return ca.Function(name, inputs, [ca.cse(o) for o in outputs], {"never_inline": True})
+
+
 # ============================================================================ quadrature
 @lru_cache(maxsize=64)
 def gauss_legendre(N):

@@ -26,8 +26,15 @@ respect to the filter states enter the observer only through the product
 
 so that product is one forward-mode directional derivative of the quadrature (one sweep),
 never the two n x n Jacobians (14)-(15); ``beta_jacobians`` gives those when wanted.
+
+Code shape: each column is one routine (``column_routines``, symbolic.routine) that every
+quadrature node calls, and the directional derivative calls its forward-derivative routine, so
+the C holds each column once (and its derivative once) whatever N: a call per node, not a copy
+(I&I ur5 at N = 8: 7 MB of fully inlined C before, under 1 MB now; docs in seed003.bench).
 """
 from __future__ import annotations
+
+from functools import lru_cache
 
 import casadi as ca
 
@@ -35,7 +42,7 @@ import numpy as np
 
 from ..options import InputRanges, QuadratureOptions
 from ..spec import ObserverSpec
-from ..symbolic import integrate, periodic_integrate, wrap_angle
+from ..symbolic import integrate, periodic_integrate, routine, wrap_angle
 
 DEFAULT_N = 16         # Gauss-Legendre nodes per integral (docs/quadrature.md)
 WRAP_OPTIONS = ("auto", True, False)
@@ -68,6 +75,15 @@ def resolve_wrap(robot, wrap="auto"):
     return [bool(v) for v in flags]
 
 
+@lru_cache(maxsize=32)
+def column_routines(robot, column, name):
+    """[col_0, ..., col_{n-1}]: routine ``name``i (q, v, k1) -> column(robot, q, v, k1, i), the
+    integrand of column i of beta (n-vector), cached per robot and column builder."""
+    n = robot.n
+    q, v, k1 = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("k1")
+    return [routine(f"{name}{i}", [q, v, k1], [column(robot, q, v, k1, i)]) for i in range(n)]
+
+
 def substitute_entry(v, i, value):
     """[v_0, ..., v_{i-1}, value, v_{i+1}, ...] as an SX column."""
     return ca.vertcat(*[value if j == i else v[j] for j in range(v.numel())])
@@ -86,7 +102,7 @@ def quadrature_beta(col, y, s_y, s_x, N, periodic=None, N_period=None):
         sigma = ca.SX.sym("sigma")
         probe = f(sigma)
         if not ca.depends_on(probe, sigma):             # constant along sigma: exact
-            beta = beta + y[i] * probe
+            beta = beta + y[i] * col(i, s_y, s_x)
         elif periodic[i]:
             m, rho = wrap_angle(y[i])
             beta = beta + m * periodic_integrate(f, N_period) + integrate(f, rho, N)
