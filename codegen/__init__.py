@@ -6,30 +6,14 @@
 
 Imports are lazy so that ``codegen.reference`` (numpy + pin only) never loads CasADi.
 """
-__version__ = "0.1.0"
+from .version import __version__  # noqa: F401
 
 
 def build_spec(target):
-    """The ObserverSpec a Target describes: its robot rebuilt from the source, then the family's
-    ``build`` with the target's variant and build arguments (observers, then control laws).
-
-    Parameters
-    ----------
-    target : codegen.target.Target
-
-    Returns
-    -------
-    codegen.spec.ObserverSpec
-    """
-    from models import from_source
-
-    from . import observers
-    kwargs = dict(target.build, **({"variant": target.variant} if target.variant else {}))
-    robot = from_source(target.robot)
-    if target.family in observers.FAMILIES:
-        return observers.build(target.family, robot, **kwargs)
-    from . import controllers
-    return controllers.build(target.family, robot, **kwargs)
+    """The ObserverSpec that ``target`` (a codegen.target.Target) describes: see
+    ``codegen.targets.build_spec``."""
+    from .targets import build_spec as _build_spec
+    return _build_spec(target)
 
 
 def compile_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,

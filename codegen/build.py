@@ -1,7 +1,9 @@
-"""gcc -> shared library, cached by content hash (DESIGN §4 "Build and runtime").
+"""The toolchain: compiler lookup, flags, content-hash cached compiles (DESIGN §4 "Build and runtime").
 
-Default flags -O3 (portable); ``native=True`` adds -march=native; never -ffast-math.
-A failed compile raises BuildError carrying the compiler's message.
+``build`` turns generated/<prefix>/ into lib<prefix>.so; ``codegen.harness`` compiles its
+programs through the same ``compiler``, ``c_flags`` and ``cached_build``. Default flags -O3
+(portable); ``native=True`` adds -march=native; never -ffast-math. A failed compile raises
+BuildError carrying the compiler's command line and message.
 """
 from __future__ import annotations
 
@@ -11,17 +13,32 @@ import os
 import shutil
 import subprocess
 import tempfile
+from collections import namedtuple
 from functools import lru_cache
 from pathlib import Path
 
+C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic"]
 # -fno-semantic-interposition: let gcc inline CasADi's non-static helpers (casadi_sq) under -fPIC
-BASE_FLAGS = ["-O3", "-std=c99", "-fPIC", "-shared", "-fno-semantic-interposition", "-Wall", "-Wextra",
-              "-pedantic"]
+SHARED_FLAGS = ["-fPIC", "-shared", "-fno-semantic-interposition"]
+NATIVE_FLAGS = ["-march=native"]
 STRICT_FLAGS = ["-Werror"]
 
+Compiler = namedtuple("Compiler", "path version")
 
-class BuildError(RuntimeError):
-    """The C compiler failed; the message holds its command line and output."""
+
+class ToolError(RuntimeError):
+    """An external program failed; the message holds its command line and output.
+
+    Attributes ``returncode`` (None when it could not be started) and ``stderr``."""
+
+    def __init__(self, message, returncode=None, stderr=""):
+        super().__init__(message)
+        self.returncode = returncode
+        self.stderr = stderr
+
+
+class BuildError(ToolError):
+    """The C (or C++) compiler failed or is missing."""
 
 
 def repo_root():
@@ -33,58 +50,153 @@ def cache_dir():
     return Path(os.environ.get("CODEGEN_CACHE", repo_root() / "build" / "cache"))
 
 
-@lru_cache(maxsize=4)
-def compiler_version(cc):
+def compiler(cc=None, env="CC", default="gcc"):
+    """The compiler ``cc``, else ``$<env>``, else ``default``, found on PATH.
+
+    Returns
+    -------
+    Compiler
+        (path, version): absolute path and the first line of ``--version``; BuildError if absent.
+    """
+    return _probe(cc or os.environ.get(env, default))
+
+
+@lru_cache(maxsize=8)
+def _probe(name):
+    path = shutil.which(name)
+    if path is None:
+        raise BuildError(f"compiler {name!r} not found on PATH")
     try:
-        out = subprocess.run([cc, "--version"], capture_output=True, text=True, check=True).stdout
+        out = subprocess.run([path, "--version"], capture_output=True, text=True, check=True).stdout
     except (OSError, subprocess.CalledProcessError) as e:
-        raise BuildError(f"C compiler {cc!r} not usable: {e}") from None
-    return out.splitlines()[0]
+        raise BuildError(f"compiler {name!r} not usable: {e}") from None
+    return Compiler(path, out.splitlines()[0] if out else "")
+
+
+def c_flags(native=False, strict=False, shared=False, extra=()):
+    """C flags: C_FLAGS [+ SHARED_FLAGS] [+ -march=native] [+ -Werror] + ``extra`` (last, so they win)."""
+    return C_FLAGS + (SHARED_FLAGS if shared else []) + (NATIVE_FLAGS if native else []) \
+        + (STRICT_FLAGS if strict else []) + list(extra)
+
+
+def digest(data):
+    """sha256 hex digest of bytes (for ``cached_build`` keys)."""
+    return hashlib.sha256(data).hexdigest()
+
+
+def run_tool(cmd, what, error=BuildError, shown=()):
+    """Run ``cmd``; on a non-zero exit raise ``error`` with ``what``, the command and its stderr.
+
+    ``shown``: (private path, path to show instead) pairs rewritten in the message."""
+    cmd = [str(c) for c in cmd]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        msg = f"{what} failed (exit {proc.returncode}):\n  {' '.join(cmd)}\n{proc.stderr.strip()}"
+        for private, public in shown:
+            msg = msg.replace(str(private), str(public))
+        raise error(msg, proc.returncode, proc.stderr)
+    return proc
+
+
+def cached_build(name, key, files, products, commands, cache, shown=None):
+    """Compile once per content: ``<cache>/<name>-<hash>/`` holding ``products``.
+
+    Parameters
+    ----------
+    name : str
+        Stem of the cache folder (e.g. the target's prefix).
+    key : JSON-able
+        Everything else the products depend on: compiler path and version, flags, digests of
+        sources compiled in place.
+    files : dict
+        File name -> bytes, read once by the caller: hashed, written into a private work folder
+        and compiled from there (what is hashed is what is compiled, even if the source folder is
+        regenerated meanwhile).
+    products : sequence of str
+        Files the finished folder holds.
+    commands : callable
+        ``commands(work, out)`` -> iterable of (argv, what): run in order, sources in ``work``
+        (deleted afterwards, with any intermediate files), products written into ``out``.
+    cache : path
+        Cache root.
+    shown : path, optional
+        Where ``files`` came from; shown instead of ``work`` in error messages.
+
+    Returns
+    -------
+    Path
+        The folder (built now, or found complete in the cache). Raises BuildError.
+    """
+    h = hashlib.sha256(json.dumps(key, sort_keys=True).encode())
+    for fname, data in sorted(files.items()):
+        h.update(fname.encode() + b"\0" + data + b"\0")
+    out_dir = Path(cache) / f"{name}-{h.hexdigest()[:16]}"
+    if all((out_dir / p).exists() for p in products):
+        return out_dir
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=out_dir.parent))
+    try:
+        work = tmp / ".work"
+        work.mkdir()
+        for fname, data in files.items():
+            (work / fname).write_bytes(data)
+        for cmd, what in commands(work, tmp):
+            run_tool(cmd, what, shown=[(work, shown)] if shown is not None else ())
+        shutil.rmtree(work)
+        try:
+            os.replace(tmp, out_dir)
+        except OSError:
+            # a concurrent build got there first (non-empty out_dir): keep theirs if complete
+            if not all((out_dir / p).exists() for p in products):
+                shutil.rmtree(out_dir, ignore_errors=True)
+                os.replace(tmp, out_dir)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return out_dir
 
 
 def build(target_dir, native=False, strict=False, cc=None, extra_flags=(), cache=None):
-    """Compile generated/<prefix>/ into lib<prefix>.so; returns its absolute Path.
+    """Compile generated/<prefix>/ into lib<prefix>.so.
 
-    The library lands in <cache>/<prefix>-<hash>/ where the hash covers the sources, the
-    flags and the compiler version, so an unchanged target is never rebuilt."""
+    Parameters
+    ----------
+    target_dir : path
+        A folder written by ``codegen.emit``.
+    native, strict : bool
+        Add -march=native; add -Werror.
+    cc : str, optional
+        C compiler (default $CC, else gcc).
+    extra_flags : sequence of str
+        Appended to the flags.
+    cache : path, optional
+        Cache root (default ``cache_dir()``).
+
+    Returns
+    -------
+    Path
+        ``<cache>/<prefix>-<hash>/lib<prefix>.so``, absolute; the hash covers the sources, the
+        flags and the compiler, so an unchanged target is never rebuilt.
+    """
     target_dir = Path(target_dir).resolve()
     meta_file = next(iter(sorted(target_dir.glob("*.json"))), None)
     if meta_file is None:
-        raise BuildError(f"{target_dir} is not a generated target (no metadata .json)")
+        raise BuildError(f"target_dir: {target_dir} is not a generated target (no metadata .json)")
     prefix = json.loads(meta_file.read_text())["prefix"]
-    cc = cc or os.environ.get("CC", "gcc")
-    flags = BASE_FLAGS + (["-march=native"] if native else []) + (STRICT_FLAGS if strict else []) \
-        + list(extra_flags)
-    # read the sources once: the hash and the compiled code are the same bytes, even if another
-    # process regenerates the folder meanwhile (the cache can never hold a library whose
-    # content differs from its key)
+    tool = compiler(cc)
+    flags = c_flags(native, strict, shared=True, extra=extra_flags)
     files = {f.name: f.read_bytes() for f in sorted(target_dir.iterdir()) if f.suffix in (".c", ".h")}
     missing = {f"{prefix}.c", f"{prefix}_kernels.c"} - set(files)
     if missing:
-        raise BuildError(f"{target_dir}: missing {', '.join(sorted(missing))}")
-    h = hashlib.sha256()
-    for name, data in files.items():
-        h.update(name.encode() + b"\0" + data + b"\0")
-    h.update(json.dumps([cc, compiler_version(cc), flags]).encode())
-    out_dir = Path(cache or cache_dir()) / f"{prefix}-{h.hexdigest()[:16]}"
-    lib = out_dir / f"lib{prefix}.so"
-    if lib.exists():
-        return lib
-    out_dir.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=out_dir) as work:
-        work = Path(work)
-        for name, data in files.items():
-            (work / name).write_bytes(data)
-        tmp = work / f"lib{prefix}.so"
-        cmd = [cc, *flags, "-I", str(work), "-o", str(tmp), str(work / f"{prefix}.c"),
-               str(work / f"{prefix}_kernels.c"), "-lm"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0:
-            msg = proc.stderr.strip().replace(str(work), str(target_dir))
-            raise BuildError(f"compiling {prefix} failed (exit {proc.returncode}):\n  "
-                             f"{' '.join(cmd).replace(str(work), str(target_dir))}\n{msg}")
-        os.replace(tmp, lib)
-    return lib
+        raise BuildError(f"target_dir: {target_dir} misses {', '.join(sorted(missing))}")
+    lib = f"lib{prefix}.so"
+
+    def commands(work, out):
+        yield ([tool.path, *flags, "-I", work, "-o", out / lib, work / f"{prefix}.c",
+                work / f"{prefix}_kernels.c", "-lm"], f"compiling {prefix}")
+
+    out = cached_build(prefix, [tool, flags], files, [lib], commands, cache or cache_dir(),
+                       shown=target_dir)
+    return out.resolve() / lib
 
 
 def clear_cache():

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -99,39 +98,8 @@ def cmd_check(args):
 
 
 def cmd_bench(args):
-    from . import harness
-    rows = []
-    for name in args.bench_robots:
-        from models import load_robot
-        robot = load_robot(name)
-        out = repo_root() / "build" / "bench"
-        spec = default_spec(name)
-        from .emit import emit
-        target = emit(spec.target(dt=1e-3, method="rk4", substeps=1, hold="zoh"), out, spec=spec)
-        build(target, native=args.native)
-        ours = harness.time_target(target)
-        src = robot.source
-        pin = harness.time_pin(src["path"], list(src.get("locked_joints", {})))
-        rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_rk4_step": ours["ns_per_step"],
-                     "ns_pin_aba": pin["ns_aba"], "ratio_rhs_over_aba": ours["ns_per_rhs"] / pin["ns_aba"],
-                     "ratio_step_over_aba": ours["ns_per_step"] / pin["ns_aba"]})
-    print(f"{'robot':8s} {'RHS ns':>9s} {'rk4 step ns':>12s} {'pin aba ns':>11s} {'RHS/aba':>8s} {'step/aba':>9s}")
-    for r in rows:
-        print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_rk4_step']:12.1f} {r['ns_pin_aba']:11.1f} "
-              f"{r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f}")
-    extra = {}
-    if not args.no_scenarios:
-        from .sim.scenarios import benches
-        for name, fn in benches().items():
-            print(f"\n{name}:", flush=True)
-            extra[name] = fn()
-            for row in (extra[name] if isinstance(extra[name], list) else [extra[name]]):
-                print("  " + "  ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
-                                       for k, v in row.items()))
-    if args.json:
-        Path(args.json).write_text(json.dumps({"observer_rhs": rows, "scenarios": extra}, indent=2,
-                                              default=float))
-    return 0
+    from .bench import main
+    return main(args.bench_robots, native=args.native, json_path=args.json, scenarios=not args.no_scenarios)
 
 
 def cmd_simulate(args):

@@ -11,11 +11,12 @@ of any particular observer.
     harness.time_target("generated/ur5_reduced_order")   # {"ns_per_step": ..., "ns_per_rhs": ..., ...}
     harness.time_pin("robots/ur_description/urdf/ur5_robot.urdf")  # {"ns_aba": ..., "ns_rnea": ..., ...}
 
-Builds are cached in ``<build_dir>/<prefix>-<hash>/`` (default build dir
-``<repo>/build/harness``); the hash covers the harness sources, every .c/.h file of the target,
-the flags and the compiler version, so repeated calls cost one process start only. Nothing
-is written into the target folder. A failed compile raises HarnessError (a RuntimeError)
-carrying the compiler's command line and message; so does a program that exits non-zero.
+Builds go through codegen.build's toolchain (``compiler``, ``c_flags``, ``cached_build``) and
+are cached in ``<build_dir>/<prefix>-<hash>/`` (default build dir ``<repo>/build/harness``);
+the hash covers the harness sources, every .c/.h file of the target, the flags and the
+compiler, so repeated calls cost one process start only. Nothing is written into the target
+folder. A failed compile raises codegen.build.BuildError carrying the compiler's command line
+and message; a program that exits non-zero raises HarnessError (both are ToolError).
 
 The pinocchio benchmark (``pin_aba``) is C++ built against the pin wheel's own headers and
 libraries (``<site-packages>/cmeel.prefix``); it also needs Eigen's headers (PyPI package
@@ -24,26 +25,21 @@ says what is absent.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
-import shutil
-import subprocess
 import sys
-import tempfile
 import warnings
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+
+from .build import BuildError, ToolError, c_flags, cached_build, compiler, digest, run_tool
 
 REPO = Path(__file__).resolve().parent.parent
 HARNESS_SRC = REPO / "c_harness"
 DEFAULT_BUILD_DIR = REPO / "build" / "harness"
 
-C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic"]
-HARNESS_STRICT = ["-Werror"]          # the harness's own files; target files get C_FLAGS only
 CXX_FLAGS = ["-O3", "-DNDEBUG", "-std=c++17", "-Wall", "-Wextra"]
 
 # From the wheel's lib/cmake/pinocchio/pinocchioTargets.cmake (targets pinocchio_headers,
@@ -60,60 +56,17 @@ PIN_MODES = ("library", "header")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
-class HarnessError(RuntimeError):
-    """A harness build or run failed; the message holds the command and its stderr."""
-
-    def __init__(self, message, returncode=None, stderr=""):
-        super().__init__(message)
-        self.returncode = returncode
-        self.stderr = stderr
+class HarnessError(ToolError):
+    """A harness program (run_csv, time_step, pin_aba) exited non-zero; the message holds the
+    command and its stderr, ``returncode`` and ``stderr`` the rest."""
 
 
-# --------------------------------------------------------------------------------------------
-# helpers
-
-@lru_cache(maxsize=8)
-def _compiler_version(cc):
-    exe = shutil.which(cc)
-    if exe is None:
-        raise HarnessError(f"compiler {cc!r} not found on PATH")
-    try:
-        out = subprocess.run([exe, "--version"], capture_output=True, text=True, check=True).stdout
-    except (OSError, subprocess.CalledProcessError) as e:
-        raise HarnessError(f"compiler {cc!r} not usable: {e}") from None
-    return exe, out.splitlines()[0] if out else ""
-
-
-def _run_tool(cmd, what):
-    proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise HarnessError(f"{what} failed (exit {proc.returncode}):\n  {' '.join(map(str, cmd))}\n"
-                           f"{proc.stderr.strip()}", proc.returncode, proc.stderr)
-    return proc
+def _run(cmd, what):
+    return run_tool(cmd, what, error=HarnessError)
 
 
 def _build_root(build_dir):
     return Path(build_dir).resolve() if build_dir is not None else DEFAULT_BUILD_DIR
-
-
-def _cached_build(out_dir: Path, products, build_into):
-    """Return out_dir if every product exists; else build into a temp sibling and rename."""
-    if all((out_dir / p).exists() for p in products):
-        return out_dir
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}-", dir=out_dir.parent))
-    try:
-        build_into(tmp)
-        try:
-            os.replace(tmp, out_dir)
-        except OSError:
-            # a concurrent build got there first (non-empty out_dir): keep theirs if complete
-            if not all((out_dir / p).exists() for p in products):
-                shutil.rmtree(out_dir, ignore_errors=True)
-                os.replace(tmp, out_dir)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return out_dir
 
 
 def target_info(target_dir):
@@ -150,6 +103,7 @@ def target_info(target_dir):
 # observer programs
 
 HARNESS_FILES = ("obs_bind.h", "run_csv.c", "time_step.c")
+PROGRAMS = ("run_csv", "time_step")
 
 
 def build_harness(target_dir, build_dir=None, native=False, cc=None, extra_flags=()):
@@ -169,45 +123,31 @@ def build_harness(target_dir, build_dir=None, native=False, cc=None, extra_flags
     dict(run_csv=Path, time_step=Path)
     """
     prefix, d, sources = target_info(target_dir)
-    cc = cc or os.environ.get("CC", "gcc")
-    cc_exe, cc_version = _compiler_version(cc)
-    flags = C_FLAGS + (["-march=native"] if native else [])
-    target_flags = flags + list(extra_flags)
-    h = hashlib.sha256()
-    h.update(json.dumps([prefix, cc_exe, cc_version, target_flags, HARNESS_STRICT]).encode())
-    for name in HARNESS_FILES:
-        h.update(name.encode() + b"\0" + (HARNESS_SRC / name).read_bytes() + b"\0")
+    tool = compiler(cc)
+    flags = c_flags(native)
+    target_flags = c_flags(native, extra=extra_flags)
+    harness_flags = c_flags(native, strict=True)   # -Werror on the harness's own files only
     # the target's sources are read once: what is hashed is what is compiled (from a private
     # copy), even if another process regenerates the folder meanwhile
     files = {f.name: f.read_bytes() for f in sorted(d.iterdir()) if f.suffix in (".c", ".h")}
-    for name, data in files.items():
-        h.update(b"T" + name.encode() + b"\0" + data + b"\0")
-    out_dir = _build_root(build_dir) / f"{prefix}-{h.hexdigest()[:16]}"
+    key = [prefix, tool, target_flags, harness_flags,
+           {name: digest((HARNESS_SRC / name).read_bytes()) for name in HARNESS_FILES}]
 
-    def build_into(tmp):
-        src_dir = tmp / "src"
-        src_dir.mkdir()
-        for name, data in files.items():
-            (src_dir / name).write_bytes(data)
+    def commands(work, out):
+        objs = [work / f"{src.stem}.o" for src in sources]
+        for src, obj in zip(sources, objs):
+            yield [tool.path, *target_flags, "-I", work, "-c", work / src.name, "-o", obj], \
+                f"compiling {src.name}"
         obs_defs = [f"-DOBS={prefix}", f"-DOBS_UPPER={prefix.upper()}",
-                    f'-DOBS_HEADER="{prefix}.h"', "-I", src_dir, "-I", HARNESS_SRC]
-        objs = []
-        for src in sources:
-            obj = tmp / f"{src.stem}.o"
-            _run_tool([cc_exe, *target_flags, "-I", src_dir, "-c", src_dir / src.name, "-o", obj],
-                      f"compiling {src.name}")
-            objs.append(obj)
-        for prog in ("run_csv", "time_step"):
-            obj = tmp / f"harness_{prog}.o"
-            _run_tool([cc_exe, *flags, *HARNESS_STRICT, *obs_defs, "-c", HARNESS_SRC / f"{prog}.c",
-                       "-o", obj], f"compiling c_harness/{prog}.c for {prefix}")
-            _run_tool([cc_exe, *flags, obj, *objs, "-lm", "-o", tmp / prog], f"linking {prog}")
-        for o in tmp.glob("*.o"):
-            o.unlink()
-        shutil.rmtree(src_dir)
+                    f'-DOBS_HEADER="{prefix}.h"', "-I", work, "-I", HARNESS_SRC]
+        for prog in PROGRAMS:
+            obj = work / f"harness_{prog}.o"
+            yield [tool.path, *harness_flags, *obs_defs, "-c", HARNESS_SRC / f"{prog}.c", "-o", obj], \
+                f"compiling c_harness/{prog}.c for {prefix}"
+            yield [tool.path, *flags, obj, *objs, "-lm", "-o", out / prog], f"linking {prog}"
 
-    out_dir = _cached_build(out_dir, ("run_csv", "time_step"), build_into)
-    return {"run_csv": out_dir / "run_csv", "time_step": out_dir / "time_step"}
+    out = cached_build(prefix, key, files, PROGRAMS, commands, _build_root(build_dir), shown=d)
+    return {prog: out / prog for prog in PROGRAMS}
 
 
 def run_csv(target_dir, csv_in, csv_out, est0=None, build_dir=None, native=False):
@@ -221,10 +161,7 @@ def run_csv(target_dir, csv_in, csv_out, est0=None, build_dir=None, native=False
     if est0 is not None:
         est0 = np.asarray(est0, dtype=float).ravel()
         cmd.append(",".join(repr(float(v)) for v in est0))
-    proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise HarnessError(f"run_csv failed (exit {proc.returncode}): {proc.stderr.strip()}",
-                           proc.returncode, proc.stderr)
+    _run(cmd, "run_csv")
     return Path(csv_out)
 
 
@@ -235,8 +172,7 @@ def time_target(target_dir, blocks=51, block_ms=15.0, build_dir=None, native=Fal
     calls_per_block, calls_per_block_rhs, nx, ny, nu, nest, dt, errors (step calls that
     returned a non-zero status; non-zero means the timing is not representative)."""
     exe = build_harness(target_dir, build_dir, native=native, extra_flags=extra_flags)["time_step"]
-    proc = _run_tool([exe, f"--blocks={int(blocks)}", f"--block-ms={float(block_ms)!r}"],
-                     "time_step")
+    proc = _run([exe, f"--blocks={int(blocks)}", f"--block-ms={float(block_ms)!r}"], "time_step")
     res = json.loads(proc.stdout.strip().splitlines()[-1])
     if res.get("errors"):
         warnings.warn(f"time_step: {res['errors']} step calls of {res['target']} returned a "
@@ -299,27 +235,23 @@ def build_pin_bench(build_dir=None, mode="library", cxx=None):
         raise ValueError(f"mode: expected one of {PIN_MODES}, got {mode!r}")
     missing = pin_bench_missing()
     if missing:
-        raise HarnessError(f"cannot build pin_aba: {missing}")
+        raise BuildError(f"cannot build pin_aba: {missing}")
     pre = find_pin_prefix()
-    cxx = cxx or os.environ.get("CXX", "g++")
-    cxx_exe, cxx_version = _compiler_version(cxx)
+    tool = compiler(cxx, env="CXX", default="g++")
     lib = pre / "lib"
     inc = ["-isystem", pre / "include", "-isystem", find_eigen_include(pre),
            "-isystem", find_urdfdom_headers(pre)]
     defs = PIN_DEFINES + (["-DPINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION"] if mode == "library" else [])
-    src = HARNESS_SRC / "pin_aba.cpp"
-    h = hashlib.sha256()
-    h.update(json.dumps([cxx_exe, cxx_version, CXX_FLAGS, defs, [str(i) for i in inc],
-                         str(lib)]).encode())
-    h.update(src.read_bytes())
-    h.update((pre / "include" / "pinocchio" / "config.hpp").read_bytes())
-    out_dir = _build_root(build_dir) / f"pin_aba-{mode}-{h.hexdigest()[:16]}"
+    key = [tool, CXX_FLAGS, defs, [str(i) for i in inc], str(lib),
+           digest((pre / "include" / "pinocchio" / "config.hpp").read_bytes())]
 
-    def build_into(tmp):
-        _run_tool([cxx_exe, *CXX_FLAGS, *defs, *inc, src, f"-L{lib}", f"-Wl,-rpath,{lib}",
-                   *(f"-l{n}" for n in PIN_LIBS), "-o", tmp / "pin_aba"], "compiling pin_aba.cpp")
+    def commands(work, out):
+        yield [tool.path, *CXX_FLAGS, *defs, *inc, work / "pin_aba.cpp", f"-L{lib}", f"-Wl,-rpath,{lib}",
+               *(f"-l{n}" for n in PIN_LIBS), "-o", out / "pin_aba"], "compiling pin_aba.cpp"
 
-    return _cached_build(out_dir, ("pin_aba",), build_into) / "pin_aba"
+    files = {"pin_aba.cpp": (HARNESS_SRC / "pin_aba.cpp").read_bytes()}
+    return cached_build(f"pin_aba-{mode}", key, files, ["pin_aba"], commands, _build_root(build_dir),
+                        shown=HARNESS_SRC) / "pin_aba"
 
 
 def resolve_urdf(urdf):
@@ -357,8 +289,8 @@ def time_pin(urdf, locked_joints=(), blocks=51, block_ms=15.0, build_dir=None, m
         if a.startswith("--"):
             raise ValueError(f"locked_joints: {a!r} is not a joint name")
     exe = build_pin_bench(build_dir, mode=mode)
-    proc = _run_tool([exe, f"--blocks={int(blocks)}", f"--block-ms={float(block_ms)!r}",
-                      resolve_urdf(urdf), *args], "pin_aba")
+    proc = _run([exe, f"--blocks={int(blocks)}", f"--block-ms={float(block_ms)!r}",
+                 resolve_urdf(urdf), *args], "pin_aba")
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 

@@ -10,3 +10,25 @@ def default_spec(robot_name, family=DEFAULT_FAMILY):
 
     from . import observers
     return observers.build(family, load_robot(robot_name))
+
+
+def build_spec(target):
+    """The ObserverSpec a Target describes: its robot rebuilt from the source, then the family's
+    ``build`` with the target's variant and build arguments (observers, then control laws).
+
+    Parameters
+    ----------
+    target : codegen.target.Target
+
+    Returns
+    -------
+    codegen.spec.ObserverSpec
+    """
+    from models import from_source
+
+    from . import controllers, observers
+    kwargs = dict(target.build, **({"variant": target.variant} if target.variant else {}))
+    robot = from_source(target.robot)
+    if target.family in observers.FAMILIES:
+        return observers.build(target.family, robot, **kwargs)
+    return controllers.build(target.family, robot, **kwargs)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from codegen import harness
+from codegen.build import BuildError
 
 FAKE_H = """\
 #ifndef FAKEOBS_H
@@ -232,9 +233,11 @@ def test_compile_error_is_reported(tmp_path):
     d.mkdir()
     (d / "broken.h").write_text(FAKE_H.replace("fakeobs", "broken").replace("FAKEOBS", "BROKEN"))
     (d / "broken.c").write_text("int broken_step(void) { return syntax error; }\n")
-    with pytest.raises(harness.HarnessError, match=r"compiling broken\.c failed[\s\S]*error"):
+    with pytest.raises(BuildError, match=r"compiling broken\.c failed[\s\S]*error") as e:
         harness.build_harness(d, build_dir=tmp_path / "build")
-    assert not any((tmp_path / "build").glob("broken-*"))
+    assert e.value.returncode != 0 and "error" in e.value.stderr
+    assert str(d / "broken.c") in str(e.value)          # the source folder, not the private copy
+    assert sorted(p.name for p in (tmp_path / "build").iterdir()) == []   # nothing half-built
 
 
 def test_csv_helpers_round_trip(tmp_path):

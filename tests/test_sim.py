@@ -1,9 +1,11 @@
-"""Simulation engine: plant accuracy against scipy, sensors, the fast block ports."""
+"""Simulation engine: plant accuracy against scipy, sensors, the blocks (C or reference) and
+their fast ports."""
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
 from codegen.reference import SEED_SOURCES, reference_robot
+from codegen.sim import blocks
 from codegen.sim.engine import Law, Port, simulate
 from codegen.sim.plant import Plant
 from codegen.sim.sensors import Sensor
@@ -79,6 +81,55 @@ def test_port_calls_c_like_the_checked_api(robot):
     y[0] = np.nan
     with pytest.raises(Exception, match="ERR_NONFINITE_INPUT"):
         port.step()
+
+
+def test_block_is_c_or_reference_under_the_stated_discretization(robot):
+    """blocks.block: the C records the Discretization it was given (not the library default),
+    the reference steps under the same one, and both give the same steps (<= 1e-12 relative);
+    anything but a Discretization is refused, naming the argument."""
+    from codegen import observers
+    from codegen.target import Discretization
+    spec = observers.build("nicosia_tomei", robot)
+    disc = Discretization(dt=2e-3, method="euler", hold="zoh", substeps=3)
+    c, ref = blocks.block(spec, disc), blocks.block(spec, disc, reference=True)
+    assert c.meta["target"]["discretization"] == disc.to_dict()
+    assert type(ref).__name__ == "ReferenceObserver" and ref.disc == disc
+    rng = np.random.default_rng(1)
+    c.reset([0.1, 0.2]), ref.reset([0.1, 0.2])
+    for _ in range(20):
+        y, u = rng.normal(size=2), 20 * rng.normal(size=2)
+        a, b = c.step(y, u), ref.step(y, u)
+        assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, np.max(np.abs(b)))
+    with pytest.raises(TypeError, match="disc"):
+        blocks.block(spec, {"dt": 1e-3})
+    with pytest.raises(TypeError, match="disc"):
+        blocks.block(spec, None)
+
+
+def test_huge_kernels_get_the_extra_compiler_flags():
+    from types import SimpleNamespace
+    spec = lambda k: SimpleNamespace(rhs=SimpleNamespace(n_instructions=lambda: k))  # noqa: E731
+    assert blocks.compiler_flags(spec(blocks.HUGE_KERNEL + 1)) == blocks.HUGE_FLAGS == ("-O1",)
+    assert blocks.compiler_flags(spec(blocks.HUGE_KERNEL)) == ()
+
+
+def test_port_on_the_reference_equals_the_port_on_c(robot):
+    """blocks.bind on the numpy reference (buffers longer than ny, nu: sliced) writes what the
+    C writes through its bound entry points (<= 1e-12)."""
+    from codegen import observers
+    from codegen.target import Discretization
+    spec = observers.build("reduced_order", robot)
+    disc = Discretization(dt=1e-3, method="rk4", hold="foh")
+    c, ref = blocks.block(spec, disc), blocks.block(spec, disc, reference=True)
+    y, u = np.zeros(3), np.zeros(4)              # one slot more than the blocks read
+    c.reset([0.3, -0.1]), ref.reset([0.3, -0.1])
+    pc, pr = Port(c, y, u), Port(ref, y, u)
+    rng = np.random.default_rng(2)
+    for _ in range(30):
+        y[:], u[:] = rng.normal(size=3), 30 * rng.normal(size=4)
+        assert np.allclose(pc.estimate(), pr.estimate(), rtol=1e-12, atol=1e-12)
+        assert np.allclose(pc.step(), pr.step(), rtol=1e-12, atol=1e-12)
+        assert np.allclose(pc.state(), pr.state(), rtol=1e-12, atol=1e-12)
 
 
 def test_closed_loop_with_compiled_law_and_timing(robot):

@@ -2,7 +2,9 @@
 
 Each module of this package defines ``SCENARIOS = {name: function}``; a function takes
 ``reference`` (bool: run observers with the numpy reference instead of the C) and ``out``
-(a folder for the CSV and PNGs), and returns a summary dict (also printed).
+(a folder for the CSV and PNGs), and returns a summary dict (also printed). Scenarios only
+describe experiments: blocks come from sim/blocks.py, figures from sim/plots.py; the studies
+behind docs/ are in sim/studies.py and the benchmarks in codegen/bench.py.
 """
 from __future__ import annotations
 
@@ -19,17 +21,6 @@ def registry():
         if not m.name.startswith("_"):
             reg.update(getattr(importlib.import_module(f"{__name__}.{m.name}"), "SCENARIOS", {}))
     return reg
-
-
-def benches():
-    """name -> bench() of every scenario module that has one (timings for `make bench`)."""
-    out = {}
-    for m in pkgutil.iter_modules(__path__):
-        if not m.name.startswith("_"):
-            fn = getattr(importlib.import_module(f"{__name__}.{m.name}"), "bench", None)
-            if fn is not None:
-                out[m.name] = fn
-    return out
 
 
 def run(name, reference=False, out="build/sim"):

@@ -1,0 +1,124 @@
+"""Runtime: the ctypes CompiledObserver (bad input, C status codes, parameters, several targets)
+and the standalone C harness agreeing with it."""
+import ctypes as ct
+import shutil
+
+import numpy as np
+import pytest
+
+from codegen.emit import emit
+from codegen.runtime import ObserverError
+
+
+def test_bad_input_raises_clear_errors(compiled):
+    obs = compiled("seed000_2r")
+    obs.reset([0.1, 0.2])
+    with pytest.raises(ValueError, match=r"y: expected shape \(2,\)"):
+        obs.step([1.0, 2.0, 3.0], [0.0, 0.0])
+    with pytest.raises(ValueError, match="u: contains NaN or Inf"):
+        obs.step([1.0, 2.0], [np.nan, 0.0])
+    with pytest.raises(ValueError, match="y: contains NaN or Inf"):
+        obs.step([np.inf, 2.0], [0.0, 0.0])
+    with pytest.raises(ValueError, match=r"U: expected shape \(3, 2\)"):
+        obs.run(np.zeros((3, 2)), np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="Y: NaN or Inf at row 1"):
+        obs.run(np.array([[0, 0], [np.nan, 0.0]]), np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="y0"):
+        obs.reset([0.0])
+
+
+def test_c_step_status_and_state_unchanged(compiled):
+    """The C step returns its documented status and leaves the state untouched on error."""
+    obs = compiled("seed000_2r")
+    st = obs.meta["status"]
+    obs.reset([0.1, 0.2])
+    obs.step([0.1, 0.2], [1.0, 2.0])
+    before = obs.state
+    for y, u in (([np.nan, 0.0], [0.0, 0.0]), ([0.0, 0.0], [0.0, -np.inf])):
+        status, _ = obs.c_step(y, u)
+        assert status == st["ERR_NONFINITE_INPUT"]
+        assert np.array_equal(obs.state, before)
+    obs.state = [1e300, -1e300]                       # overflows in C(y, x2hat) x2hat
+    status, _ = obs.c_step([0.1, 0.2], [0.0, 0.0])
+    assert status == st["ERR_NONFINITE_RESULT"]
+    assert np.array_equal(obs.state, [1e300, -1e300])
+    with pytest.raises(ObserverError, match="ERR_NONFINITE_RESULT"):
+        obs.step([0.1, 0.2], [0.0, 0.0])
+    null = ct.POINTER(ct.c_double)()
+    assert obs._step(obs._s, null, null, null) == st["ERR_BAD_ARG"]
+    assert np.array_equal(obs.state, [1e300, -1e300])
+    with pytest.raises(ValueError, match="x: contains NaN"):
+        obs.state = [np.nan, 0.0]
+
+
+def test_run_stops_at_first_bad_result_and_reports_it(compiled):
+    obs = compiled("seed000_2r")
+    obs.reset([0.0, 0.0])
+    Y = np.zeros((5, 2))
+    Y[3] = 1e306   # x2hat = z + k0 y overflows
+    with pytest.raises(ObserverError, match="sample 3"):
+        obs.run(Y, np.zeros((5, 2)))
+
+
+def test_params_are_runtime_and_reset(compiled):
+    obs = compiled("seed000_2r")
+    assert obs.params == pytest.approx(obs.p_default)
+    obs.reset([0.0, 0.0], p=[5.0])
+    assert obs.params == pytest.approx([5.0])
+    obs.reset([0.3, -0.2], est0=[1.0, -1.0])
+    assert obs.state == pytest.approx(np.array([1.0, -1.0]) - obs.p_default[0] * np.array([0.3, -0.2]))
+
+
+def test_two_targets_in_one_process(compiled, spec_of):
+    from codegen.reference import reference_observer
+    obs = {n: compiled(n) for n in ("seed000_2r", "seed002_2r")}
+    y, u = np.array([0.3, -0.4]), np.array([2.0, 1.0])
+    for n, o in obs.items():
+        o.reset(y)
+        ref = reference_observer(spec_of(n))
+        ref.reset(y)
+        for _ in range(3):
+            assert np.allclose(o.step(y, u), ref.step(y, u), rtol=1e-12)
+    assert obs["seed000_2r"].prefix != obs["seed002_2r"].prefix
+
+
+def test_load_by_absolute_path_from_elsewhere(compiled, tmp_path, monkeypatch):
+    obs = compiled("seed000_2r")
+    copy = tmp_path / "lib" / obs.lib_path.name
+    copy.parent.mkdir()
+    shutil.copy(obs.lib_path, copy)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("LD_LIBRARY_PATH", raising=False)
+    o2 = type(obs)(copy, obs.meta)
+    o2.reset([0.0, 0.0])
+    assert o2.step([0.0, 0.0], [0.0, 0.0]).shape == (2,)
+
+
+def test_estimate_equals_step_without_advancing(compiled, spec_of):
+    from codegen.reference import reference_observer
+    obs, ref = compiled("ur5"), reference_observer(spec_of("ur5"))
+    y, u = np.linspace(-0.5, 0.5, 6), np.linspace(1, 6, 6)
+    obs.reset(y, est0=np.ones(6))
+    ref.reset(y, est0=np.ones(6))
+    x0 = obs.state
+    e = obs.estimate(y, u)
+    assert np.array_equal(obs.state, x0)
+    assert np.allclose(e, ref.estimate(y, u), rtol=1e-12)
+    assert np.array_equal(obs.step(y, u), e)
+
+
+@pytest.mark.parametrize("name", ["seed000_2r", "ur5"])
+def test_c_harness_csv_equals_ctypes(name, compiled, spec_of, tmp_path):
+    """The standalone C program (no Python) gives the same estimates, bit for bit, as ctypes."""
+    from codegen import harness
+    from codegen.trajectory import demo_trajectory
+    obs = compiled(name)
+    target = emit(spec_of(name), tmp_path / "t")
+    t, Q, QD, TAU = demo_trajectory(spec_of(name).robot, T=0.5)
+    harness.write_csv(tmp_path / "in.csv", t, Q, TAU)
+    est0 = np.full(obs.nest, 0.25)
+    harness.run_csv(target, tmp_path / "in.csv", tmp_path / "out.csv", est0=est0)
+    t_out, EST = harness.read_csv(tmp_path / "out.csv")
+    obs.reset(Q[0], est0=est0)
+    assert np.array_equal(t_out, t)
+    assert np.array_equal(EST, obs.run(Q, TAU))
