@@ -44,7 +44,7 @@ def p_names(n):
     return lemma2_names(SCALARS, "dq_k1", "dq_p", n)
 
 
-def hbar_expr(robot, q, v, k1, i):
+def hbar_column(robot, q, v, k1, i):
     """Hbar_i(q, v) = k1 T^{-1} e_i - T^T M (dT/dq_i) v - T^T C(q, e_i) T v  [DERIVED, SPEC §5]
     for pure symbols q (AD of T needs them)."""
     n = robot.n
@@ -54,11 +54,6 @@ def hbar_expr(robot, q, v, k1, i):
     dT = ca.jtimes(T, q, e)
     return (k1 * Tinv[:, i] - ca.mtimes(ca.mtimes(T.T, Mq), ca.mtimes(dT, v))
             - ca.mtimes(T.T, ca.mtimes(christoffel_column_matrix(robot, q, i), ca.mtimes(T, v))))
-
-
-def hbar_column(robot, q, p, k1, i):
-    """Hbar_i(q, p) at any q, p, k1 (a call of the column routine, _ii_common.column_routines)."""
-    return column_routines(robot, hbar_expr, "hbar")[i](q, p, k1)
 
 
 @lru_cache(maxsize=32)
@@ -86,17 +81,15 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     s, a, b = split_params(p, n, SCALARS)
     K1 = s["k1"]
 
-    def col(i, q, v):
-        return hbar_column(robot, q, v, K1, i)
-
-    beta, dbdq = quadrature_beta(col, y, qhat, phat, N, periodic, N_period)
+    cols = column_routines(robot, hbar_column, "hbar")
+    beta, dbdq = quadrature_beta(cols, K1, y, qhat, phat, N, periodic, N_period)
     pbh = xi + beta
     My, T, Tinv = cholesky_velocity(robot, y)
     qd_hat = ca.mtimes(T, pbh)
     S = _skew_routine(robot)
     f = (ca.mtimes(S(y, pbh), pbh)
          + ca.mtimes(T.T, u - robot.gravity(y) - ca.mtimes(ca.DM(robot.F), qd_hat)))
-    Hb_phat = ca.horzcat(*[col(i, y, phat) for i in range(n)])
+    Hb_phat = ca.horzcat(*[col(y, phat, K1) for col in cols])
     DpT = ca.horzcat(*[ca.mtimes(S(y, T[:, k]), pbh - phat) for k in range(n)])  # Cbar(y, pbh - phat)
     DqT = ca.mtimes(Hb_phat - dbdq, T)
     dbar_q = lemma2_bound(K1, a, b, phat)
@@ -112,7 +105,7 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", 2 * n)
     _, _, Tinv0 = cholesky_velocity(robot, y0)
     phat0 = ca.mtimes(Tinv0, est0[:n])
-    beta0, _ = quadrature_beta(col, y0, y0, phat0, N, periodic, N_period)
+    beta0, _ = quadrature_beta(cols, K1, y0, y0, phat0, N, periodic, N_period)
     x0 = ca.vertcat(ca.mtimes(Tinv0, est0[n:]) - beta0, y0, phat0, s["r0"])
 
     j = list(robot.joint_names)

@@ -86,11 +86,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     K1 = s["k1"]
 
     cols = column_routines(robot, h_column, "h")
-
-    def col(i, q, v):
-        return cols[i](q, v, K1)
-
-    beta, dbdy = quadrature_beta(col, y, s_y, s_x, N, periodic, N_period)   # [S003 (12),(13)]
+    beta, dbdy = quadrature_beta(cols, K1, y, s_y, s_x, N, periodic, N_period)   # [S003 (12),(13)]
     xhat = xi + beta                                                    # [S003 (3b)]
     e_y, e_x = s_y - y, s_x - xhat                                      # [S003 (17),(18)]
     fd = robot.forward_dynamics(y, xhat, u)
@@ -110,7 +106,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
 
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", 2 * n)
     sx0, xhat0 = est0[:n], est0[n:]
-    beta0, _ = quadrature_beta(col, y0, y0, sx0, N, periodic, N_period)
+    beta0, _ = quadrature_beta(cols, K1, y0, y0, sx0, N, periodic, N_period)
     x0 = ca.vertcat(xhat0 - beta0, y0, sx0, s["r0"])
 
     j = list(robot.joint_names)
