@@ -75,6 +75,19 @@ def test_float_target_has_one_real_type_and_float_math(seed000, tmp_path):
     assert build(f, strict=True, cache=tmp_path / "cache").exists()
 
 
+def test_float_ii_quadrature_loops_stay_single_precision(tmp_path):
+    """The I&I quadrature routines (CasADi maps: loops over the nodes, called routines) are
+    emitted in float too: no double in the sources, float math only."""
+    from models import load_robot
+
+    from codegen.observers import build as build_observer
+    spec = build_observer("ii_aov", load_robot("seed003_2r_abs"), N=4)
+    f = emit(spec.target(precision="float"), tmp_path / "t", spec=spec)
+    assert not any(re.search(r"\bdouble\b", text) for text in _sources(f).values())
+    need = _undefined(f, tmp_path)
+    assert {"sinf", "sqrtf"} <= need and not any(embedded.DOUBLE_ROUTINES.match(s) for s in need), need
+
+
 def test_float_runtime_converts_at_the_boundary(spec_of):
     from codegen.runtime import ObserverError
     obs = compile_observer(spec_of("seed000_2r"), precision="float")
