@@ -1,4 +1,4 @@
-"""`python -m codegen list | generate | build | check | simulate | compare | sweep | bench | sanitize`."""
+"""`python -m codegen list | generate | build | check | simulate | compare | sweep | bench | sanitize | embedded`."""
 from __future__ import annotations
 
 import argparse
@@ -101,6 +101,35 @@ def cmd_check(args):
 def cmd_bench(args):
     from .bench import main
     return main(args.bench_robots, native=args.native, json_path=args.json, scenarios=not args.no_scenarios)
+
+
+def cmd_embedded(args):
+    """Every target in double on an emulated Cortex-M7 and in float on a Cortex-M4F: flash, static
+    RAM, peak stack, instructions per step and the difference from the host build, recorded in
+    each target's JSON and printed as a table."""
+    from . import embedded
+    missing = embedded.missing_packages()
+    if missing:
+        print(f"error: ARM toolchain missing; install it with: apt-get install {' '.join(missing)} "
+              "(`make embedded` does)", file=sys.stderr)
+        return 2
+    print(f"{'target':34s} {'cpu':10s} {'flash KB':>8s} {'RAM B':>7s} {'stack B':>7s} {'insn/step':>9s} "
+          f"{'max':>7s} {'vs host':>8s} {'identical':>9s} {'vs double':>9s}")
+    rows = []
+    items, say = _progress(args.robots, "embedded")
+    for name in items:
+        spec = default_spec(name, args.family)
+        for prefix, rec in embedded.verify_target(spec, spec.target(_discretization(args)), args.out,
+                                                  steps=args.steps):
+            rows.append(rec)
+            say(f"{prefix:34s} {rec['cpu']:10s} {rec['flash_bytes'] / 1024:8.1f} {rec['static_ram_bytes']:7d} "
+                f"{rec['stack_peak_bytes']:7d} {rec['instructions_per_step']:9d} "
+                f"{rec['instructions_per_step_max']:7d} {rec['rel_diff_host']:8.1e} "
+                f"{'yes' if rec['bit_identical'] else 'no':>9s} {rec.get('rel_diff_double', 0):9.1e}  "
+                f"{'ok' if rec['ok'] else 'FAIL'}")
+    print(f"{len(rows)} runs of {args.steps} steps on QEMU (-icount shift=0); records in {Path(args.out).resolve()}"
+          "/<target>/<target>.json under \"embedded\"")
+    return 0 if rows and all(rec["ok"] for rec in rows) else 1
 
 
 def cmd_simulate(args):
@@ -209,6 +238,10 @@ def main(argv=None):
     be.add_argument("--native", action="store_true")
     be.add_argument("--json", help="also write the figures to this file")
     be.add_argument("--no-scenarios", action="store_true", help="only the observer RHS table")
+    e = sub.add_parser("embedded", help="run the targets on emulated Cortex-M4F (float) and M7 (double)")
+    common(e)
+    e.add_argument("--out", default=str(repo_root() / "generated"), help="parent folder of the targets")
+    e.add_argument("--steps", type=int, default=300, help="samples of the run on each CPU (default 300)")
     s = sub.add_parser("simulate", help="run a scenario of the seed papers")
     s.add_argument("name")
     s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
@@ -246,7 +279,7 @@ def main(argv=None):
     try:
         return {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
                 "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare,
-                "sweep": cmd_sweep, "sanitize": cmd_sanitize}[args.cmd](args)
+                "sweep": cmd_sweep, "sanitize": cmd_sanitize, "embedded": cmd_embedded}[args.cmd](args)
     except BuildError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
