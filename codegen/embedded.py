@@ -118,7 +118,17 @@ def firmware(target_dir, cpu, build_dir=None):
 
 def memory(elf):
     """(flash, static RAM) of a linked ELF in bytes: flash = code, constants and the initial
-    values of .data; static RAM = .data + .bss (the stack region is reported separately)."""
+    values of .data; static RAM = .data + .bss (the stack region is reported separately).
+
+    Parameters
+    ----------
+    elf : path
+        A linked firmware (``firmware(...)["elf"]``), read with ``arm-none-eabi-size -A``.
+
+    Returns
+    -------
+    (int, int)
+        Flash and static RAM [bytes]."""
     out = run_tool(["arm-none-eabi-size", "-A", elf], "arm-none-eabi-size").stdout
     size = {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\.\S+)\s+(\d+)\s+\d+$", out, re.M)}
     flash = sum(size.get(s, 0) for s in (".text", ".ARM.exidx", ".data"))
@@ -126,15 +136,35 @@ def memory(elf):
 
 
 def linked_double_routines(elf):
-    """Names of double-precision routines (soft-float helpers, double libm) linked into an ELF."""
+    """Names of double-precision routines (soft-float helpers, double libm) linked into an ELF.
+
+    Parameters
+    ----------
+    elf : path
+        A linked firmware, read with ``arm-none-eabi-nm``.
+
+    Returns
+    -------
+    list of str
+        Sorted symbol names matching ``DOUBLE_ROUTINES`` (none for a clean float firmware)."""
     out = run_tool(["arm-none-eabi-nm", elf], "arm-none-eabi-nm").stdout
     return sorted({line.split()[-1] for line in out.splitlines()
                    if DOUBLE_ROUTINES.match(line.split()[-1])})
 
 
 def run(fw, Y, U, precision, timeout=120):
-    """Run a firmware (``firmware``'s dict) on QEMU over inputs Y (N, ny), U (N, nu) of a target
-    of ``precision``.
+    """Run a firmware on QEMU over the inputs of a run and read back its estimates.
+
+    Parameters
+    ----------
+    fw : dict
+        What ``firmware`` returns (``elf``, ``board``, ``qemu`` argv).
+    Y, U : array_like, shapes (N, ny), (N, nu)
+        Measurements and inputs, passed to the firmware by semihosting.
+    precision : {"double", "float"}
+        Precision of the target (the width of the values exchanged).
+    timeout : float
+        Seconds of wall time before the emulator is given up (EmbeddedError).
 
     Returns
     -------
@@ -228,15 +258,38 @@ def verify(target_dir, cpu, Y, U, host=None, double=None, build_dir=None):
 
 
 def host_run(target_dir, Y, U):
-    """Estimates (N, nest) of the host build of a target over inputs Y, U (from Y[0], default
-    parameters, zero estimate: as the firmware)."""
+    """Estimates of the host build of a target over a run, started as the firmware is (from
+    Y[0], default parameters, zero estimate).
+
+    Parameters
+    ----------
+    target_dir : path
+        A generated folder (built with gcc for the host and loaded with ctypes).
+    Y, U : array_like, shapes (N, ny), (N, nu)
+        Measurements and inputs.
+
+    Returns
+    -------
+    ndarray (N, nest)"""
     obs = load(target_dir, build(target_dir))
     obs.reset(Y[0])
     return obs.run(Y, U)
 
 
 def record(target_dir, rec):
-    """Write ``rec`` into the target's metadata JSON under "embedded" -> rec["cpu"] (atomically)."""
+    """Write ``rec`` into the target's metadata JSON under "embedded" -> rec["cpu"] (atomically).
+
+    Parameters
+    ----------
+    target_dir : path
+        A generated folder (its metadata .json is rewritten).
+    rec : dict
+        A record of ``verify`` (its "cpu" is the key).
+
+    Returns
+    -------
+    Path
+        The metadata file."""
     path = _meta_path(target_dir)
     meta = json.loads(path.read_text())
     meta.setdefault("embedded", {})[rec["cpu"]] = rec

@@ -40,13 +40,24 @@ SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 
 
 def p_names(n):
-    """The scalars, then a_ji (row-major j, i), then b_jim (C order j, i, m)."""
+    """Parameter names for ``n`` joints: the scalars, then a_ji (row-major j, i), then b_jim
+    (C order j, i, m) of the Lemma-2-style bound Deltabar_q (6 + n^2 + n^3 names)."""
     return lemma2_names(SCALARS, "dq_k1", "dq_p", n)
 
 
 def hbar_column(robot, q, v, k1, i):
-    """Hbar_i(q, v) = k1 T^{-1} e_i - T^T M (dT/dq_i) v - T^T C(q, e_i) T v  [DERIVED, SPEC §5]
-    for pure symbols q (AD of T needs them)."""
+    """Hbar_i(q, v) = k1 T^{-1} e_i - T^T M (dT/dq_i) v - T^T C(q, e_i) T v  [DERIVED, SPEC §5],
+    column i of the ideal Jacobian Hbar(q, v) = (k1 I + Cbar(q, v)) T^{-1}.
+
+    Parameters
+    ----------
+    robot : RobotModel (n joints)
+    q : SX (n,) pure configuration symbols [rad or m] (AD of T needs them)
+    v : SX (n,) Cholesky velocity;  k1 : float or SX, gain (> 4);  i : int, column (0 <= i < n)
+
+    Returns
+    -------
+    SX (n,)"""
     n = robot.n
     Mq, T, Tinv = cholesky_velocity(robot, q)
     e = ca.DM.zeros(n, 1)
@@ -65,8 +76,35 @@ def _skew_routine(robot):
 
 def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=None,
           samples=None, refine=True, wrap="auto", N_period=None):
-    """AOV observer for ``robot`` (defaults: seed-003 comparison k1 = 10, SPEC §5 item 5);
-    ``N``, ``wrap``, ``N_period``: the quadrature of beta, as in ii_speed.build."""
+    """AOV observer for ``robot`` (defaults: seed-003 comparison k1 = 10, SPEC §5 item 5), the
+    equations of the module docstring [DERIVED, SPEC §5].
+
+    Parameters
+    ----------
+    robot : RobotModel (n joints)
+    k1 : float
+        Gain of the ideal Jacobian Hbar; k1 > 4.
+    k2, k3 : float
+        Constant parts of the filter gains psi1, psi2.
+    c_r : float
+        Lower bound of the dynamic scaling r (1 in the original); r0 >= c_r > 0.
+    r0 : float
+        Initial r (a runtime parameter).
+    N : int
+        Gauss-Legendre nodes per integral of beta.
+    bounds : IIAovDesign, optional
+        Offline bounds (Deltabar_p, coefficients of Deltabar_q); when None,
+        design.ii_aov_bounds(robot, samples=, refine=).
+    samples, refine, wrap, N_period
+        The design's sampling and refinement, and the quadrature of beta over 2 pi-periodic
+        joints, as in ii_speed.build.
+
+    Returns
+    -------
+    ObserverSpec
+        State [xi; qhat; phat; r] (3n + 1), est = [T(y) phat; T(y) pbarhat] (2n)
+        [rad/s or m/s].
+    """
     if not k1 > 4:
         raise ValueError(f"k1 must be > 4, got {k1}")
     if not (r0 >= c_r > 0):

@@ -60,10 +60,27 @@ def _code_version():
 
 
 def prepare(sweep, robot, out):
-    """(methods, designed, designs, targets, fingerprint): observers built and emitted once per
-    dt in the client (shipped as payloads keyed by (item, dt)), the designed-parameter function
-    of ``plan.cells`` with the list it fills (a row per observer and sensor/mismatch setting),
-    and the generator fingerprint."""
+    """Build and emit the sweep's observers in the client, once per dt.
+
+    Parameters
+    ----------
+    sweep : plan.Sweep
+        The parsed sweep file (observers, baselines, axes; ``designed`` says whether the gains
+        are designed per sensor/mismatch setting).
+    robot : RobotModel
+        The robot of ``sweep.robot``.
+    out : path
+        Output folder of the sweep; the targets are emitted under ``<out>/targets``.
+
+    Returns
+    -------
+    (methods, designed, designs, targets, fingerprint)
+        methods: list of plan.Method (observers, then baselines); designed: the
+        (method, point) -> {parameter: value} function of ``plan.cells``; designs: the list it
+        fills (a row per observer and sensor/mismatch setting, for designed.json); targets:
+        payloads (``work.payload``) keyed by (item, dt); fingerprint: code version and, per
+        target, its sha256 and generator metadata.
+    """
     import json
 
     from .. import observers

@@ -23,7 +23,22 @@ def _observer(frame, method):
 
 def table(frame, x, y, metric="rms", method=None):
     """(method, pivot): the median of ``metric`` per (y, x) over every other axis (diverged
-    cells as +inf), rows y, columns x, both sorted."""
+    cells as +inf), rows y, columns x, both sorted.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Rows of a sweep (``Store.read``).
+    x, y : str
+        Columns of the axes (a gain or AXES name).
+    metric : str
+        Metric column (rms, max, t_conv, ...).
+    method : str, optional
+        Observer item of the sweep (default: the first observer in ``frame``).
+
+    Returns
+    -------
+    (str, pandas.DataFrame)"""
     method, sub = _observer(frame, method)
     for a in (x, y, metric):
         if a not in sub.columns:
@@ -45,9 +60,25 @@ def best_gain(frame, gain, by="noise", metric="rms", method=None, designed=None)
     """Per level of ``by``: the swept gain with the lowest median ``metric``, that metric, the
     designed gain and the metric of the swept gain nearest to it (in log), and their ratio.
 
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Rows of a sweep (``Store.read``).
+    gain : str
+        The gain axis (a runtime parameter, e.g. "k0").
+    by : str
+        The axis whose levels make the rows (noise, quantization, ...).
+    metric : str
+        Metric column minimised (median over the other axes; diverged cells +inf).
+    method : str, optional
+        Observer item (default: the first observer in ``frame``).
+    designed : list of dict, optional
+        Rows of designed.json (NaN designed gain without them).
+
     Returns
     -------
     pandas.DataFrame
+        One row per level of ``by``.
     """
     import pandas as pd
     method, piv = table(frame, gain, by, metric, method)
@@ -69,7 +100,28 @@ def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=N
     """A map of log10(median ``metric``) over the swept values of x (columns) and y (rows),
     each cell a grid point (equal spacing, ticks the values), the best x per row marked (x)
     and the designed value of x per row (o, placed between the swept values in log).
-    Returns the path."""
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Rows of a sweep (``Store.read``).
+    x, y : str
+        Axes of the columns and rows (as ``table``).
+    path : path
+        The PNG written (parents created).
+    metric : str
+        Metric column.
+    method : str, optional
+        Observer item (default: the first observer in ``frame``).
+    designed : list of dict, optional
+        Rows of designed.json (no designed markers without them).
+    title : str, optional
+        Figure title (default: method, metric and axes).
+
+    Returns
+    -------
+    Path
+        ``path``."""
     import matplotlib
     matplotlib.use("Agg")
     from pathlib import Path
@@ -117,7 +169,19 @@ def default_axes(sweep):
 
 def write(out, sweep):
     """map.png and best.txt of a finished sweep in its folder (when it has a gain axis and a
-    noise or quantisation axis, or a [map] table): returns the paths written."""
+    noise or quantisation axis, or a [map] table).
+
+    Parameters
+    ----------
+    out : path
+        The sweep's output folder (a ``Store``).
+    sweep : plan.Sweep
+        The sweep (axes and [map] table).
+
+    Returns
+    -------
+    list of Path
+        The files written (empty when the sweep has no such pair of axes)."""
     from .store import Store
     axes = default_axes(sweep)
     if axes is None:

@@ -48,7 +48,8 @@ RANDOM = {"uniform": lambda rng, a, b: rng.uniform(a, b),
 
 
 def digest(value, n=16):
-    """Short sha256 of a JSON-able value (sorted keys): the ids of cells, batches, runs."""
+    """Short sha256 of a JSON-able ``value`` (sorted keys): the ids of cells, batches, runs;
+    the first ``n`` hex digits."""
     return hashlib.sha256(json.dumps(value, sort_keys=True, default=float).encode()).hexdigest()[:n]
 
 
@@ -133,8 +134,8 @@ def _axis(name, v):
 
 
 def load(source):
-    """A Sweep from a TOML path, TOML text (a str with a newline) or a dict; ValueError naming
-    the key otherwise."""
+    """A Sweep from ``source``: a TOML path, TOML text (a str with a newline) or a dict (the
+    keys of the module docstring); ValueError naming the key otherwise."""
     if isinstance(source, dict):
         d, text = dict(source), json.dumps(source, sort_keys=True, indent=1, default=float)
     else:
@@ -250,8 +251,19 @@ def plant_key(cell):
 
 
 def batches(cells_, size):
-    """Cells grouped by true run (and sensor setting within it), in chunks of ``size``:
-    a list of (plant key, [cells])."""
+    """Cells grouped by true run (and sensor setting within it), in chunks of ``size``.
+
+    Parameters
+    ----------
+    cells_ : list of dict
+        Cells of ``cells`` (any subset, e.g. those not on disk).
+    size : int
+        Cells per batch (the sweep's ``batch``).
+
+    Returns
+    -------
+    list of (tuple, list of dict)
+        (plant key (mismatch, seed, dt), cells) per batch, grouped by plant key."""
     groups = {}
     for c in sorted(cells_, key=lambda c: (plant_key(c), c["noise"], c["quantization"], c["cell"])):
         groups.setdefault(plant_key(c), []).append(c)

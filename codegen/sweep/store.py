@@ -22,7 +22,8 @@ METRICS = (("rms", "float64"), ("max", "float64"), ("t_conv", "float64"), ("gain
 
 
 def schema(gains):
-    """The Arrow schema of a row: ids, axes, gain-axis columns, runtime params (JSON), metrics."""
+    """The Arrow schema of a row: ids, axes, gain-axis columns (one float64 column per name in
+    ``gains``), metrics, runtime params (JSON), note, fingerprint, worker and CPU seconds."""
     import pyarrow as pa
     types = {"float64": pa.float64(), "bool": pa.bool_()}
     cols = [("cell", pa.string()), ("method", pa.string()), ("kind", pa.string()), ("family", pa.string())]
@@ -42,6 +43,7 @@ class Store:
         self.results = self.out / "results"
 
     def parts(self):
+        """The finished result files (``part-*.parquet``), sorted."""
         return sorted(self.results.glob("part-*.parquet"))
 
     def done(self):
@@ -50,7 +52,21 @@ class Store:
         return {c for f in self.parts() for c in pq.read_table(f, columns=["cell"]).column("cell").to_pylist()}
 
     def write(self, rows, gains, fingerprint):
-        """Write a batch's rows as one Parquet file, atomically; returns its path."""
+        """Write a batch's rows as one Parquet file, atomically.
+
+        Parameters
+        ----------
+        rows : list of dict
+            Rows of ``work.run_batch`` (cell, axes, p, metrics, params, ...).
+        gains : sequence of str
+            Gain-axis columns (``schema``), taken from each row's p.
+        fingerprint : str
+            Fingerprint id (``start``) stored on every row.
+
+        Returns
+        -------
+        Path
+            ``results/part-<digest of the cell ids>.parquet``."""
         import pyarrow as pa
         import pyarrow.parquet as pq
         self.results.mkdir(parents=True, exist_ok=True)
@@ -93,7 +109,7 @@ class Store:
         return fid
 
     def put(self, name, value):
-        """Write JSON ``value`` beside the results (atomically)."""
+        """Write JSON ``value`` beside the results as the file ``name`` (atomically)."""
         _atomic_text(self.out / name, json.dumps(value, indent=1, sort_keys=True, default=float) + "\n")
 
     def get(self, name, default=None):
@@ -104,6 +120,7 @@ class Store:
             return default
 
     def fingerprints(self):
+        """Fingerprint id -> fingerprint of every run so far (fingerprints.json, {} if none)."""
         return self.get("fingerprints.json", {})
 
 

@@ -20,7 +20,19 @@ _LOADED = {}        # sha -> CompiledObserver, one per worker process
 
 
 def payload(folder, cflags=()):
-    """The shipped form of an emitted target folder."""
+    """The shipped form of an emitted target folder: {prefix, sha, files, cflags}.
+
+    Parameters
+    ----------
+    folder : path
+        A folder written by ``codegen.emit`` (its .c, .h and .json files are read).
+    cflags : sequence of str
+        Extra compiler flags of its kernel (``sim.blocks.compiler_flags``).
+
+    Returns
+    -------
+    dict
+        prefix (folder name), files (name -> bytes), cflags (list), sha (sha256 of the files)."""
     from ..build import read_target
     from .plan import digest
     files = read_target(Path(folder))
@@ -30,8 +42,8 @@ def payload(folder, cflags=()):
 
 
 def observer(target):
-    """The CompiledObserver of a payload, built from its C once per process (cache hit when
-    the library exists)."""
+    """The CompiledObserver of a payload ``target`` (``payload``), built from its C once per
+    process (cache hit when the library exists)."""
     if target["sha"] not in _LOADED:
         from ..build import build, cache_dir
         from ..runtime import load
@@ -71,6 +83,24 @@ def true_run(robot_name, plant, T, mismatch, seed, dt):
     (codegen.trajectory.demo_trajectory) of a plant whose masses and inertias are (1 + mismatch)
     times the model's: tau = (1 + mismatch)(tau_model - F qd) + F qd (the dynamics are linear in
     the inertial parameters; friction F is not scaled).
+
+    Parameters
+    ----------
+    robot_name : str
+        Catalog name or .urdf path (``compare.robot_by_name``).
+    plant : {"model", "mujoco"}
+    T : float
+        Run length (s).
+    mismatch : float
+        Relative error m of the plant's masses and inertias.
+    seed : int
+        Seed of the trajectory.
+    dt : float
+        Sample time (s).
+
+    Returns
+    -------
+    codegen.recording.Recording
     """
     from ..compare import robot_by_name
     from ..recording import Recording
@@ -88,6 +118,19 @@ def true_run(robot_name, plant, T, mismatch, seed, dt):
 def run_cell(cell, rec, target, t_ss, level):
     """One cell on a measured recording: the observer (loop in C) from est0 with the cell's
     parameters, or the baseline tuned over its grid; the metrics of ``codegen.metrics``.
+
+    Parameters
+    ----------
+    cell : dict
+        A cell of ``plan.cells`` (kind, family, est0 (rad/s) and p).
+    rec : codegen.recording.Recording
+        The measured run (``sim.sensors.measured``), with the true qd.
+    target : dict or None
+        The observer's payload (``payload``); None for a baseline.
+    t_ss : float
+        Start of the steady-state window (s).
+    level : float
+        Convergence threshold on ||err|| (rad/s).
 
     Returns
     -------
@@ -116,7 +159,23 @@ def run_cell(cell, rec, target, t_ss, level):
 def run_batch(cells, true, targets, t_ss, level):
     """Rows (dicts) of a batch of cells sharing one true run; the measured run is made once
     per sensor setting (the cells come sorted by it). ``worker`` (pid) and ``cpu_s`` (CPU
-    seconds of this thread on the cell) say where and at what cost a row was computed."""
+    seconds of this thread on the cell) say where and at what cost a row was computed.
+
+    Parameters
+    ----------
+    cells : list of dict
+        Cells of one batch (``plan.batches``).
+    true : codegen.recording.Recording
+        Their true run (``true_run``).
+    targets : dict
+        Payloads keyed by (item, dt) (``prepare``).
+    t_ss, level : float
+        Steady-state start (s) and convergence threshold (rad/s), as in ``run_cell``.
+
+    Returns
+    -------
+    list of dict
+        Each cell with its metrics, params, note, worker and cpu_s."""
     from ..sim.sensors import measured
     rows, last = [], (None, None)
     for c in cells:
