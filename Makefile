@@ -16,13 +16,13 @@ $(VENV)/.installed-bench: $(VENV)/.installed
 	touch $@
 
 generate: $(VENV)/.installed
-	$(PY) -m codegen generate
+	$(PY) -m codegen generate -c targets.toml
 
 test: $(VENV)/.installed
 	$(PY) -m pytest
 
 check: $(VENV)/.installed
-	$(PY) -m codegen check
+	$(PY) -m codegen check -c targets.toml
 
 bench: $(VENV)/.installed-bench
 	$(PY) -m codegen bench

@@ -36,7 +36,7 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         How to step it; default ``codegen.target.DEFAULT_DISCRETIZATION`` (or the Target's own).
         ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields.
     out_dir : path, optional
-        Where the generated folder goes (default <repo>/build/targets).
+        Where the generated folder goes (default build/targets in the working folder).
     prefix : str, optional
         Symbol prefix and folder name (default ``<robot>_<family>[_<variant>]``).
     native : bool
@@ -51,7 +51,7 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     codegen.runtime.CompiledObserver
         Loaded from the content-hash cache: compiling the same target twice costs one generation.
     """
-    from .build import build, repo_root
+    from .build import build, build_dir
     from .emit import emit
     from .runtime import load
     from .target import Target
@@ -64,7 +64,7 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         spec = None
     else:
         target = spec.target(discretization, name=prefix, inline=inline, **over)
-    out_dir = out_dir or (repo_root() / "build" / "targets")
+    out_dir = out_dir or (build_dir() / "targets")
     folder = emit(target, out_dir, spec=spec)
     return load(folder, build(folder, native=native, extra_flags=cflags))
 
