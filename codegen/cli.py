@@ -1,4 +1,5 @@
-"""observer-codegen (python -m codegen): list | generate | build | check | simulate | bench.
+"""observer-codegen (python -m codegen): list | generate | build | check | simulate | compare |
+bench | sanitize.
 
 `generate`, `build` and `check` take the same targets: catalog robots or a URDF with options,
 a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the traceback).
@@ -6,6 +7,7 @@ a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug:
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import tomllib
 from dataclasses import replace
@@ -105,7 +107,7 @@ def _override(target, disc):
 
 
 def _jobs(args, stages, **options):
-    from .pipeline import Job
+    from .jobs import Job
     return [Job(t, out, stages, force=args.force, native=args.native, options=options)
             for t, out in _targets(args)]
 
@@ -115,7 +117,7 @@ def _report(jobs, args, line):
     Returns (rows, number of failures)."""
     from tqdm import tqdm
 
-    from .pipeline import run
+    from .jobs import run
     rows, failed = [], 0
     for job, row in run(jobs, processes=args.jobs, debug=args.debug):
         if isinstance(row, Exception):
@@ -153,7 +155,7 @@ def cmd_list(args):
 
 def cmd_generate(args):
     """Design, emit, compile, run the C harness and ctypes on each target (`make generate`)."""
-    from .pipeline import GENERATE
+    from .jobs import GENERATE
 
     def line(job, row):
         err, of = row.get("error"), row.get("error_of")
@@ -170,7 +172,7 @@ def cmd_generate(args):
 
 def cmd_build(args):
     """Design, emit and compile each target."""
-    from .pipeline import BUILD
+    from .jobs import BUILD
     rows, failed = _report(_jobs(args, BUILD), args,
                            lambda job, row: f"{row['prefix']}: {row['lib']}  ({_times(row, BUILD)})")
     return 2 if failed else 0
@@ -178,7 +180,7 @@ def cmd_build(args):
 
 def cmd_check(args):
     """Cross-check each target's C against the reference (worst relative errors)."""
-    from .pipeline import CHECK
+    from .jobs import CHECK
     if args.out is None:
         args.out, args.force = str(build_dir() / "check"), True   # a scratch folder
 
@@ -202,11 +204,63 @@ def cmd_bench(args):
 
 def cmd_simulate(args):
     from .sim import scenarios
-    return scenarios.run(args.name, reference=args.reference, out=args.out or build_dir() / "sim")
+    options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T")
+               if getattr(args, k) is not None}
+    return scenarios.run(args.name, reference=args.reference, out=args.out or build_dir() / "sim", **options)
+
+
+def _compare_source(args):
+    """(Recording, robot, title) of ``compare``'s source: a mujoco-* scenario run with the
+    sensor and mismatch options, or a recorded CSV of ``--robot``."""
+    from .compare import robot_by_name
+    from .recording import read_csv
+    from .sim.scenarios import mujoco
+    if args.source in mujoco.SCENARIOS:
+        name = args.source.removeprefix("mujoco-")
+        if args.robot not in (None, name):
+            raise ValueError(f"robot: scenario {args.source} is {name}, got --robot {args.robot}")
+        rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
+        return rec, robot_by_name(name), mujoco.title(name, args.quantization, args.noise, args.mismatch)
+    if not str(args.source).endswith(".csv"):
+        raise ValueError(f"source: expected a scenario ({', '.join(mujoco.SCENARIOS)}) or a .csv file, "
+                         f"got {args.source!r}")
+    if args.robot is None:
+        raise ValueError("robot: a CSV needs --robot (the robot it was recorded on)")
+    robot = robot_by_name(args.robot)
+    return read_csv(args.source, robot.joint_names), robot, f"{Path(args.source).name} ({robot.name})"
+
+
+def cmd_compare(args):
+    """Observers and tuned baselines on a scenario or a CSV: table, figures, JSON."""
+    from .compare import compare, design_inputs
+    from .recording import RecordingError
+    try:
+        rec, robot, title = _compare_source(args)
+        families = [f for f in args.observers.split(",") if f]
+        bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
+        cmp = compare(rec, robot, families=families, t_ss=args.t_ss, level=args.level,
+                      design=design_inputs(args.quantization, args.noise, args.mismatch),
+                      baseline_names=bl, reference=args.reference, title=title)
+    except (RecordingError, ValueError, KeyError) as e:
+        print(f"error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
+        return 2
+    print(cmp.table())
+    out = Path(args.out or build_dir() / "compare")
+    paths = cmp.figures(out)
+    (out / "compare.json").write_text(json.dumps({"title": title, "t_ss": cmp.t_ss, "level": cmp.level,
+                                                  "rows": cmp.rows()}, indent=2, default=float) + "\n")
+    print(f"figures and compare.json in {out.resolve()} ({', '.join(p.name for p in paths)})")
+    return 0
+
+
+def cmd_sanitize(args):
+    from .check import sanitize
+    return sanitize.run(args.runs, args.seconds)
 
 
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
-            "bench": cmd_bench, "simulate": cmd_simulate}
+            "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare,
+            "sanitize": cmd_sanitize}
 
 
 # ------------------------------------------------------------------------------------ parser
@@ -267,6 +321,28 @@ def parser():
     s.add_argument("name", help="scenario name, or `list`")
     s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     s.add_argument("--out", metavar="DIR", help="parent folder of the results (default build/sim)")
+    s.add_argument("--quantization", type=float, help="encoder step (rad; mujoco-* scenarios)")
+    s.add_argument("--noise", type=float, help="Gaussian noise std (rad; mujoco-* scenarios)")
+    s.add_argument("--mismatch", type=float, help="plant masses and inertias x (1 + mismatch) (mujoco-*)")
+    s.add_argument("--T", type=float, help="length (s; mujoco-* scenarios)")
+    cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a scenario or a CSV")
+    cp.add_argument("source", help="mujoco-ur5, mujoco-panda, or a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>])")
+    cp.add_argument("--robot", help="robot of a CSV: catalog name or a .urdf path")
+    cp.add_argument("--observers", default="reduced_order,nicosia_tomei", help="comma-separated families")
+    cp.add_argument("--baselines", help="comma-separated (default: all of codegen.baselines)")
+    cp.add_argument("--quantization", type=float, default=0.0, help="encoder step (rad)")
+    cp.add_argument("--noise", type=float, default=0.0, help="Gaussian noise std (rad)")
+    cp.add_argument("--mismatch", type=float, default=0.0,
+                    help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
+    cp.add_argument("--T", type=float, help="scenario length (s, default 20)")
+    cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, default half the run)")
+    cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
+    cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
+    cp.add_argument("--out", metavar="DIR", help="folder of the figures and compare.json (default build/compare)")
+    sa = sub.add_parser("sanitize", parents=[debug], help="C harness and sample targets under ASan/UBSan on "
+                        "edge-case CSVs, and a libFuzzer campaign of their step")
+    sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
+    sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
     return ap
 
 

@@ -1,10 +1,10 @@
-import sys
+"""Shared fixtures. The packages are imported as installed (``pip install -e .``), never through
+sys.path edits."""
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
 CLOSED_FORM = ["seed000_2r", "seed002_2r", "seed003_2r_abs"]
 DEFAULT = CLOSED_FORM + ["ur5", "panda"]

@@ -81,7 +81,7 @@ class UrdfRobot(ReferenceRobot):
             q_ref = pin.neutral(full)
             for jname, value in locked_joints.items():
                 self._set_coordinate(full.joints[full.getJointId(jname)], q_ref, float(value))
-            model = pin.buildReducedModel(full, sorted(ids), q_ref)
+            model = pin.buildReducedModel(self._unique_frames(full), sorted(ids), q_ref)
         else:
             model = full
         self.model = self._snapped(model, float(snap_tol or 0.0))
@@ -97,6 +97,17 @@ class UrdfRobot(ReferenceRobot):
         # 2 pi-periodic; prismatic ones (JointModelP*, PrismaticUnaligned) are not
         self.periodic = np.array([j.shortname().startswith(("JointModelR", "JointModelRevolute"))
                                   for j in self.model.joints[1:]])
+
+    def _unique_frames(self, model):
+        """A copy of ``model`` whose link and fixed-joint frames are named by index: reducing
+        must go by joint, and pinocchio looks frames up by name (a link named like a joint,
+        "gripper", fails with "Several frames match"). This reference reads no frame."""
+        model = model.copy()
+        for i, f in enumerate(model.frames):
+            if i > 0 and f.type != self._pin.FrameType.JOINT:
+                f.name = f"frame {i}"
+                model.frames[i] = f
+        return model
 
     @staticmethod
     def _set_coordinate(joint, q_pin, value):

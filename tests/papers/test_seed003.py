@@ -8,7 +8,6 @@ import pytest
 from codegen import compile_observer, observers
 from codegen.design import ii_speed_bounds
 from codegen.reference import reference_observer
-from codegen.reference import ii_aov as ref_aov
 from codegen.reference import ii_speed as ref_ii
 from codegen.check import relative_error
 from models import load_robot
