@@ -205,7 +205,7 @@ def generate_from_scratch(targets=None, jobs=None, budget_s=60.0):
     Parameters
     ----------
     targets : path, optional
-        The targets file (default: the checkout's targets.toml).
+        The targets file (default ./targets.toml: `make bench` runs in the checkout).
     jobs : int, optional
         Parallel processes (default: generate's, one per core).
     budget_s : float
@@ -224,8 +224,7 @@ def generate_from_scratch(targets=None, jobs=None, budget_s=60.0):
 
     import codegen
 
-    from .build import package_data
-    targets = Path(targets) if targets else package_data("targets.toml")
+    targets = Path(targets or "targets.toml").resolve()
     root = Path(codegen.__file__).resolve().parent.parent
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, CODEGEN_BUILD=str(Path(tmp) / "build"), CODEGEN_CACHE="",
