@@ -261,7 +261,9 @@ def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, 
         extra[name] = fn()
         for row in (extra[name] if isinstance(extra[name], list) else [extra[name]]):
             print("  " + "  ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
-                                   for k, v in row.items()))
+                                   for k, v in row.items() if not isinstance(v, list)))
+            for k, v in ((k, v) for k, v in row.items() if isinstance(v, list)):
+                print("\n".join(f"    {k}: {item}" for item in v))
     if json_path:
         Path(json_path).write_text(json.dumps({"observer_rhs": rows, "scenarios": extra}, indent=2,
                                               default=float))
