@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .atomic import replace_dir
 
-C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic"]
+C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Wdouble-promotion"]
 # -fno-semantic-interposition: let gcc inline CasADi's non-static helpers (casadi_sq) under -fPIC
 SHARED_FLAGS = ["-fPIC", "-shared", "-fno-semantic-interposition"]
 NATIVE_FLAGS = ["-march=native"]

@@ -1,8 +1,9 @@
 """observer-codegen (python -m codegen): list | generate | build | check | simulate | compare |
-bench | sanitize.
+sweep | bench | sanitize | embedded.
 
-`generate`, `build` and `check` take the same targets: catalog robots or a URDF with options,
-a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the traceback).
+`generate`, `build`, `check` and `embedded` take the same targets: catalog robots or a URDF with
+options, a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the
+traceback).
 """
 from __future__ import annotations
 
@@ -202,6 +203,38 @@ def cmd_bench(args):
                 generate=not args.no_generate)
 
 
+def cmd_embedded(args):
+    """Every target in double on an emulated Cortex-M7 and in float on a Cortex-M4F: flash, static
+    RAM, peak stack, instructions per step and the difference from the host build, recorded in
+    each target's JSON and printed as a table."""
+    from . import embedded
+    missing = embedded.missing_packages()
+    if missing:
+        print(f"error: ARM toolchain missing; install it with: apt-get install {' '.join(missing)} "
+              "(`make embedded` does)", file=sys.stderr)
+        return 2
+    print(f"{'target':34s} {'cpu':10s} {'flash KB':>8s} {'RAM B':>7s} {'stack B':>7s} {'insn/step':>9s} "
+          f"{'max':>7s} {'vs host':>8s} {'identical':>9s} {'vs double':>9s}")
+    from tqdm import tqdm
+
+    from .emit import with_params
+    from .targets import build_spec
+    rows, targets = [], _targets(args)
+    for target, out in tqdm(targets, desc="embedded", unit="target", file=sys.stderr, leave=False, disable=None):
+        spec = with_params(build_spec(target), target.params)
+        for prefix, rec in embedded.verify_target(spec, target, out, steps=args.steps):
+            rows.append(rec)
+            tqdm.write(f"{prefix:34s} {rec['cpu']:10s} {rec['flash_bytes'] / 1024:8.1f} {rec['static_ram_bytes']:7d} "
+                       f"{rec['stack_peak_bytes']:7d} {rec['instructions_per_step']:9d} "
+                       f"{rec['instructions_per_step_max']:7d} {rec['rel_diff_host']:8.1e} "
+                       f"{'yes' if rec['bit_identical'] else 'no':>9s} {rec.get('rel_diff_double', 0):9.1e}  "
+                       f"{'ok' if rec['ok'] else 'FAIL'}", file=sys.stdout)
+    folders = ", ".join(sorted({str(out) for _, out in targets}))
+    print(f"{len(rows)} runs of {args.steps} steps on QEMU (-icount shift=0); records in {folders}"
+          "/<target>/<target>.json under \"embedded\"")
+    return 0 if rows and all(rec["ok"] for rec in rows) else 1
+
+
 def cmd_simulate(args):
     from .sim import scenarios
     options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T")
@@ -253,14 +286,32 @@ def cmd_compare(args):
     return 0
 
 
+def cmd_sweep(args):
+    """A Monte-Carlo sweep on Dask (codegen.sweep): results, map and best-gain table in --out."""
+    from . import sweep
+    from .sweep import maps, plan
+    try:
+        spec = plan.load(args.file)
+        res = sweep.run(args.file, workers=args.workers, scheduler=args.scheduler, out=args.out)
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(f"{res.cells} cells: {res.computed} computed in {res.seconds:.1f} s "
+          f"({res.computed / max(res.seconds, 1e-9):.1f} cells/s), {res.skipped} already done, "
+          f"{res.failed} failed; results in {res.out / 'results'}")
+    for p in maps.write(res.out, spec):
+        print(f"wrote {p}")
+    return 0 if res.failed == 0 else 1
+
+
 def cmd_sanitize(args):
     from .check import sanitize
     return sanitize.run(args.runs, args.seconds)
 
 
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
-            "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare,
-            "sanitize": cmd_sanitize}
+            "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
+            "sanitize": cmd_sanitize, "embedded": cmd_embedded}
 
 
 # ------------------------------------------------------------------------------------ parser
@@ -317,6 +368,10 @@ def parser():
     be.add_argument("--json", metavar="FILE", help="also write the figures to this file")
     be.add_argument("--no-scenarios", action="store_true", help="skip the scenario benchmarks")
     be.add_argument("--no-generate", action="store_true", help="skip timing `make generate` from scratch")
+    e = sub.add_parser("embedded", parents=[debug], help="run the targets on emulated Cortex-M4F (float) "
+                       "and M7 (double)")
+    _target_options(e, "parent folder of the targets (default ./generated, or the file's out)")
+    e.add_argument("--steps", type=int, default=300, help="samples of the run on each CPU (default 300)")
     s = sub.add_parser("simulate", parents=[debug], help="run a scenario of the seed papers")
     s.add_argument("name", help="scenario name, or `list`")
     s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
@@ -339,6 +394,13 @@ def parser():
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     cp.add_argument("--out", metavar="DIR", help="folder of the figures and compare.json (default build/compare)")
+    sw = sub.add_parser("sweep", parents=[debug], help="Monte-Carlo sweep of observers and baselines on Dask (resumable)")
+    sw.add_argument("file", help="the sweep file (TOML; see codegen.sweep.plan)")
+    where = sw.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="local cluster of N worker processes (default: one "
+                       "per CPU; 0: in this process, no Dask)")
+    where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:8786)")
+    sw.add_argument("--out", metavar="DIR", help="output folder (default build/sweeps/<name>)")
     sa = sub.add_parser("sanitize", parents=[debug], help="C harness and sample targets under ASan/UBSan on "
                         "edge-case CSVs, and a libFuzzer campaign of their step")
     sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
