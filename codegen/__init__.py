@@ -28,7 +28,7 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         How to step it; default ``codegen.target.DEFAULT_DISCRETIZATION`` (or the Target's own).
         ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields.
     out_dir : path, optional
-        Where the generated folder goes (default <repo>/build/targets).
+        Where the generated folder goes (default build/targets in the working folder).
     prefix : str, optional
         Symbol prefix and folder name (default ``<robot>_<family>[_<variant>]``).
     native : bool
@@ -47,7 +47,7 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     """
     from dataclasses import replace
 
-    from .build import build, repo_root
+    from .build import build, build_dir
     from .emit import emit
     from .runtime import load
     from .target import Target
@@ -60,7 +60,7 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     else:
         target = spec.target(discretization, name=prefix, inline=inline, precision=precision or "double",
                              **over)
-    out_dir = out_dir or (repo_root() / "build" / "targets")
+    out_dir = out_dir or (build_dir() / "targets")
     folder = emit(target, out_dir, spec=spec)
     return load(folder, build(folder, native=native, extra_flags=cflags))
 

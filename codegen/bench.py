@@ -10,6 +10,8 @@ assert a speed).
                      the kernel file at -O2, one job), cross-check,
                      ns per RHS vs the reference, gates
     sweep_ur5        the 500-cell ur5 sweep in-process, on 1 and on 2 Dask workers: cells/s, ratio
+    generate         `make generate` from scratch (empty build cache, new process): wall time
+                     and each target's stage times, against the 60 s budget
 
 ``main`` prints the table and the scenario rows and writes them as JSON
 ({"observer_rhs": [...], "scenarios": {"seed000": ..., "seed003": ..., "seed004": [...]}}).
@@ -22,16 +24,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .build import build, repo_root
+from .build import build, build_dir
 from .target import Discretization
 
 BENCH_GATES_NS = {"seed004_3r": 5000.0, "ur5": 50000.0}   # CG O1 rhs, ns per call
 
 
 def _emit(spec, disc):
-    """Emit ``spec`` under ``disc`` into <repo>/build/bench: (target folder, bytes of its C)."""
+    """Emit ``spec`` under ``disc`` into build/bench: (target folder, bytes of its C)."""
     from .emit import emit
-    target = emit(spec.target(disc), repo_root() / "build" / "bench", spec=spec)
+    target = emit(spec.target(disc), build_dir() / "bench", spec=spec)
     return target, int(sum(p.stat().st_size for p in Path(target).glob("*.c")))
 
 
@@ -243,6 +245,50 @@ def seed004_cg(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
     return rows
 
 
+def generate_from_scratch(targets=None, jobs=None, budget_s=60.0):
+    """Wall time of `python -m codegen generate -c targets.toml` in a new process with an empty
+    build folder (so an empty compile cache), as on a fresh clone after the venv.
+
+    Parameters
+    ----------
+    targets : path, optional
+        The targets file (default ./targets.toml: `make bench` runs in the checkout).
+    jobs : int, optional
+        Parallel processes (default: generate's, one per core).
+    budget_s : float
+        The budget the issue sets (s).
+
+    Returns
+    -------
+    dict
+        wall_s, budget_s, within_budget, cpus, and "targets": the line generate printed per target
+        (its stage times).
+    """
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    import codegen
+
+    targets = Path(targets or "targets.toml").resolve()
+    root = Path(codegen.__file__).resolve().parent.parent
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, CODEGEN_BUILD=str(Path(tmp) / "build"), CODEGEN_CACHE="",
+                   PYTHONPATH=os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")])))
+        cmd = [sys.executable, "-m", "codegen", "generate", "-c", str(targets), "--out", str(Path(tmp) / "generated")]
+        cmd += ["-j", str(jobs)] if jobs else []
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"generate failed (exit {proc.returncode}):\n{proc.stderr.strip()[-2000:]}")
+    lines = [ln for ln in proc.stdout.splitlines() if " design " in ln]
+    return {"wall_s": round(wall, 1), "budget_s": budget_s, "within_budget": wall <= budget_s,
+            "cpus": os.cpu_count(), "jobs": jobs or "default", "targets": lines}
+
+
+
 def sweep_ur5(path=None, modes=(0, 1, 2)):
     """The example sweep (``sweeps/ur5_quantisation.toml``: reduced-order on MuJoCo's ur5, 500
     cells) computed in-process (0), on a LocalCluster of 1 and of 2 workers: cells/s of each
@@ -253,7 +299,7 @@ def sweep_ur5(path=None, modes=(0, 1, 2)):
     import tempfile
 
     from . import sweep
-    path = Path(path or repo_root() / "sweeps" / "ur5_quantisation.toml")
+    path = Path(path or "sweeps/ur5_quantisation.toml")      # `make bench` runs in the checkout
     row, frames = {"sweep": path.name}, []
     with tempfile.TemporaryDirectory() as tmp:
         for w in modes:
@@ -275,21 +321,25 @@ SCENARIOS = {"seed000": seed000_loop, "seed003": seed003_ii_ur5, "seed004": seed
 
 
 # ---------------------------------------------------------------------------- report
-def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True):
-    """Print the observer-RHS table and (``scenarios``) every scenario bench; with ``json_path``
-    also write the figures there. Returns 0 (the CLI's exit status)."""
+def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, generate=True):
+    """Print the observer-RHS table, (``scenarios``) every scenario bench and (``generate``) the
+    time of `make generate` from scratch; with ``json_path`` also write the figures there.
+    Returns 0 (the CLI's exit status)."""
     rows = observer_rhs(robots, native)
     print(f"{'robot':8s} {'RHS ns':>9s} {'rk4 step ns':>12s} {'pin aba ns':>11s} {'RHS/aba':>8s} {'step/aba':>9s}")
     for r in rows:
         print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_rk4_step']:12.1f} {r['ns_pin_aba']:11.1f} "
               f"{r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f}")
     extra = {}
-    for name, fn in (SCENARIOS.items() if scenarios else ()):
+    benches = dict(SCENARIOS if scenarios else {}, **({"generate": generate_from_scratch} if generate else {}))
+    for name, fn in benches.items():
         print(f"\n{name}:", flush=True)
         extra[name] = fn()
         for row in (extra[name] if isinstance(extra[name], list) else [extra[name]]):
             print("  " + "  ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
-                                   for k, v in row.items()))
+                                   for k, v in row.items() if not isinstance(v, list)))
+            for k, v in ((k, v) for k, v in row.items() if isinstance(v, list)):
+                print("\n".join(f"    {k}: {item}" for item in v))
     if json_path:
         Path(json_path).write_text(json.dumps({"observer_rhs": rows, "scenarios": extra}, indent=2,
                                               default=float))

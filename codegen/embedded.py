@@ -29,11 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .build import BuildError, ToolError, build, repo_root, run_tool
+from .build import BuildError, ToolError, build, package_data, run_tool
+from .build import build_dir as default_build_dir
 from .emit import MATH_FUNCTIONS
 from .runtime import load
 
-FIRMWARE_SRC = Path(__file__).resolve().parent.parent / "c_harness" / "cortex_m"
+FIRMWARE_SRC = package_data("c_harness") / "cortex_m"
 # CPU of the firmware Makefile -> (name, the precision its FPU runs)
 CPUS = {"m4f": ("cortex-m4f", "float"), "m7": ("cortex-m7", "double")}
 # Debian package -> how to tell it is installed
@@ -76,7 +77,7 @@ def _make(target_dir, cpu, build_dir, goal):
     missing = missing_packages()
     if missing:
         raise BuildError(f"ARM toolchain missing: apt-get install {' '.join(missing)} (or `make embedded`)")
-    build_dir = Path(build_dir or repo_root() / "build" / "embedded").resolve()
+    build_dir = Path(build_dir or default_build_dir() / "embedded").resolve()
     cmd = ["make", "-s", "-C", FIRMWARE_SRC, f"TARGET={Path(target_dir).resolve()}",
            f"PREFIX={_meta(target_dir)['prefix']}", f"CPU={cpu}", f"BUILD={build_dir}", goal]
     return run_tool(cmd, f"{goal} of the firmware of {Path(target_dir).name} for {cpu}").stdout
@@ -102,7 +103,7 @@ def firmware(target_dir, cpu, build_dir=None):
         A folder written by ``codegen.emit`` ("float" targets for "m4f").
     cpu : {"m4f", "m7"}
     build_dir : path, optional
-        Default ``<repo>/build/embedded``; the ELF is ``<build_dir>/<prefix>-<cpu>/firmware.elf``.
+        Default ``build/embedded`` in the working folder; the ELF is ``<build_dir>/<prefix>-<cpu>/firmware.elf``.
 
     Returns
     -------

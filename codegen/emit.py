@@ -135,8 +135,8 @@ def metadata(spec, target, kernels):
     }
 
 
-def emit(target, out_dir, spec=None):
-    """Write the C of a target into ``out_dir/<prefix>/``.
+def emit(target, out_dir, spec=None, force=True):
+    """Write the C of a target into ``out_dir/<prefix>/`` (folders 0755, files 0644).
 
     Parameters
     ----------
@@ -146,6 +146,9 @@ def emit(target, out_dir, spec=None):
         Parent folder; the target's folder is written to a temporary sibling and renamed.
     spec : ObserverSpec, optional
         The spec the target describes, when already built (otherwise built from the target).
+    force : bool
+        Replace a folder generated from another target; False: raise FolderTaken instead
+        (before building anything).
 
     Returns
     -------
@@ -154,6 +157,8 @@ def emit(target, out_dir, spec=None):
     """
     if isinstance(target, ObserverSpec):
         target, spec = target.target(), target
+    if not force:
+        check_folder(Path(out_dir) / target.prefix, target)
     if spec is None:
         from .targets import build_spec
         spec = build_spec(target)
@@ -187,6 +192,9 @@ def emit(target, out_dir, spec=None):
         for template, name in TEMPLATES.items():
             (tmp / name.format(prefix=prefix)).write_text(render(template, values))
         (tmp / f"{prefix}.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+        for f in tmp.iterdir():
+            f.chmod(0o644)
+        tmp.chmod(0o755)                     # mkdtemp makes 0700
         final = out_dir / prefix
         old = replace_dir(tmp, final)    # one step: the folder is never absent nor mixed
         if old is not None:
@@ -195,6 +203,33 @@ def emit(target, out_dir, spec=None):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+class FolderTaken(ValueError):
+    """The output folder holds something else than the target (emit(force=False) refuses)."""
+
+
+def check_folder(folder, target):
+    """Raise FolderTaken if ``folder`` exists and was not generated from ``target`` (compared
+    with the Target recorded in its metadata JSON); nothing if it is absent or the same target."""
+    folder = Path(folder)
+    if not folder.exists():
+        return
+    try:
+        recorded = json.loads((folder / f"{folder.name}.json").read_text())["target"]
+    except (OSError, ValueError, KeyError, TypeError):
+        raise FolderTaken(f"{folder} exists and is not a generated target; force (--force) replaces "
+                          "it, a name (--name) writes elsewhere") from None
+    mine = target.to_dict()
+    diff = [f"{k}: {_short(recorded.get(k))} -> {_short(mine[k])}" for k in mine if recorded.get(k) != mine[k]]
+    if diff:
+        raise FolderTaken(f"{folder} holds another target ({'; '.join(diff)}); force (--force) "
+                          "replaces it, a name (--name) writes elsewhere")
+
+
+def _short(value, width=60):
+    text = json.dumps(value, sort_keys=True)
+    return text if len(text) <= width else text[:width - 3] + "..."
 
 
 def with_params(spec, params):

@@ -5,6 +5,9 @@ compares them with ``measure.relative_error``.
 """
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 
 from .. import compile_observer
@@ -14,7 +17,7 @@ from .inputs import random_inputs, run_inputs
 from .measure import relative_error
 
 
-def cross_check(spec, discretization=None, count=1000, seed=0, **overrides):
+def cross_check(spec, discretization=None, count=1000, seed=0, folder=None, **overrides):
     """Worst relative errors of the compiled C against the independent reference (DESIGN §3).
 
     From each of ``count`` random (x, y, u) (``random_inputs``): two samples (the second with
@@ -31,6 +34,10 @@ def cross_check(spec, discretization=None, count=1000, seed=0, **overrides):
     count : int
         Random samples, and the length of the run.
     seed : int
+    folder : path, optional
+        A folder ``codegen.emit`` generated from ``spec``: its C is checked against the
+        reference rebuilt from its metadata JSON alone (discretisation and parameters as
+        recorded), instead of compiling ``spec``.
 
     Returns
     -------
@@ -39,10 +46,17 @@ def cross_check(spec, discretization=None, count=1000, seed=0, **overrides):
         NaN if anything is not finite); "samples": ``count``.
     """
 
-    disc = as_discretization(discretization, **overrides)
+    if folder is None:
+        disc = as_discretization(discretization, **overrides)
+        obs, ref = compile_observer(spec, disc), reference_observer(spec, disc)
+    else:
+        from ..build import build
+        from ..runtime import load
+        folder = Path(folder)
+        obs = load(folder, build(folder))
+        ref = reference_observer(json.loads((folder / f"{folder.name}.json").read_text()))
+        disc = ref.disc
     dt = disc.dt
-    obs = compile_observer(spec, disc)
-    ref = reference_observer(spec, disc)
     X, Y, U = random_inputs(spec, count, seed)
     _, Y2, U2 = random_inputs(spec, count, seed + 7)
     errs = {"step_est": [], "step_state": [], "rhs": []}

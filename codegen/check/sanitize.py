@@ -22,9 +22,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..build import cache_dir, cached_build, compiler, read_target
+from ..build import cache_dir, cached_build, compiler, package_data, read_target
 
-HARNESS = Path(__file__).resolve().parents[2] / "c_harness"
+HARNESS = package_data("c_harness")
 SAN_FLAGS = ["-g", "-O1", "-fno-omit-frame-pointer", "-fsanitize=address,undefined",
              "-fno-sanitize-recover=all", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror"]
 SAN_EXIT = 99            # exit code of a sanitizer report (ASan and UBSan)

@@ -49,10 +49,9 @@ class SweepResult:
 
 
 def _code_version():
-    from ..build import repo_root
     from ..version import __version__
-    try:
-        git = subprocess.run(["git", "-C", str(repo_root()), "describe", "--always", "--dirty"],
+    try:                                  # the checkout holding this code (none once installed: "")
+        git = subprocess.run(["git", "-C", str(Path(__file__).resolve().parents[2]), "describe", "--always", "--dirty"],
                              capture_output=True, text=True, timeout=10, check=False).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         git = ""
@@ -172,7 +171,7 @@ def run(source, workers=None, scheduler=None, out=None, progress=True, client=No
     -------
     SweepResult
     """
-    from ..build import repo_root
+    from ..build import build_dir
     from ..compare import robot_by_name
     from .work import run_batch, true_run, warm
     sweep = plan.load(source)
@@ -180,7 +179,7 @@ def run(source, workers=None, scheduler=None, out=None, progress=True, client=No
         raise ValueError(f"workers must be a whole number >= 0, got {workers!r}")
     if scheduler and workers:
         raise ValueError("workers, scheduler: give one (a new local cluster, or an existing one)")
-    out = Path(out or repo_root() / "build" / "sweeps" / sweep.name)
+    out = Path(out or build_dir() / "sweeps" / sweep.name)
     robot = robot_by_name(sweep.robot)
     methods, designed, designs, targets, fingerprint = prepare(sweep, robot, out)
     cells = plan.cells(sweep, methods, designed)
