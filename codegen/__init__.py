@@ -17,7 +17,7 @@ def build_spec(target):
 
 
 def compile_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,
-                     out_dir=None, prefix=None, native=False, inline="auto", cflags=()):
+                     out_dir=None, prefix=None, native=False, inline="auto", precision=None, cflags=()):
     """Emit, build and load an observer as C.
 
     Parameters
@@ -28,13 +28,15 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         How to step it; default ``codegen.target.DEFAULT_DISCRETIZATION`` (or the Target's own).
         ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields.
     out_dir : path, optional
-        Where the generated folder goes (default <repo>/build/targets).
+        Where the generated folder goes (default build/targets in the working folder).
     prefix : str, optional
         Symbol prefix and folder name (default ``<robot>_<family>[_<variant>]``).
     native : bool
         Add -march=native.
     inline : "auto" or bool
         Code shape of the step (see codegen.discretize).
+    precision : {"double", "float"}, optional
+        Real type of the C (default "double", or the Target's own).
     cflags : sequence of str
         Extra compiler flags (e.g. ("-O1",) to compile a very large kernel quickly).
 
@@ -43,29 +45,22 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     codegen.runtime.CompiledObserver
         Loaded from the content-hash cache: compiling the same target twice costs one generation.
     """
-    from .build import build, repo_root
+    from dataclasses import replace
+
+    from .build import build, build_dir
     from .emit import emit
     from .runtime import load
     from .target import Target
 
     over = dict(dt=dt, method=method, substeps=substeps, hold=hold)
     if isinstance(spec, Target):
-        target = spec.with_discretization(discretization, **over)
-        target = target if prefix is None else _renamed(target, prefix)
-        target = target if inline == "auto" else _reshaped(target, inline)
-        spec = None
+        changes = {k: v for k, v in (("name", prefix), ("precision", precision)) if v is not None}
+        changes.update({} if inline == "auto" else {"inline": inline})
+        target, spec = replace(spec.with_discretization(discretization, **over), **changes), None
     else:
-        target = spec.target(discretization, name=prefix, inline=inline, **over)
-    out_dir = out_dir or (repo_root() / "build" / "targets")
+        target = spec.target(discretization, name=prefix, inline=inline, precision=precision or "double",
+                             **over)
+    out_dir = out_dir or (build_dir() / "targets")
     folder = emit(target, out_dir, spec=spec)
     return load(folder, build(folder, native=native, extra_flags=cflags))
 
-
-def _renamed(target, name):
-    from dataclasses import replace
-    return replace(target, name=name)
-
-
-def _reshaped(target, inline):
-    from dataclasses import replace
-    return replace(target, inline=inline)

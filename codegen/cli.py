@@ -1,113 +1,245 @@
-"""`python -m codegen list | generate | build | check | simulate | compare | bench | sanitize`."""
+"""observer-codegen (python -m codegen): list | generate | build | check | simulate | compare |
+sweep | bench | sanitize | embedded.
+
+`generate`, `build`, `check` and `embedded` take the same targets: catalog robots or a URDF with
+options, a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the
+traceback).
+"""
 from __future__ import annotations
 
 import argparse
 import json
 import sys
-import time
+import tomllib
+from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
+from .build import ToolError, build_dir
+from .emit import FolderTaken
+from .target import HOLDS, METHODS, PRECISIONS
+from .targets import DEFAULT_FAMILY, TargetError, check_unique, load_targets, make_target
 
-from .build import BuildError, build, repo_root
-from .targets import DEFAULT_FAMILY, DEFAULT_ROBOTS, default_spec
+TARGETS_FILE = "targets.toml"
+USER_ERRORS = (TargetError, FolderTaken, ToolError, ValueError, KeyError, FileNotFoundError)
 
 
-def _progress(items, desc):
-    """(iterable with a progress bar on stderr, print function that does not break the bar)."""
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (--help for usage)\n")
+
+
+def _message(e):
+    return str(e.args[0]) if isinstance(e, KeyError) and e.args else str(e)
+
+
+# ------------------------------------------------------------------------------------ targets
+def _pairs(items, option, convert):
+    """{NAME: convert(VALUE)} from repeated NAME=VALUE options."""
+    out = {}
+    for item in items or ():
+        name, eq, value = item.partition("=")
+        if not eq or not name:
+            raise TargetError(f"{option} expects NAME=VALUE, got {item!r}")
+        out[name] = convert(value, f"{option} {name}")
+    return out
+
+
+def _number(text, what):
     try:
-        from tqdm import tqdm
-        return (tqdm(items, desc=desc, unit="target", file=sys.stderr, leave=False),
-                lambda s: tqdm.write(s, file=sys.stdout))
-    except ImportError:  # pragma: no cover
-        return items, print
+        return float(text)
+    except ValueError:
+        raise TargetError(f"{what}: expected a number, got {text!r}") from None
 
 
+def _numbers(text, what):
+    """A number, or comma-separated numbers (one per joint)."""
+    if text is None:
+        return None
+    values = [_number(v, what) for v in text.split(",")]
+    return values if len(values) > 1 else values[0]
+
+
+def _value(text, what):
+    """A TOML value (number, bool, list, "string"), else the text itself as a string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _targets(args):
+    """[(Target, out folder)] the command line names (module docstring)."""
+    disc = {k: getattr(args, k) for k in ("dt", "method", "hold", "substeps", "precision")
+            if getattr(args, k) is not None}
+    options = {"family": args.family, "variant": args.variant, "name": args.name,
+               "design": _pairs(args.design, "--design", _value), "params": _pairs(args.param, "--param", _number),
+               "lock": _pairs(args.lock, "--lock", _number), "elastic": args.elastic or None,
+               "J": _numbers(args.J, "--J"), "K": _numbers(args.K, "--K")}
+    options = {k: v for k, v in options.items() if v not in (None, {})}
+    robots = [{"robot": r} for r in args.robots] + ([{"urdf": args.urdf}] if args.urdf else [])
+    if robots and args.config:
+        raise TargetError("give targets on the command line (robots, --urdf) or in a file (-c), not both")
+    if robots:
+        if args.name and len(robots) > 1:
+            raise TargetError(f"--name names one target, got {len(robots)}")
+        targets = [make_target({**entry, **options, **disc}) for entry in robots]
+    else:
+        if options:
+            given = ", ".join("--" + k for k in options)
+            raise TargetError(f"{given}: describe a robot given on the command line; a targets file "
+                              "(-c) holds its own")
+        path = Path(args.config or TARGETS_FILE)
+        if not args.config and not path.exists():
+            raise TargetError(f"no targets: name a catalog robot (python -m codegen list), --urdf PATH "
+                              f"or -c FILE (no {TARGETS_FILE} in {Path.cwd()})")
+        targets = [(_override(t, disc), out) for t, out in load_targets(path)]
+    if args.out:
+        targets = [(t, Path(args.out).resolve()) for t, _ in targets]
+    check_unique(targets)
+    return targets
+
+
+def _override(target, disc):
+    """``target`` with the command line's discretisation and precision (a targets file's)."""
+    over = {k: v for k, v in disc.items() if k != "precision"}
+    return replace(target.with_discretization(None, **over), precision=disc.get("precision", target.precision))
+
+
+def _jobs(args, stages, **options):
+    from .jobs import Job
+    return [Job(t, out, stages, force=args.force, native=args.native, options=options)
+            for t, out in _targets(args)]
+
+
+def _report(jobs, args, line):
+    """Run ``jobs``; print ``line(job, row)`` per finished target, an error line per failure.
+    Returns (rows, number of failures)."""
+    from tqdm import tqdm
+
+    from .jobs import run
+    rows, failed = [], 0
+    for job, row in run(jobs, processes=args.jobs, debug=args.debug):
+        if isinstance(row, Exception):
+            if not isinstance(row, USER_ERRORS):
+                raise row
+            failed += 1
+            tqdm.write(f"error: {job.target.prefix}: {_message(row)}", file=sys.stderr)
+        else:
+            rows.append(row)
+            tqdm.write(line(job, row), file=sys.stdout)
+    return rows, failed
+
+
+def _times(row, stages):
+    return "  ".join(f"{s} {row[s + '_s']:.1f}s" for s in stages)
+
+
+# ------------------------------------------------------------------------------------ commands
 def cmd_list(args):
     from models import names
+    from models.catalog import ELASTIC
 
-    from . import observers
-    print("robots:   " + ", ".join(names()))
-    print("families: " + ", ".join(observers.FAMILIES))
-    print("default targets (make generate): " + ", ".join(f"{r}_{DEFAULT_FAMILY}" for r in DEFAULT_ROBOTS))
+    from .targets import family_info, families
+    print("robots:   " + ", ".join(names()) + f"  (elastic defaults J, K: {', '.join(ELASTIC)})")
+    print("families:")
+    for f in families():
+        variants, default, design, elastic = family_info(f)
+        print(f"  {f:22s} {'elastic' if elastic else 'rigid':7s} "
+              + (f"variants {', '.join(variants)} (default {default})  " if variants else "")
+              + f"design: {', '.join(design) if design is not None else '(any)'}")
+    if Path(TARGETS_FILE).exists():
+        print(f"targets of ./{TARGETS_FILE}: " + ", ".join(t.prefix for t, _ in load_targets(TARGETS_FILE)))
     return 0
-
-
-def _discretization(args):
-    from .target import discretization
-    return discretization(None, dt=args.dt, method=args.method, substeps=args.substeps, hold=args.hold)
-
-
-def _emit_and_build(robot_name, args):
-    from .emit import emit
-    spec = default_spec(robot_name, args.family)
-    t0 = time.perf_counter()
-    target = emit(spec.target(_discretization(args)), args.out, spec=spec)
-    t1 = time.perf_counter()
-    lib = build(target, native=args.native)
-    return spec, target, lib, t1 - t0, time.perf_counter() - t1
 
 
 def cmd_generate(args):
-    """Generate, compile, and run the C harness on the built-in trajectory per target."""
-    from . import harness
-    from .runtime import load
-    from .trajectory import demo_trajectory
+    """Design, emit, compile, run the C harness and ctypes on each target (`make generate`)."""
+    from .jobs import GENERATE
 
-    rows = []
-    items, say = _progress(args.robots, "generate")
-    for name in items:
-        spec, target, lib, t_gen, t_cc = _emit_and_build(name, args)
-        t, Q, QD, TAU = demo_trajectory(spec.robot, T=args.T, dt=_discretization(args).dt)
-        work = repo_root() / "build" / "demo"
-        work.mkdir(parents=True, exist_ok=True)
-        csv_in, csv_out = work / f"{target.name}_in.csv", work / f"{target.name}_out.csv"
-        harness.write_csv(csv_in, t, Q, TAU)
-        harness.run_csv(target, csv_in, csv_out)
-        _, EST = harness.read_csv(csv_out)
-        obs = load(target, lib)
-        obs.reset(Q[0])
-        same = np.array_equal(obs.run(Q, TAU), EST)
-        err0, errT = (np.linalg.norm(EST[i] - QD[i]) for i in (0, -1))
-        rows.append((target.name, spec.p_default[0], t_gen, t_cc, err0, errT, same))
-        say(f"{target.name:30s} k0 = {spec.p_default[0]:7.4g}  gen {t_gen:4.1f}s  cc {t_cc:4.1f}s  "
-              f"|qd - qd_hat|: t=0 {err0:.3g} -> t={t[-1]:g}s {errT:.2g}   C harness == ctypes: {same}")
-    d = _discretization(args)
-    print(f"{len(rows)} targets ({d.method}, dt = {d.dt:g} s, {d.hold} hold) in {Path(args.out).resolve()}")
-    return 0 if all(r[-1] for r in rows) else 1
+    def line(job, row):
+        err, of = row.get("error"), row.get("error_of")
+        conv = f"  |{of} - {of}_hat| {err[0]:.3g} -> {err[1]:.2g} at t = {row['T']:g} s" if err else ""
+        return (f"{row['prefix']:38s} {_times(row, GENERATE)}  C harness == ctypes: "
+                f"{row['harness_equal']}{conv}")
+
+    jobs = _jobs(args, GENERATE, T=args.T)
+    rows, failed = _report(jobs, args, line)
+    folders = sorted({str(j.out) for j in jobs})
+    print(f"{len(rows)} of {len(jobs)} targets in {', '.join(folders)}")
+    return 2 if failed else (0 if all(r["harness_equal"] for r in rows) else 1)
 
 
 def cmd_build(args):
-    for name in args.robots:
-        spec, target, lib, t_gen, t_cc = _emit_and_build(name, args)
-        print(f"{target.name}: {lib}  (generate {t_gen:.1f}s, compile {t_cc:.1f}s)")
-    return 0
+    """Design, emit and compile each target."""
+    from .jobs import BUILD
+    rows, failed = _report(_jobs(args, BUILD), args,
+                           lambda job, row: f"{row['prefix']}: {row['lib']}  ({_times(row, BUILD)})")
+    return 2 if failed else 0
 
 
 def cmd_check(args):
-    worst = 0.0
-    for name in args.robots:
-        from .check import cross_check
-        r = cross_check(default_spec(name, args.family), _discretization(args), count=args.count)
-        w = float(np.max([v for k, v in r.items() if k != "samples"]))
-        worst = float(np.max([worst, w]))
-        print(f"{name}_{args.family}: worst relative error {w:.2e}  "
-              + "  ".join(f"{k} {v:.1e}" for k, v in r.items() if k != "samples"))
-    ok = worst <= args.tol
-    print(f"{'OK' if ok else 'FAIL'}: worst {worst:.2e} (tolerance {args.tol:g})")
-    return 0 if ok else 1
+    """Cross-check each target's C against the reference (worst relative errors)."""
+    from .jobs import CHECK
+    if args.out is None:
+        args.out, args.force = str(build_dir() / "check"), True   # a scratch folder
+
+    def line(job, row):
+        r = {k: v for k, v in row["check"].items() if k != "samples"}
+        return (f"{row['prefix']:38s} worst {max(r.values()):.2e}  "
+                + "  ".join(f"{k} {v:.1e}" for k, v in r.items()))
+
+    rows, failed = _report(_jobs(args, CHECK, count=args.count), args, line)
+    worst = max([max(v for k, v in r["check"].items() if k != "samples") for r in rows], default=0.0)
+    ok = not failed and worst <= args.tol
+    print(f"{'OK' if ok else 'FAIL'}: worst {worst:.2e} over {len(rows)} targets (tolerance {args.tol:g})")
+    return 2 if failed else (0 if ok else 1)
 
 
 def cmd_bench(args):
     from .bench import main
-    return main(args.bench_robots, native=args.native, json_path=args.json, scenarios=not args.no_scenarios)
+    return main(args.bench_robots, native=args.native, json_path=args.json, scenarios=not args.no_scenarios,
+                generate=not args.no_generate)
+
+
+def cmd_embedded(args):
+    """Every target in double on an emulated Cortex-M7 and in float on a Cortex-M4F: flash, static
+    RAM, peak stack, instructions per step and the difference from the host build, recorded in
+    each target's JSON and printed as a table."""
+    from . import embedded
+    missing = embedded.missing_packages()
+    if missing:
+        print(f"error: ARM toolchain missing; install it with: apt-get install {' '.join(missing)} "
+              "(`make embedded` does)", file=sys.stderr)
+        return 2
+    print(f"{'target':34s} {'cpu':10s} {'flash KB':>8s} {'RAM B':>7s} {'stack B':>7s} {'insn/step':>9s} "
+          f"{'max':>7s} {'vs host':>8s} {'identical':>9s} {'vs double':>9s}")
+    from tqdm import tqdm
+
+    from .emit import with_params
+    from .targets import build_spec
+    rows, targets = [], _targets(args)
+    for target, out in tqdm(targets, desc="embedded", unit="target", file=sys.stderr, leave=False, disable=None):
+        spec = with_params(build_spec(target), target.params)
+        for prefix, rec in embedded.verify_target(spec, target, out, steps=args.steps):
+            rows.append(rec)
+            tqdm.write(f"{prefix:34s} {rec['cpu']:10s} {rec['flash_bytes'] / 1024:8.1f} {rec['static_ram_bytes']:7d} "
+                       f"{rec['stack_peak_bytes']:7d} {rec['instructions_per_step']:9d} "
+                       f"{rec['instructions_per_step_max']:7d} {rec['rel_diff_host']:8.1e} "
+                       f"{'yes' if rec['bit_identical'] else 'no':>9s} {rec.get('rel_diff_double', 0):9.1e}  "
+                       f"{'ok' if rec['ok'] else 'FAIL'}", file=sys.stdout)
+    folders = ", ".join(sorted({str(out) for _, out in targets}))
+    print(f"{len(rows)} runs of {args.steps} steps on QEMU (-icount shift=0); records in {folders}"
+          "/<target>/<target>.json under \"embedded\"")
+    return 0 if rows and all(rec["ok"] for rec in rows) else 1
 
 
 def cmd_simulate(args):
     from .sim import scenarios
     options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T")
                if getattr(args, k) is not None}
-    return scenarios.run(args.name, reference=args.reference, out=args.out, **options)
+    return scenarios.run(args.name, reference=args.reference, out=args.out or build_dir() / "sim", **options)
 
 
 def _compare_source(args):
@@ -146,7 +278,7 @@ def cmd_compare(args):
         print(f"error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
     print(cmp.table())
-    out = Path(args.out)
+    out = Path(args.out or build_dir() / "compare")
     paths = cmp.figures(out)
     (out / "compare.json").write_text(json.dumps({"title": title, "t_ss": cmp.t_ss, "level": cmp.level,
                                                   "rows": cmp.rows()}, indent=2, default=float) + "\n")
@@ -154,52 +286,101 @@ def cmd_compare(args):
     return 0
 
 
+def cmd_sweep(args):
+    """A Monte-Carlo sweep on Dask (codegen.sweep): results, map and best-gain table in --out."""
+    from . import sweep
+    from .sweep import maps, plan
+    try:
+        spec = plan.load(args.file)
+        res = sweep.run(args.file, workers=args.workers, scheduler=args.scheduler, out=args.out)
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(f"{res.cells} cells: {res.computed} computed in {res.seconds:.1f} s "
+          f"({res.computed / max(res.seconds, 1e-9):.1f} cells/s), {res.skipped} already done, "
+          f"{res.failed} failed; results in {res.out / 'results'}")
+    for p in maps.write(res.out, spec):
+        print(f"wrote {p}")
+    return 0 if res.failed == 0 else 1
+
+
 def cmd_sanitize(args):
     from .check import sanitize
     return sanitize.run(args.runs, args.seconds)
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m codegen", description=__doc__)
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    sub.add_parser("list", help="robots, observer families, default targets")
+COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
+            "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
+            "sanitize": cmd_sanitize, "embedded": cmd_embedded}
 
-    def common(p, robots=True):
-        if robots:
-            p.add_argument("robots", nargs="*", default=DEFAULT_ROBOTS, help="catalog names")
-        p.add_argument("--family", default=DEFAULT_FAMILY)
-        p.add_argument("--dt", type=float, help="sample time in s (default: codegen.target.DEFAULT_DISCRETIZATION)")
-        p.add_argument("--method", choices=["euler", "rk4"], help="integrator (default rk4)")
-        p.add_argument("--substeps", type=int, help="integrator sub-steps per sample (default 1)")
-        p.add_argument("--hold", choices=["zoh", "foh"],
-                       help="measurement hold between samples (default foh; see codegen.discretize)")
-        p.add_argument("--native", action="store_true", help="add -march=native")
 
-    g = sub.add_parser("generate", help="emit + compile the default targets, run the C harness")
-    common(g)
-    g.add_argument("--out", default=str(repo_root() / "generated"))
-    g.add_argument("--T", type=float, default=2.0, help="length of the built-in trajectory (s)")
-    b = sub.add_parser("build", help="emit + compile")
-    common(b)
-    b.add_argument("--out", default=str(repo_root() / "generated"))
-    c = sub.add_parser("check", help="cross-check the emitted C against the reference")
-    common(c)
-    c.add_argument("--count", type=int, default=1000)
-    c.add_argument("--tol", type=float, default=1e-9)
-    be = sub.add_parser("bench", help="ns per RHS / rk4 step vs pinocchio native aba")
-    be.add_argument("bench_robots", nargs="*", default=["ur5", "panda"])
-    be.add_argument("--native", action="store_true")
-    be.add_argument("--json", help="also write the figures to this file")
-    be.add_argument("--no-scenarios", action="store_true", help="only the observer RHS table")
-    s = sub.add_parser("simulate", help="run a scenario of the seed papers")
-    s.add_argument("name")
+# ------------------------------------------------------------------------------------ parser
+def _target_options(p, out_help):
+    a = p.add_argument
+    a("robots", nargs="*", metavar="ROBOT", help="catalog robot names (see `list`); none: the targets "
+      f"of -c FILE or ./{TARGETS_FILE}")
+    a("-c", "--config", metavar="FILE", help="a targets file (TOML, [[target]] tables; see codegen/targets.py)")
+    a("--urdf", metavar="PATH", help="a robot from a URDF file (revolute, continuous, prismatic joints)")
+    a("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint at VALUE (rad or m); repeatable")
+    a("--elastic", action="store_true", help="elastic joints on the robot (tomei, ciccarella_germani, spong_*)")
+    a("--J", metavar="J", help="motor inertias (kg m^2): one number or one per joint, comma-separated "
+      "(default: the catalog's for seed004_2r, seed004_3r, ur5)")
+    a("--K", metavar="K", help="joint stiffness (N m/rad): one number or one per joint, comma-separated")
+    a("--family", help=f"observer family or control law (see `list`; default {DEFAULT_FAMILY})")
+    a("--variant", help="family variant, e.g. O2 of ciccarella_germani (default: the family's)")
+    a("--design", action="append", metavar="NAME=VALUE", help="design input or gain passed to the family's "
+      "build (e.g. noise=1e-4, eta=1, eigenvalues=[-300,-400]); repeatable")
+    a("--param", action="append", metavar="NAME=VALUE", help="runtime parameter overriding the designed "
+      "default (e.g. k0=50); repeatable")
+    a("--dt", type=float, help="sample time in s (default 1e-3)")
+    a("--method", choices=METHODS, help="integrator (default rk4)")
+    a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discretize)")
+    a("--substeps", type=int, help="integrator sub-steps per sample (default 1)")
+    a("--precision", choices=PRECISIONS, help="real type of the C (default double)")
+    a("--name", help="symbol prefix and folder name (default <robot>_<family>[_<variant>])")
+    a("--out", metavar="DIR", help=out_help)
+    a("--force", action="store_true", help="replace a folder generated from another target")
+    a("--native", action="store_true", help="compile with -march=native")
+    a("-j", "--jobs", type=int, help="targets built in parallel processes (default: one per core)")
+
+
+def parser():
+    ap = Parser(prog="observer-codegen", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--debug", action="store_true", help="show the traceback of an error")
+    debug = Parser(add_help=False)     # also after the command; SUPPRESS keeps a --debug given before it
+    debug.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                       help="show the traceback of an error")
+    sub = ap.add_subparsers(dest="cmd", required=True, parser_class=Parser, metavar="COMMAND")
+    sub.add_parser("list", parents=[debug], help="robots, families (variants, design inputs), targets.toml")
+    g = sub.add_parser("generate", parents=[debug], help="design, emit, compile and run each target")
+    _target_options(g, "parent folder of the generated folders (default ./generated, or the file's out)")
+    g.add_argument("--T", type=float, default=2.0, help="length of the run (s, default 2)")
+    b = sub.add_parser("build", parents=[debug], help="design, emit and compile each target")
+    _target_options(b, "parent folder of the generated folders (default ./generated, or the file's out)")
+    c = sub.add_parser("check", parents=[debug], help="cross-check each target's C against the reference")
+    _target_options(c, "parent folder of the checked folders (default build/check, replaced freely)")
+    c.add_argument("--count", type=int, default=1000, help="random inputs per check (default 1000)")
+    c.add_argument("--tol", type=float, default=1e-9, help="largest relative error accepted (default 1e-9)")
+    be = sub.add_parser("bench", parents=[debug], help="timings as ratios (make bench)")
+    be.add_argument("bench_robots", nargs="*", default=["ur5", "panda"], metavar="ROBOT",
+                    help="robots of the observer-RHS table (default ur5 panda)")
+    be.add_argument("--native", action="store_true", help="compile with -march=native")
+    be.add_argument("--json", metavar="FILE", help="also write the figures to this file")
+    be.add_argument("--no-scenarios", action="store_true", help="skip the scenario benchmarks")
+    be.add_argument("--no-generate", action="store_true", help="skip timing `make generate` from scratch")
+    e = sub.add_parser("embedded", parents=[debug], help="run the targets on emulated Cortex-M4F (float) "
+                       "and M7 (double)")
+    _target_options(e, "parent folder of the targets (default ./generated, or the file's out)")
+    e.add_argument("--steps", type=int, default=300, help="samples of the run on each CPU (default 300)")
+    s = sub.add_parser("simulate", parents=[debug], help="run a scenario of the seed papers")
+    s.add_argument("name", help="scenario name, or `list`")
     s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
-    s.add_argument("--out", default=str(repo_root() / "build" / "sim"))
+    s.add_argument("--out", metavar="DIR", help="parent folder of the results (default build/sim)")
     s.add_argument("--quantization", type=float, help="encoder step (rad; mujoco-* scenarios)")
     s.add_argument("--noise", type=float, help="Gaussian noise std (rad; mujoco-* scenarios)")
     s.add_argument("--mismatch", type=float, help="plant masses and inertias x (1 + mismatch) (mujoco-*)")
     s.add_argument("--T", type=float, help="length (s; mujoco-* scenarios)")
-    cp = sub.add_parser("compare", help="observers against tuned baselines on a scenario or a CSV")
+    cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a scenario or a CSV")
     cp.add_argument("source", help="mujoco-ur5, mujoco-panda, or a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>])")
     cp.add_argument("--robot", help="robot of a CSV: catalog name or a .urdf path")
     cp.add_argument("--observers", default="reduced_order,nicosia_tomei", help="comma-separated families")
@@ -212,16 +393,27 @@ def main(argv=None):
     cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, default half the run)")
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
-    cp.add_argument("--out", default=str(repo_root() / "build" / "compare"))
-    sa = sub.add_parser("sanitize", help="C harness and sample targets under ASan/UBSan on edge-case "
-                        "CSVs, and a libFuzzer campaign of their step")
+    cp.add_argument("--out", metavar="DIR", help="folder of the figures and compare.json (default build/compare)")
+    sw = sub.add_parser("sweep", parents=[debug], help="Monte-Carlo sweep of observers and baselines on Dask (resumable)")
+    sw.add_argument("file", help="the sweep file (TOML; see codegen.sweep.plan)")
+    where = sw.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="local cluster of N worker processes (default: one "
+                       "per CPU; 0: in this process, no Dask)")
+    where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:8786)")
+    sw.add_argument("--out", metavar="DIR", help="output folder (default build/sweeps/<name>)")
+    sa = sub.add_parser("sanitize", parents=[debug], help="C harness and sample targets under ASan/UBSan on "
+                        "edge-case CSVs, and a libFuzzer campaign of their step")
     sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
     sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv=None):
+    args = parser().parse_args(argv)
     try:
-        return {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
-                "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare,
-                "sanitize": cmd_sanitize}[args.cmd](args)
-    except BuildError as e:
-        print(f"error: {e}", file=sys.stderr)
+        return COMMANDS[args.cmd](args)
+    except USER_ERRORS as e:
+        if args.debug:
+            raise
+        print(f"error: {_message(e)}", file=sys.stderr)
         return 2

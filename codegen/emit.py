@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import re
 import shutil
@@ -20,12 +21,13 @@ from importlib import resources
 from pathlib import Path
 
 import casadi as ca
+import numpy as np
 
 from .atomic import replace_dir
 from .version import __version__
 from .discretize import discretize, estimate
 from .spec import ObserverSpec, real_number
-from .target import sanitize
+from .target import REAL_TYPES, sanitize
 
 HOLD_TEXT = {
     "zoh": "zero-order hold: y and u are held over [t_k, t_k+1];\n * step() returns the estimate at t_k, then advances the state to t_k+1.",
@@ -42,12 +44,52 @@ STATUS = {"OK": 0, "ERR_BAD_ARG": 1, "ERR_NONFINITE_INPUT": 2, "ERR_NONFINITE_RE
           "ERR_KERNEL": 4}
 
 
-def _num(x):
-    """A C double literal that round-trips exactly."""
-    s = repr(float(x))
-    if s in ("inf", "-inf", "nan"):
-        raise ValueError(f"non-finite default value {s}")
-    return s if ("e" in s or "." in s) else s + ".0"
+def _num(x, precision="double"):
+    """A C literal of ``precision`` that round-trips exactly: the shortest repr of the double,
+    or of the nearest float with an ``f`` suffix (so no double constant enters float code)."""
+    x = float(x)
+    single = precision == "float"
+    if not math.isfinite(x) or (single and abs(x) > float(np.finfo(np.float32).max)):
+        raise ValueError(f"non-finite default value {x!r} in {precision} precision")
+    s = str(np.float32(x)) if single else repr(x)
+    s = s if ("e" in s or "." in s) else s + ".0"
+    return s + "f" if single else s
+
+
+def _bind_real(code, prefix, precision):
+    """Make CasADi's kernel file (or header) take its real type from ``<prefix>.h`` (one real type,
+    set in one place); in single precision also the float math functions (``sin(`` -> ``sinf(``)
+    and float constants (``2.*x`` -> ``2.f*x``): no double promotion anywhere."""
+    block = f"#ifndef casadi_real\n#define casadi_real {REAL_TYPES[precision]}\n#endif\n"
+    if block not in code:
+        raise RuntimeError(f"CasADi {ca.__version__}: no casadi_real definition block in the kernels")
+    code = code.replace(block, f'#include "{prefix}.h"\n#undef casadi_real\n'
+                               f"#define casadi_real {prefix}_real  /* the target's real type ({prefix}.h) */\n")
+    if precision == "float":
+        code = _MATH_CALL.sub(r"\1f(", _FLOATING_LITERAL.sub(_float_literal, code))
+    return code
+
+
+def _float_literal(match):
+    """A double constant as a float one; a constant float cannot hold (a guard such as 1e-300,
+    a bound such as 1e300) becomes the nearest float of the same role: FLT_MIN or FLT_MAX."""
+    text, x = match.group(1), float(match.group(1))
+    with np.errstate(over="ignore"):
+        f = np.float32(x)
+    if x != 0 and f == 0:
+        return str(np.finfo(np.float32).tiny) + "f"
+    if not np.isfinite(f):
+        return str(np.finfo(np.float32).max) + "f"
+    return text + "f"
+
+
+# a C floating constant without suffix (1., .5, 2.5e-03, 1e3), not part of a name or a version
+_FLOATING_LITERAL = re.compile(r"(?<![\w.])((?:\d+\.\d*|\.\d+)(?:[eE][+-]?\d+)?|\d+[eE][+-]?\d+)(?![\w.])")
+# the C99 <math.h> functions with a float variant (name + "f"); a call of one (not casadi_sin()
+MATH_FUNCTIONS = (r"a?(?:sin|cos|tan)h?|atan2|exp2?|expm1|log(?:10|1p|2|b)?|cbrt|fabs|hypot|pow|sqrt"
+                  r"|erfc?|[lt]gamma|ceil|floor|nearbyint|rint|round|trunc|fmod|remainder|copysign|fdim"
+                  r"|fmax|fmin|fma")
+_MATH_CALL = re.compile(rf"(?<![\w.])({MATH_FUNCTIONS})\(")
 
 
 def _void_unused(code):
@@ -87,13 +129,14 @@ def metadata(spec, target, kernels):
         "discretization": {**d.to_dict(), "hybrid": spec.jump is not None},
         "kernels": kernels,
         "status": STATUS,
+        "precision": target.precision,
         "generator": {"codegen": __version__, "casadi": ca.__version__},
         "design": spec.design,
     }
 
 
-def emit(target, out_dir, spec=None):
-    """Write the C of a target into ``out_dir/<prefix>/``.
+def emit(target, out_dir, spec=None, force=True):
+    """Write the C of a target into ``out_dir/<prefix>/`` (folders 0755, files 0644).
 
     Parameters
     ----------
@@ -103,6 +146,9 @@ def emit(target, out_dir, spec=None):
         Parent folder; the target's folder is written to a temporary sibling and renamed.
     spec : ObserverSpec, optional
         The spec the target describes, when already built (otherwise built from the target).
+    force : bool
+        Replace a folder generated from another target; False: raise FolderTaken instead
+        (before building anything).
 
     Returns
     -------
@@ -111,6 +157,8 @@ def emit(target, out_dir, spec=None):
     """
     if isinstance(target, ObserverSpec):
         target, spec = target.target(), target
+    if not force:
+        check_folder(Path(out_dir) / target.prefix, target)
     if spec is None:
         from .targets import build_spec
         spec = build_spec(target)
@@ -126,7 +174,8 @@ def emit(target, out_dir, spec=None):
     tmp = Path(tempfile.mkdtemp(prefix=f".{prefix}.", dir=out_dir))
     try:
         cg = ca.CodeGenerator(f"{prefix}_kernels.c", {"with_header": True, "casadi_int": "int",
-                                                      "casadi_real": "double", "verbose": False})
+                                                      "casadi_real": REAL_TYPES[target.precision],
+                                                      "verbose": False})
         for key, f in fns.items():
             ins = f.mx_in() if f.is_a("MXFunction") else f.sx_in()
             named = ca.Function(f"{prefix}_k_{key}", ins, f.call(ins))
@@ -135,13 +184,17 @@ def emit(target, out_dir, spec=None):
                             "sz_arg": int(named.sz_arg()), "sz_res": int(named.sz_res()),
                             "sz_iw": int(named.sz_iw()), "sz_w": int(named.sz_w())}
         cg.generate(str(tmp) + os.sep)       # a directory prefix: no chdir (thread-safe)
-        kfile = tmp / f"{prefix}_kernels.c"
-        kfile.write_text(_void_unused(kfile.read_text()))
+        for kfile in (tmp / f"{prefix}_kernels.c", tmp / f"{prefix}_kernels.h"):
+            code = _bind_real(kfile.read_text(), prefix, target.precision)
+            kfile.write_text(_void_unused(code) if kfile.suffix == ".c" else code)
         meta = metadata(spec, target, kernels)
         values = template_values(meta)
         for template, name in TEMPLATES.items():
             (tmp / name.format(prefix=prefix)).write_text(render(template, values))
         (tmp / f"{prefix}.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+        for f in tmp.iterdir():
+            f.chmod(0o644)
+        tmp.chmod(0o755)                     # mkdtemp makes 0700
         final = out_dir / prefix
         old = replace_dir(tmp, final)    # one step: the folder is never absent nor mixed
         if old is not None:
@@ -150,6 +203,33 @@ def emit(target, out_dir, spec=None):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+class FolderTaken(ValueError):
+    """The output folder holds something else than the target (emit(force=False) refuses)."""
+
+
+def check_folder(folder, target):
+    """Raise FolderTaken if ``folder`` exists and was not generated from ``target`` (compared
+    with the Target recorded in its metadata JSON); nothing if it is absent or the same target."""
+    folder = Path(folder)
+    if not folder.exists():
+        return
+    try:
+        recorded = json.loads((folder / f"{folder.name}.json").read_text())["target"]
+    except (OSError, ValueError, KeyError, TypeError):
+        raise FolderTaken(f"{folder} exists and is not a generated target; force (--force) replaces "
+                          "it, a name (--name) writes elsewhere") from None
+    mine = target.to_dict()
+    diff = [f"{k}: {_short(recorded.get(k))} -> {_short(mine[k])}" for k in mine if recorded.get(k) != mine[k]]
+    if diff:
+        raise FolderTaken(f"{folder} holds another target ({'; '.join(diff)}); force (--force) "
+                          "replaces it, a name (--name) writes elsewhere")
+
+
+def _short(value, width=60):
+    text = json.dumps(value, sort_keys=True)
+    return text if len(text) <= width else text[:width - 3] + "..."
 
 
 def with_params(spec, params):
@@ -193,13 +273,15 @@ def template_values(meta):
     """The placeholders of the templates, from the metadata alone (dict name -> value); the blocks
     repeated per slot (slot macros, status codes) are made here, the templates only substitute."""
     prefix, s, d, k = meta["prefix"], meta["sizes"], meta["discretization"], meta["kernels"]
-    P = prefix.upper()
+    P, precision = prefix.upper(), meta.get("precision", "double")
     status = "\n".join(f"  {P}_{name} = {code}," for name, code in meta["status"].items())
     return {
         "prefix": prefix, "PREFIX": P, "family": _comment(meta["family"]),
         "robot": _comment(sanitize(meta["robot"]["name"])),
         "codegen_version": meta["generator"]["codegen"], "casadi_version": meta["generator"]["casadi"],
-        "method": d["method"], "dt": _num(d["dt"]), "substeps": d["substeps"],
+        "real": REAL_TYPES[precision], "precision": precision,
+        "method": d["method"], "dt": _num(d["dt"], precision), "dt_text": _num(d["dt"]),
+        "substeps": d["substeps"],
         "hold_text": HOLD_TEXT[d["hold"]], "hold_foh": int(d["hold"] == "foh"),
         "hybrid_text": HYBRID_TEXT if d["hybrid"] else "",
         **{n: s[n] for n in ("nx", "ny", "nu", "np", "nest")},
@@ -207,7 +289,7 @@ def template_values(meta):
         **{key: max(v[key] for v in k.values()) for key in ("sz_arg", "sz_res")},
         **{key: max(1, max(v[key] for v in k.values())) for key in ("sz_iw", "sz_w")},
         "slot_macros": "\n".join(_slot_macros(P, meta["names"])), "status_enum": status,
-        "p_default": ", ".join(_num(v) for v in meta["p_default"]) or "0.0",
+        "p_default": ", ".join(_num(v, precision) for v in meta["p_default"]) or "0",
     }
 
 

@@ -12,7 +12,7 @@ of any particular observer.
     harness.time_pin("robots/ur_description/urdf/ur5_robot.urdf")  # {"ns_aba": ..., "ns_rnea": ..., ...}
 
 Builds go through codegen.build's toolchain (``compiler``, ``c_flags``, ``cached_build``) and
-are cached in ``<build_dir>/<prefix>-<hash>/`` (default build dir ``<repo>/build/harness``);
+are cached in ``<build_dir>/<prefix>-<hash>/`` (default build dir ``build/harness`` in the working folder);
 the hash covers the harness sources, every .c/.h file of the target, the flags and the
 compiler, so repeated calls cost one process start only. Nothing is written into the target
 folder. A failed compile raises codegen.build.BuildError carrying the compiler's command line
@@ -34,12 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .build import (BuildError, ToolError, c_flags, cached_build, compiler, digest, read_target,
-                    run_tool)
+from .build import (BuildError, ToolError, c_flags, cached_build, compiler, digest, package_data,
+                    read_target, run_tool)
+from .build import build_dir as default_build_dir
 
-REPO = Path(__file__).resolve().parent.parent
-HARNESS_SRC = REPO / "c_harness"
-DEFAULT_BUILD_DIR = REPO / "build" / "harness"
+HARNESS_SRC = package_data("c_harness")
 
 CXX_FLAGS = ["-O3", "-DNDEBUG", "-std=c++17", "-Wall", "-Wextra"]
 
@@ -67,7 +66,7 @@ def _run(cmd, what):
 
 
 def _build_root(build_dir):
-    return Path(build_dir).resolve() if build_dir is not None else DEFAULT_BUILD_DIR
+    return Path(build_dir).resolve() if build_dir is not None else default_build_dir() / "harness"
 
 
 def target_info(target_dir):
@@ -113,7 +112,7 @@ def build_harness(target_dir, build_dir=None, native=False, cc=None, extra_flags
     Parameters
     ----------
     target_dir : path of generated/<prefix>/
-    build_dir : cache root (default <repo>/build/harness); binaries go to
+    build_dir : cache root (default build/harness in the working folder); binaries go to
         ``<build_dir>/<prefix>-<hash>/``
     native : add -march=native (default flags are the portable -O3)
     cc : C compiler (default $CC, else gcc)

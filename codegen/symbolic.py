@@ -12,6 +12,30 @@ import casadi as ca
 import numpy as np
 
 
+# ============================================================================ shared routines
+def routine(name, inputs, outputs):
+    """A Function that stays one routine in generated C (common subexpressions eliminated).
+
+    Calling it on SX makes a call node instead of inlining its body (``never_inline``), so
+    CasADi's code generator emits the body once however often it is called, and forward AD
+    through the calls emits one forward-derivative routine.
+
+    Parameters
+    ----------
+    name : str
+        Name of the routine (C comment and CasADi name).
+    inputs : list of SX or MX
+        Pure symbols.
+    outputs : list of SX or MX
+        Expressions of ``inputs``.
+
+    Returns
+    -------
+    casadi.Function
+    """
+    return ca.Function(name, inputs, [ca.cse(o) for o in outputs], {"never_inline": True})
+
+
 # ============================================================================ quadrature
 @lru_cache(maxsize=64)
 def gauss_legendre(N):
@@ -26,43 +50,73 @@ def gauss_legendre(N):
     return t, w
 
 
-def quadrature_points(b, N, a=0.0):
-    """Nodes sigma_k and weights h_k of the N-point Gauss-Legendre rule on [a, b] (b may be SX):
+def _node_sum(f, i, x, shared, sigma, weights):
+    """sum_k weights_k f(x with x_i = sigma_k, *shared) (MX): one serial map over the nodes."""
+    K = sigma.numel()
+    X = ca.repmat(x, 1, K)
+    X[i, :] = ca.reshape(sigma, 1, K)
+    body = f.map(f"{f.name()}_map{K}", "serial", K, list(range(1, f.n_in())), [])
+    return ca.mtimes(body(X, *shared), weights)
 
-        int_a^b f(sigma) d sigma  ~=  sum_k h_k f(sigma_k),
-        sigma_k = (a + b)/2 + (b - a)/2 t_k,   h_k = (b - a)/2 w_k.
-    """
+
+def _line_symbols(f):
+    return ca.MX.sym("x", f.sparsity_in(0)), [ca.MX.sym(f"s{j}", f.sparsity_in(j)) for j in range(1, f.n_in())]
+
+
+@lru_cache(maxsize=256)
+def gauss_legendre_routine(f, i, N):
+    """Routine (b, x, *shared) -> int_0^b f(x with x_i = sigma, *shared) d sigma by the N-node
+    Gauss-Legendre rule, one loop over the nodes in C (CasADi map, serial): the C holds it once
+    whatever N, and forward AD through it one loop over f's forward derivative.
+
+        int_0^b g(sigma) d sigma  ~=  sum_k h_k g(sigma_k),  sigma_k = b/2 (1 + t_k),  h_k = b/2 w_k
+
+    with (t_k, w_k) = ``gauss_legendre(N)``: the integrals of beta [S003 (12)].
+
+    Parameters
+    ----------
+    f : casadi.Function (x, *shared) -> column, the integrand; x (n,) is its first input
+    i : int, the entry of x replaced by sigma (0 <= i < n)
+    N : int, number of nodes
+
+    Returns
+    -------
+    casadi.Function (b, x, *shared) -> integral (f's output shape); b (scalar) may be symbolic."""
+    b = ca.MX.sym("b")
+    x, shared = _line_symbols(f)
     t, w = gauss_legendre(N)
-    mid, half = 0.5 * (a + b), 0.5 * (b - a)
-    return [mid + half * float(tk) for tk in t], [half * float(wk) for wk in w]
+    total = _node_sum(f, i, x, shared, 0.5 * b * (1 + ca.DM(t)), 0.5 * b * ca.DM(w))
+    return routine(f"{f.name()}_gauss{N}_{i}", [b, x, *shared], [total])
 
 
-def integrate(f, b, N, a=0.0):
-    """Gauss-Legendre approximation of int_a^b f(sigma) d sigma with N nodes.
-
-    f maps a scalar (SX) to an SX expression (any shape); b (and a) may be symbolic."""
-    sig, h = quadrature_points(b, N, a)
-    total = 0
-    for s, hk in zip(sig, h):
-        total = total + hk * f(s)
-    return total
-
-
-def periodic_integrate(f, N, period=2 * np.pi, start=-np.pi):
-    """Trapezoidal rule with N equispaced nodes over one period [start, start + period]:
+@lru_cache(maxsize=256)
+def trapezoid_routine(f, i, N, period=2 * np.pi, start=-np.pi):
+    """Routine (x, *shared) -> int over [start, start + period] of f(x with x_i = sigma, *shared)
+    d sigma by the trapezoidal rule with N equispaced nodes, one loop in C (as
+    ``gauss_legendre_routine``):
 
         int f d sigma  ~=  (period / N) sum_k f(start + k period / N),   k = 0 .. N-1.
 
     For an analytic periodic f it converges geometrically, like exp(-N d) with d the
     half-width of the strip of analyticity: faster than Gauss-Legendre with N nodes on the
-    same interval (docs/quadrature.md)."""
+    same interval (docs/quadrature.md).
+
+    Parameters
+    ----------
+    f : casadi.Function (x, *shared) -> column, periodic in x_i; x (n,) is its first input
+    i : int, the entry of x replaced by sigma (0 <= i < n)
+    N : int, number of nodes (positive)
+    period, start : float, length and left end of the interval [rad for a revolute joint]
+
+    Returns
+    -------
+    casadi.Function (x, *shared) -> integral over the interval (f's output shape)."""
     if int(N) != N or N < 1:
         raise ValueError(f"N (trapezoid nodes) must be a positive integer, got {N!r}")
-    h = float(period) / int(N)
-    total = 0
-    for k in range(int(N)):
-        total = total + h * f(start + k * h)
-    return total
+    N, h = int(N), float(period) / int(N)
+    x, shared = _line_symbols(f)
+    total = _node_sum(f, i, x, shared, ca.DM([start + k * h for k in range(N)]), ca.DM.ones(N, 1) * h)
+    return routine(f"{f.name()}_trapezoid{N}_{i}", [x, *shared], [total])
 
 
 def wrap_angle(y, period=2 * np.pi):
@@ -134,7 +188,9 @@ def lie_derivative(h, x, f, k=1):
 
 
 def lie_chain(h, x, f, r):
-    """[h, L_f h, ..., L_f^r h]: r + 1 column vectors (each L_f^{k+1} h from L_f^k h)."""
+    """[h, L_f h, ..., L_f^r h]: r + 1 column vectors (each L_f^{k+1} h from L_f^k h by one
+    jtimes)  [S004 (A.2)]: h SX (m,) output(s) of the state symbols x SX (n,), f SX (n,) the
+    drift f(x), r >= 0 the highest order. Returns a list of r + 1 SX (m,)."""
     out = [h]
     for _ in range(int(r)):
         out.append(ca.jtimes(out[-1], x, f))
@@ -150,7 +206,14 @@ def observability_map(outputs, degrees, x, f):
     """Phi(x) = [h_1, ..., L_f^{r1-1} h_1, ..., h_m, ..., L_f^{rm-1} h_m] (channel-major) and the
     list of top derivatives [L_f^{r_i} h_i]  [S004 (3.5)-(3.8)].
 
-    outputs : list of scalar SX expressions h_i(x);  degrees : list of r_i."""
+    Parameters
+    ----------
+    outputs : list of m scalar SX, the outputs h_i(x);  degrees : list of m int, the r_i
+    x : SX (n,) state symbols;  f : SX (n,) drift f(x)
+
+    Returns
+    -------
+    (Phi SX (r_1 + ... + r_m,), tops SX (m,) with tops_i = L_f^{r_i} h_i)."""
     if len(outputs) != len(degrees):
         raise ValueError(f"{len(outputs)} outputs but {len(degrees)} relative degrees")
     rows, tops = [], []
@@ -162,15 +225,31 @@ def observability_map(outputs, degrees, x, f):
 
 
 def decoupling_matrix(outputs, degrees, x, f, G):
-    """U(x) with rows L_G L_f^{r_i - 1} h_i  [S004 (A.8)]."""
+    """U(x) with rows L_G L_f^{r_i - 1} h_i  [S004 (A.8)].
+
+    Parameters
+    ----------
+    outputs : list of m scalar SX, the outputs h_i(x);  degrees : list of m int, the r_i >= 1
+    x : SX (n,) state symbols;  f : SX (n,) drift f(x);  G : SX (n, k) input matrix G(x)
+
+    Returns
+    -------
+    SX (m, k)"""
     return ca.vertcat(*[input_lie_derivative(lie_derivative(h, x, f, r - 1), x, G)
                         for h, r in zip(outputs, degrees)])
 
 
 def check_relative_degree(outputs, degrees, x, f, G, states, tol=1e-9):
     """Numerical check of the vector relative degree at sampled ``states`` (rows):
-    L_G L_f^k h_i = 0 for k < r_i - 1 and U(x) nonsingular. Returns the smallest singular value
-    of U seen (relative to its largest); raises ValueError naming the failing channel."""
+    L_G L_f^k h_i = 0 for k < r_i - 1 and U(x) nonsingular [S004 (A.8)]. Returns the smallest
+    singular value of U seen (relative to its largest); raises ValueError naming the failing
+    channel.
+
+    Parameters
+    ----------
+    outputs, degrees, x, f, G : as in ``decoupling_matrix``
+    states : array (s, n) or (n,), sample states (rows)
+    tol : float, threshold of a nonzero L_G L_f^k h_i and (relative) of sigma_min(U)"""
     worst = np.inf
     lower = [(i, k, ca.Function("lg", [x], [input_lie_derivative(lie_derivative(h, x, f, k), x, G)]))
              for i, (h, r) in enumerate(zip(outputs, degrees)) for k in range(r - 1)]
@@ -189,7 +268,8 @@ def check_relative_degree(outputs, degrees, x, f, G, states, tol=1e-9):
 
 def lower_block_structure(Q, row_blocks, col_blocks):
     """True when Q (rows/cols split in the given block sizes) is structurally block lower
-    triangular with square diagonal blocks (upper blocks all structural zeros)."""
+    triangular with square diagonal blocks (upper blocks all structural zeros). Q: SX (n, n);
+    row_blocks, col_blocks: block sizes of its rows and columns (each summing to n)."""
     if sum(row_blocks) != Q.shape[0] or sum(col_blocks) != Q.shape[1] or row_blocks != col_blocks:
         return False
     r0 = np.cumsum([0] + list(row_blocks))
@@ -231,7 +311,9 @@ def block_forward_substitution(Q, v, blocks, rcond_min):
 
         w_a = Q_aa^{-1} (v_a - sum_{b<a} Q_ab w_b)
 
-    structurally-identity pivots are skipped; the others go through ``qr_solve_guarded``."""
+    structurally-identity pivots are skipped; the others go through ``qr_solve_guarded`` with
+    threshold ``rcond_min`` (w is NaN below it): the Q(xhat)^{-1} of [S004 (3.10)].
+    Q: SX (n, n); v: SX (n,); returns w SX (n,)."""
     r0 = np.cumsum([0] + list(blocks))
     ws = []
     for a in range(len(blocks)):
@@ -254,7 +336,19 @@ def block_forward_substitution_jvp(phi_blocks, x, col_blocks, v_blocks, rcond_mi
         w_a = Q_aa^{-1} (v_a - dPhi_a/dx [w_1; ...; w_{a-1}; 0])
 
     the bracket is one forward-mode directional derivative (jtimes); Q_aa = dPhi_a/dx_a is
-    skipped when structurally the identity and otherwise solved by ``qr_solve_guarded``."""
+    skipped when structurally the identity and otherwise solved by ``qr_solve_guarded``
+    [S004 (3.10)].
+
+    Parameters
+    ----------
+    phi_blocks : list of SX, the blocks Phi_a(x);  x : SX (n,) state symbols
+    col_blocks : sequence of int, block sizes of x (summing to n)
+    v_blocks : list of SX, the blocks v_a of the right-hand side (sizes ``col_blocks``)
+    rcond_min : float or SX, conditioning threshold of each pivot solve (w NaN below it)
+
+    Returns
+    -------
+    w SX (n,)"""
     c0 = np.cumsum([0] + list(col_blocks))
     ws = []
     for a, (phi, v) in enumerate(zip(phi_blocks, v_blocks)):
@@ -270,7 +364,8 @@ def block_forward_substitution_jvp(phi_blocks, x, col_blocks, v_blocks, rcond_mi
 
 def block_lower_by_dependence(phi_blocks, x, col_blocks):
     """True when block a of Phi does not depend on the x blocks after a (block lower triangular
-    dPhi/dx) and every diagonal block is square."""
+    dPhi/dx) and every diagonal block is square: the precondition of
+    ``block_forward_substitution_jvp`` (phi_blocks, x, col_blocks as there)."""
     if [b.numel() for b in phi_blocks] != list(col_blocks) or sum(col_blocks) != x.numel():
         return False
     c0 = np.cumsum([0] + list(col_blocks))
@@ -281,14 +376,16 @@ def block_lower_by_dependence(phi_blocks, x, col_blocks):
 # ============================================================================ mechanics helpers
 def christoffel_column_matrix(robot, q, i):
     """C(q, e_i) (n x n): by the symmetry C(q, x) e_i = C(q, e_i) x [S003 P2] it gives column i
-    of C(q, x) for every x at the cost of one Christoffel evaluation."""
+    of C(q, x) for every x at the cost of one Christoffel evaluation. robot: RobotModel (n
+    joints); q: SX or DM (n,) configuration [rad or m]; i: the unit direction (0 <= i < n)."""
     e = ca.DM.zeros(robot.n, 1)
     e[i] = 1.0
     return robot.coriolis(q, e)
 
 
 def christoffel_slices(robot, q):
-    """[C(q, e_1) ... C(q, e_n)] (n x n^2): the 3-tensor C_ijk(q) = C(q, e_k)_ij side by side."""
+    """[C(q, e_1) ... C(q, e_n)] (n x n^2): the 3-tensor C_ijk(q) = C(q, e_k)_ij side by side,
+    for a robot (RobotModel, n joints) at q (SX or DM (n,), [rad or m])."""
     return ca.horzcat(*[christoffel_column_matrix(robot, q, k) for k in range(robot.n)])
 
 

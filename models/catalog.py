@@ -75,8 +75,10 @@ def from_source(source):
     Parameters
     ----------
     source : dict
-        ``{"kind": "closed_form" | "urdf" | "dh" | "elastic", ...}`` as recorded in a target's
-        metadata. A catalog robot's own source gives the (cached) catalog robot.
+        ``{"kind": "catalog", "name": <catalog name>, "params": {...}}`` (portable: what a
+        targets file records), or ``{"kind": "closed_form" | "urdf" | "dh" | "elastic", ...}``
+        as recorded in a target's metadata. A catalog robot's own source gives the (cached)
+        catalog robot.
 
     Returns
     -------
@@ -85,6 +87,8 @@ def from_source(source):
     if not isinstance(source, dict) or "kind" not in source:
         raise ValueError(f"robot source must be a dict with a 'kind', got {source!r}")
     kind, name = source["kind"], source.get("name")
+    if kind == "catalog":
+        return load_robot(name, **source.get("params", {}))
     if name in names() and load_robot(name).source == source:
         return load_robot(name)
     if kind == "elastic":
@@ -92,7 +96,7 @@ def from_source(source):
         rigid = from_source(source["rigid"])
         if name == f"{rigid.name}_elastic" and rigid.name in ELASTIC:
             cached = load_elastic(rigid.name, J=source["J"], K=source["K"])
-            if cached.source == source:
+            if cached.source == dict(source, rigid=rigid.source):
                 return cached
         return ElasticRobot(rigid, source["J"], source["K"], name=name)
     if kind == "urdf":
@@ -105,7 +109,7 @@ def from_source(source):
     if kind == "closed_form":
         cls = {"planar_2r": closed_form.Planar2R, "absolute_2r": closed_form.Absolute2R}[source["model"]]
         return cls(name, **source["params"])
-    raise ValueError(f"unknown robot source kind {kind!r} (closed_form, urdf, dh, elastic)")
+    raise ValueError(f"unknown robot source kind {kind!r} (catalog, closed_form, urdf, dh, elastic)")
 
 
 def load_elastic(name, J=None, K=None):

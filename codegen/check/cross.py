@@ -5,17 +5,19 @@ compares them with ``measure.relative_error``.
 """
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 
 from .. import compile_observer
 from ..reference import reference_observer
 from ..target import discretization as as_discretization
-from ..trajectory import demo_trajectory
-from .inputs import random_inputs
+from .inputs import random_inputs, run_inputs
 from .measure import relative_error
 
 
-def cross_check(spec, discretization=None, count=1000, seed=0, **overrides):
+def cross_check(spec, discretization=None, count=1000, seed=0, folder=None, **overrides):
     """Worst relative errors of the compiled C against the independent reference (DESIGN §3).
 
     From each of ``count`` random (x, y, u) (``random_inputs``): two samples (the second with
@@ -32,6 +34,10 @@ def cross_check(spec, discretization=None, count=1000, seed=0, **overrides):
     count : int
         Random samples, and the length of the run.
     seed : int
+    folder : path, optional
+        A folder ``codegen.emit`` generated from ``spec``: its C is checked against the
+        reference rebuilt from its metadata JSON alone (discretisation and parameters as
+        recorded), instead of compiling ``spec``.
 
     Returns
     -------
@@ -40,10 +46,17 @@ def cross_check(spec, discretization=None, count=1000, seed=0, **overrides):
         NaN if anything is not finite); "samples": ``count``.
     """
 
-    disc = as_discretization(discretization, **overrides)
+    if folder is None:
+        disc = as_discretization(discretization, **overrides)
+        obs, ref = compile_observer(spec, disc), reference_observer(spec, disc)
+    else:
+        from ..build import build
+        from ..runtime import load
+        folder = Path(folder)
+        obs = load(folder, build(folder))
+        ref = reference_observer(json.loads((folder / f"{folder.name}.json").read_text()))
+        disc = ref.disc
     dt = disc.dt
-    obs = compile_observer(spec, disc)
-    ref = reference_observer(spec, disc)
     X, Y, U = random_inputs(spec, count, seed)
     _, Y2, U2 = random_inputs(spec, count, seed + 7)
     errs = {"step_est": [], "step_state": [], "rhs": []}
@@ -56,13 +69,7 @@ def cross_check(spec, discretization=None, count=1000, seed=0, **overrides):
             errs["step_state"].append(relative_error(obs.state, ref.state))
         errs["rhs"].append(relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)))
     worst = {k: float(np.max(v)) for k, v in errs.items()}  # np.max keeps a NaN: it must fail
-    rng = np.random.default_rng(seed + 1)
-    if spec.ny == spec.nu == spec.robot.n:   # y = q, u = tau: a smooth motion with noise
-        t, Q, QD, TAU = demo_trajectory(spec.robot, T=(count - 1) * dt, dt=dt, seed=seed)
-        Yn = Q + 1e-3 * rng.normal(size=Q.shape)
-        Un = TAU + 1e-2 * rng.normal(size=TAU.shape)
-    else:                                    # other measurements: the family's random inputs
-        _, Yn, Un = random_inputs(spec, count, seed + 2)
+    Yn, Un = run_inputs(spec, count, dt, seed)
     obs.reset(Yn[0]), ref.reset(Yn[0])
     worst["run"] = relative_error(obs.run(Yn, Un), ref.run(Yn, Un))
     worst["samples"] = count

@@ -1,8 +1,23 @@
 """Random cross-check inputs, drawn where each family declares them (``spec.inputs``, an
-``codegen.options.InputRanges``: data, never a hook into the family's module)."""
+``codegen.options.InputRanges``: data, never a hook into the family's module), and the inputs
+of a run along a motion of the robot. Observers of an elastic-joint robot (one with
+``sample_states``) measure true states through their slot names (``elastic_measurement``).
+"""
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
+
+from ..trajectory import demo_trajectory, elastic_measurement, elastic_trajectory
+
+Run = namedtuple("Run", "Y U truth truth_names")
+Run.__doc__ = """Inputs of a run: Y (N, ny), U (N, nu), and the true values (N, k) of the estimate
+slots ``truth_names`` (None when the inputs are random draws)."""
+
+
+def _elastic(robot):
+    return hasattr(robot, "sample_states")
 
 
 def random_inputs(spec, count, seed=0):
@@ -30,6 +45,10 @@ def random_inputs(spec, count, seed=0):
     """
     rng = np.random.default_rng(seed)
     ir, robot = spec.inputs, spec.robot
+    if _elastic(robot):       # y measured off true states, the estimate started near them
+        S = robot.sample_states(count, seed)
+        Y, G = elastic_measurement(spec, S), np.asarray(robot.rigid.g.map(count)(S[:, :robot.n].T)).T
+        return _states(spec, ir, Y, rng, est=S), Y, _torques(ir, G, spec.nu, rng)
     Q = (robot.sample_configurations(count, seed) if ir.y_jitter is None else
          robot.sample_configurations(count, 0) + ir.y_jitter * rng.normal(size=(count, robot.n)))
     Y = np.column_stack([Q] + [m + s * rng.normal(size=count) for m, s in ir.y_extra])
@@ -56,13 +75,14 @@ def _slot(spec, names, name):
     return names.index(name)
 
 
-def _states(spec, ir, Y, rng):
-    """x (N, nx): init(y, est, p) + N(0, x_scale^2), then the declared slots."""
+def _states(spec, ir, Y, rng, est=None):
+    """x (N, nx): init(y, est, p) + N(0, x_scale^2), then the declared slots; est (N, nest)
+    default N(0, est_scale^2)."""
     count = Y.shape[0]
     p = spec.p_default.copy()
     for name, value in ir.init_p:
         p[_slot(spec, spec.p_names, name)] = value
-    EST = ir.est_scale * rng.normal(size=(count, spec.nest))
+    EST = ir.est_scale * rng.normal(size=(count, spec.nest)) if est is None else est
     X0 = np.asarray(spec.init.map(count)(Y.T, EST.T, np.tile(p[:, None], count))).T.reshape(count, spec.nx)
     scale = np.asarray(ir.x_scale, dtype=float)
     if scale.ndim and scale.shape != (spec.nx,):
@@ -82,3 +102,51 @@ def _states(spec, ir, Y, rng):
     for name, lo, hi in ir.x_integer:
         X[:, _slot(spec, spec.x_names, name)] = rng.integers(lo, hi + 1, size=count)
     return X
+
+
+def trajectory_inputs(spec, count, dt, seed=0):
+    """Noise-free inputs of a run of ``count`` samples, ``dt`` apart, with the truth.
+
+    An elastic robot's observer: the robot's motion (``codegen.trajectory.elastic_trajectory``)
+    measured through the slot names, truth the state (estimate slots ``<state>_hat``). When
+    y = q and u = tau: the built-in smooth motion (``demo_trajectory``), truth qd (estimate
+    slots ``qd_hat_<joint>``). Otherwise the family's random inputs (``random_inputs``), no truth.
+
+    Returns
+    -------
+    Run
+    """
+    robot = spec.robot
+    if _elastic(robot):
+        _, X, U = elastic_trajectory(robot, T=(count - 1) * dt, dt=dt, seed=seed)
+        return Run(elastic_measurement(spec, X), U, X, [f"{s}_hat" for s in robot.state_names])
+    if spec.ny == spec.nu == robot.n:
+        _, Q, QD, TAU = demo_trajectory(robot, T=(count - 1) * dt, dt=dt, seed=seed)
+        return Run(Q, TAU, QD, [f"qd_hat_{j}" for j in robot.joint_names])
+    _, Y, U = random_inputs(spec, count, seed + 2)
+    return Run(Y, U, None, None)
+
+
+def run_inputs(spec, count, dt, seed=0):
+    """Inputs of a run of ``count`` samples, ``dt`` apart: ``trajectory_inputs`` with sensor
+    noise on a motion (1e-3 on y, 1e-2 on u), the random draws as they are.
+
+    Parameters
+    ----------
+    spec : codegen.spec.ObserverSpec
+    count : int
+        Number of samples N.
+    dt : float
+        Sample time (s).
+    seed : int
+
+    Returns
+    -------
+    Y : (N, ny) array
+    U : (N, nu) array
+    """
+    rng = np.random.default_rng(seed + 1)
+    run = trajectory_inputs(spec, count, dt, seed)
+    if run.truth is None:
+        return run.Y, run.U
+    return run.Y + 1e-3 * rng.normal(size=run.Y.shape), run.U + 1e-2 * rng.normal(size=run.U.shape)

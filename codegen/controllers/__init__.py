@@ -21,6 +21,7 @@ def _laws():
 
 
 FAMILIES = ("seed000_torque_ex1", "seed000_torque_ex2", "seed000_tracking", "spong_fl", "spong_manifold")
+ELASTIC = ("spong_fl", "spong_manifold")   # laws for an ElasticRobot (the others: a rigid one)
 
 
 def build(family, robot, **kwargs):

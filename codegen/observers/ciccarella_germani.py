@@ -37,6 +37,7 @@ from ..options import VariantOptions
 from ..spec import ObserverSpec
 
 VARIANTS = ("O1", "O2", "O3", "O4")
+ROBOT = "elastic"   # needs an ElasticRobot (codegen.targets checks it before building)
 _LEVEL = ("", "d", "dd", "ddd")
 
 

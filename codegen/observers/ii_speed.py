@@ -17,7 +17,8 @@ the seed; a robot with friction keeps its F [ASSUMPTION]).
 
 Implementation choices:
 - H_i(q, x) = M(q)^{-1}(k1 e_i - C(q, e_i) x) (symmetry P2): one Christoffel matrix and one
-  unpivoted LDL^T solve per quadrature node, no symbolic inverse.
+  unpivoted LDL^T solve per quadrature node, no symbolic inverse; one routine per column in the
+  C, called at every node (_ii_common.column_routines).
 - beta by N-node Gauss-Legendre (``N``, a generation parameter), the intervals of 2 pi-periodic
   joints reduced to |rho| <= pi plus whole periods (``wrap``, ``N_period``; _ii_common and
   docs/quadrature.md; declared as ``spec.options`` (codegen.options.QuadratureOptions), which the
@@ -41,20 +42,36 @@ import casadi as ca
 from ..design import ii_speed_bounds
 from ..symbolic import christoffel_column_matrix, ldl_solve
 from ._ii_common import DEFAULT_N  # public: default quadrature nodes N (docs/quadrature.md)
-from ._ii_common import (beta_directional, designed_bounds, filter_symbols, frobenius_sq, ii_spec,
-                         lemma2_bound, lemma2_names, lemma2_values, quadrature_beta, resolve_wrap,
-                         split_params)
+from ._ii_common import (beta_directional, column_routines, designed_bounds, filter_symbols,
+                         frobenius_sq, ii_spec, lemma2_bound, lemma2_names, lemma2_values,
+                         quadrature_beta, resolve_wrap, split_params)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 
 
 def p_names(n):
-    """Parameter names: the scalars, then a_ji (row-major j, i), then b_jim (C order j, i, m)."""
+    """Parameter names for ``n`` joints: the scalars, then a_ji (row-major j, i), then b_jim
+    (C order j, i, m) of the Lemma-2 bound Deltabar_y (8 + n^2 + n^3 names)."""
     return lemma2_names(SCALARS, "dy_k1", "dy_sx", n)
 
 
 def h_column(robot, q, x, k1, i):
-    """H_i(q, x) = M(q)^{-1} (k1 e_i - C(q, e_i) x)  [S003 (11)], column i."""
+    """H_i(q, x) = M(q)^{-1} (k1 e_i - C(q, e_i) x)  [S003 (11)], column i of the target
+    Jacobian, by symmetry P2 and one LDL^T solve (no symbolic inverse).
+
+    Parameters
+    ----------
+    robot : RobotModel (n joints)
+    q : SX (n,) configuration [rad or m]
+    x : SX (n,) velocity [rad/s or m/s]
+    k1 : float or SX
+        Observer gain k1 (> 4).
+    i : int
+        Column (0 <= i < n).
+
+    Returns
+    -------
+    SX (n,)"""
     n = robot.n
     e = ca.DM.zeros(n, 1)
     e[i] = 1.0
@@ -63,12 +80,41 @@ def h_column(robot, q, x, k1, i):
 
 def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=None,
           samples=None, refine=True, wrap="auto", N_period=None):
-    """I&I speed observer for ``robot`` (defaults: seed 003 Table II gains, r(0) = 0.1).
+    """I&I speed observer for ``robot`` (defaults: seed 003 Table II gains, r(0) = 0.1), the
+    equations of the module docstring [S003 (3)-(54)].
 
-    ``bounds`` is an IISpeedDesign (design.ii_speed_bounds(robot) when None); ``N`` is the
-    number of Gauss-Legendre nodes per integral; ``wrap`` ("auto" | True | False | n bools,
-    see _ii_common.resolve_wrap) reduces the interval of the 2 pi-periodic joints to |rho| <= pi
-    plus whole periods, integrated by the N_period-node (default N) trapezoid. Requires k1 > 4 and r0 > c_r > 0 [S003 (55),(38)]."""
+    Parameters
+    ----------
+    robot : RobotModel (n joints)
+    k1 : float
+        Gain of the target Jacobian H [S003 (11)]; k1 > 4 [S003 (55)].
+    k2, k3 : float
+        Constant parts of the filter gains psi1, psi2 [S003 (53),(54)].
+    c_r : float
+        Lower bound of the dynamic scaling r [S003 (38)]; r0 > c_r > 0.
+    r0 : float
+        Initial r (a runtime parameter).
+    N : int
+        Gauss-Legendre nodes per integral of beta [S003 (12)].
+    bounds : IISpeedDesign, optional
+        Offline bounds (k_m, k_M, Deltabar_x, Lemma-2 coefficients); when None,
+        design.ii_speed_bounds(robot, samples=, refine=).
+    samples : int, optional
+        Configurations sampled by the design when ``bounds`` is None (default 2000 for n <= 3,
+        300 above).
+    refine : bool
+        Refine the sampled sups locally (design only).
+    wrap : "auto", bool or sequence of n bool
+        Joints whose interval is reduced to |rho| <= pi plus whole periods
+        (_ii_common.resolve_wrap).
+    N_period : int, optional
+        Trapezoid nodes over one period of a wrapped joint (default N).
+
+    Returns
+    -------
+    ObserverSpec
+        State [xi; s_y; s_x; r] (3n + 1), est = [s_x; xhat] (2n) [rad/s or m/s].
+    """
     if not k1 > 4:
         raise ValueError(f"k1 must be > 4 [S003 (55)], got {k1}")
     if not (r0 > c_r > 0):
@@ -84,10 +130,8 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     s, a, b = split_params(p, n, SCALARS)
     K1 = s["k1"]
 
-    def col(i, q, v):
-        return h_column(robot, q, v, K1, i)
-
-    beta, dbdy = quadrature_beta(col, y, s_y, s_x, N, periodic, N_period)   # [S003 (12),(13)]
+    cols = column_routines(robot, h_column, "h")
+    beta, dbdy = quadrature_beta(cols, K1, y, s_y, s_x, N, periodic, N_period)   # [S003 (12),(13)]
     xhat = xi + beta                                                    # [S003 (3b)]
     e_y, e_x = s_y - y, s_x - xhat                                      # [S003 (17),(18)]
     fd = robot.forward_dynamics(y, xhat, u)
@@ -107,7 +151,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
 
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", 2 * n)
     sx0, xhat0 = est0[:n], est0[n:]
-    beta0, _ = quadrature_beta(col, y0, y0, sx0, N, periodic, N_period)
+    beta0, _ = quadrature_beta(cols, K1, y0, y0, sx0, N, periodic, N_period)
     x0 = ca.vertcat(xhat0 - beta0, y0, sx0, s["r0"])
 
     j = list(robot.joint_names)

@@ -20,6 +20,8 @@ import numpy as np
 from ..design import tomei_K1
 from ..spec import ObserverSpec
 
+ROBOT = "elastic"   # needs an ElasticRobot (codegen.targets checks it before building)
+
 
 def build(robot, A=2000.0, K2=2000.0, Ka=10000.0, Q_lyap=2000.0, K1=None):
     """Tomei observer for an ElasticRobot; defaults: the seed's Sim-1 gains (SPEC §7), K1 from

@@ -42,7 +42,7 @@ def block(spec, disc, *, reference=False, prefix=None, inline="auto", out_dir=No
     inline : "auto" or bool
         Code shape of the C step (codegen.discretize).
     out_dir : path, optional
-        Folder of the generated target (default <repo>/build/targets).
+        Folder of the generated target (default build/targets in the working folder).
 
     Returns
     -------

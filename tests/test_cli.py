@@ -1,0 +1,213 @@
+"""The command line (codegen.cli): every target option, one-line errors, --force, permissions,
+and the "must show" runs: a URDF outside the catalog with a locked gripper to a C folder and a
+cross-check, an elastic robot's Ciccarella-Germani O2 and Tomei, from the CLI alone."""
+import json
+import os
+import re
+import stat
+from pathlib import Path
+
+import pytest
+
+from codegen import cli
+from codegen.targets import TargetError
+
+ROOT = Path(__file__).resolve().parent.parent
+URDF = ROOT / "tests" / "data" / "gripper_arm.urdf"
+GRIPPER = ["--urdf", str(URDF), "--lock", "finger_left=0.01", "--lock", "finger_right=0.01"]
+CHEAP = ["seed002_2r", "--family", "su_nonsmooth"]        # no design, a small kernel
+
+
+@pytest.fixture(autouse=True)
+def workdir(tmp_path, monkeypatch):
+    """Each test in its own working folder; compiled libraries shared through the repo's cache."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("CODEGEN_CACHE", str(ROOT / "build" / "cache"))
+    return tmp_path
+
+
+def run(capsys, *argv):
+    """(exit code, stdout, stderr) of the CLI (argparse's own errors exit through SystemExit)."""
+    try:
+        code = cli.main([str(a) for a in argv])
+    except SystemExit as e:
+        code = e.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def meta(folder):
+    return json.loads((Path(folder) / f"{Path(folder).name}.json").read_text())
+
+
+def test_urdf_with_locked_gripper_to_c_and_cross_check(capsys, workdir):
+    """Must show: a URDF not in the catalog, fingers locked, built into ./generated and
+    cross-checked against the reference, from the CLI alone."""
+    code, out, err = run(capsys, "build", *GRIPPER, "--design", "k0=40")
+    assert code == 0, err
+    folder = workdir / "generated" / "gripper_arm_reduced_order"
+    m = meta(folder)
+    assert m["robot"]["n"] == 3 and m["names"]["y"] == ["q_shoulder_yaw", "q_shoulder_pitch", "q_elbow"]
+    assert m["target"]["robot"]["locked_joints"] == {"finger_left": 0.01, "finger_right": 0.01}
+    assert m["p_default"] == [40.0]
+    assert "gripper_arm_reduced_order: " in out and ".so" in out
+    code, out, err = run(capsys, "check", *GRIPPER, "--design", "k0=40", "--out", "generated", "--count", 200)
+    assert code == 0, err
+    assert out.splitlines()[-1].startswith("OK: worst ") and "gripper_arm_reduced_order" in out
+
+
+# (family, variant, T: run long enough to converge (s), count: cross-check samples; the
+# reference's CG O2 is slow, ~0.7 s per rhs on seed004_2r)
+ELASTIC_RUNS = [("ciccarella_germani", "O2", 0.1, 4), ("tomei", None, 2.0, 100)]
+
+
+@pytest.mark.parametrize("family, variant, T, count", ELASTIC_RUNS)
+def test_elastic_observers_from_cli(capsys, workdir, family, variant, T, count):
+    """Must show: an elastic robot's Ciccarella-Germani O2 and Tomei, generated (C harness ==
+    ctypes over a run, the state estimate converging on the robot's own motion) and
+    cross-checked, from the CLI alone."""
+    args = ["seed004_2r", "--elastic", "--family", family, "--dt", "1e-4"] + (["--variant", variant] if variant else [])
+    prefix = "seed004_2r_elastic_" + family + (f"_{variant.lower()}" if variant else "")
+    code, out, err = run(capsys, "generate", *args, "--T", T)
+    assert code == 0, err
+    assert f"{prefix} " in out and "C harness == ctypes: True" in out
+    e0, eT = (float(v) for v in re.search(rf"\|x - x_hat\| (\S+) -> (\S+) at t = {T:g} s", out).groups())
+    assert eT < 0.1 * e0                       # it converges on the robot's own motion
+    assert meta(workdir / "generated" / prefix)["robot"]["source"]["kind"] == "elastic"
+    code, out, err = run(capsys, "check", *args, "--count", count)
+    assert code == 0, err
+    assert out.splitlines()[-1].startswith("OK: worst ")
+
+
+def test_every_target_option_reaches_the_target(workdir):
+    """Each option of build/check/generate maps to its Target field (no building)."""
+    args = cli.parser().parse_args(
+        ["build", *GRIPPER, "--elastic", "--J", "0.5,0.6,0.7", "--K", "2e4", "--family", "ciccarella_germani",
+         "--variant", "O2", "--design", "eigenvalues=[-10,-20,-30,-40,-50,-60,-70,-80,-90,-100,-110,-120]",
+         "--param", "rcond_min=1e-9", "--dt", "5e-4", "--method", "euler", "--hold", "zoh", "--substeps", "2",
+         "--precision", "double", "--name", "my_arm", "--out", "c", "--force", "--native", "-j", "1"])
+    [(t, out)] = cli._targets(args)
+    assert out == workdir / "c" and (args.force, args.native, args.jobs) == (True, True, 1)
+    assert t.robot["kind"] == "elastic" and t.robot["J"] == [0.5, 0.6, 0.7] and t.robot["K"] == 2e4
+    assert t.robot["rigid"] == {"kind": "urdf", "name": "gripper_arm", "path": str(URDF),
+                                "locked_joints": {"finger_left": 0.01, "finger_right": 0.01}}
+    assert (t.family, t.variant, t.params, t.name) == ("ciccarella_germani", "O2", {"rcond_min": 1e-9}, "my_arm")
+    assert t.build == {"eigenvalues": [-10.0 * k for k in range(1, 13)]}
+    assert t.discretization.to_dict() == {"dt": 5e-4, "method": "euler", "hold": "zoh", "substeps": 2}
+    # a file's targets take the discretisation, precision and out of the command line
+    Path("t.toml").write_text('[[target]]\nrobot = "ur5"\n[[target]]\nrobot = "panda"\n')
+    args = cli.parser().parse_args(["generate", "-c", "t.toml", "--dt", "2e-3", "--hold", "zoh", "--out", "x"])
+    targets = cli._targets(args)
+    assert [(t.prefix, t.discretization.dt, t.discretization.hold, o) for t, o in targets] == [
+        ("ur5_reduced_order", 2e-3, "zoh", workdir / "x"), ("panda_reduced_order", 2e-3, "zoh", workdir / "x")]
+    # no robot, no -c: ./targets.toml
+    Path("targets.toml").write_text('[[target]]\nrobot = "seed000_2r"\nfamily = "nicosia_tomei"\n')
+    [(t, _)] = cli._targets(cli.parser().parse_args(["check"]))
+    assert t.prefix == "seed000_2r_nicosia_tomei"
+
+
+ERRORS = [
+    (["build", "ur6"], ["unknown robot 'ur6'", "catalog: seed000_2r"]),
+    (["build", "--urdf", "missing.urdf"], ["URDF file not found", "missing.urdf"]),
+    (["build", "ur5", "--family", "kalman"], ["unknown family 'kalman'", "families: ciccarella_germani"]),
+    (["build", "seed004_2r", "--elastic", "--family", "ciccarella_germani", "--variant", "O9"],
+     ["no variant 'O9'", "variants: O1, O2, O3, O4"]),
+    (["build", "seed004_3r", "--family", "ciccarella_germani"], ["ciccarella_germani needs an elastic robot",
+                                                                 "--elastic"]),
+    (["build", "seed004_3r", "--elastic", "--family", "reduced_order"], ["needs a rigid robot"]),
+    (["build", *GRIPPER, "--elastic", "--family", "tomei"], ["give J and K"]),
+    (["build", *CHEAP, "--param", "nosuch=1"], ["params: unknown parameter(s) ['nosuch'] of su_nonsmooth",
+                                                "known: ['K0_"]),
+    (["build", *CHEAP, "--param", "xian"], ["--param expects NAME=VALUE, got 'xian'"]),
+    (["build", *CHEAP, "--param", "xian=one"], ["--param xian: expected a number, got 'one'"]),
+    (["build", *GRIPPER, "--lock", "elbow=up"], ["--lock elbow: expected a number"]),
+    (["build", *CHEAP, "--design", "gain=3"], ["unknown design input gain of su_nonsmooth", "valid: form"]),
+    (["build", "seed004_2r", "--elastic", "--J", "big", "--family", "tomei"], ["--J: expected a number"]),
+    (["build", "ur5", "panda", "--name", "x"], ["--name names one target, got 2"]),
+    (["build", "ur5", "-c", "t.toml"], ["not both"]),
+    (["build", "-c", "t.toml", "--family", "tomei"], ["--family: describe a robot given on the command line"]),
+    (["build", "-c", "nothere.toml"], ["targets file not found"]),
+    (["build"], ["no targets", "-c FILE", "no targets.toml in"]),
+    (["build", "ur5", "--method", "rk45"], ["invalid choice: 'rk45'", "choose from 'euler', 'rk4'"]),
+    (["build", "ur5", "--dt", "fast"], ["argument --dt: invalid float value: 'fast'"]),
+    (["frobnicate"], ["invalid choice: 'frobnicate'", "list"]),
+]
+
+
+@pytest.mark.parametrize("argv, words", ERRORS, ids=[" ".join(a[:4]) for a, _ in ERRORS])
+def test_mistakes_give_one_line(capsys, argv, words):
+    """A user mistake: exit 2, one line on stderr naming the problem and the choices, no traceback."""
+    Path("t.toml").write_text('[[target]]\nrobot = "ur5"\n')
+    code, out, err = run(capsys, *argv)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    for w in words:
+        assert w in lines[0]
+
+
+def test_debug_shows_the_traceback(capsys):
+    with pytest.raises(TargetError, match="unknown robot 'ur6'"):
+        cli.main(["build", "ur6", "--debug"])
+    with pytest.raises(TargetError, match="unknown robot 'ur6'"):
+        cli.main(["--debug", "build", "ur6"])
+
+
+def test_force_and_permissions(capsys, workdir):
+    """A folder of another target is refused (and left as it was) unless --force; the same
+    target regenerates freely; folders 0755 and files 0644 whatever the umask."""
+    old = os.umask(0o077)
+    try:
+        code, _, err = run(capsys, "build", *CHEAP)
+    finally:
+        os.umask(old)
+    assert code == 0, err
+    folder = workdir / "generated" / "seed002_2r_su_nonsmooth"
+    assert stat.S_IMODE(folder.stat().st_mode) == 0o755
+    assert {f.name: stat.S_IMODE(f.stat().st_mode) for f in folder.iterdir()} == {
+        f.name: 0o644 for f in folder.iterdir()}
+    before = (folder / "seed002_2r_su_nonsmooth.json").read_text()
+    code, _, err = run(capsys, "build", *CHEAP)                          # same target: fine
+    assert code == 0, err
+    code, out, err = run(capsys, "build", *CHEAP, "--dt", "5e-4", "--substeps", "2")
+    assert code == 2
+    assert err.count("\n") == 1 and "holds another target (discretization: " in err and "--force" in err
+    assert (folder / "seed002_2r_su_nonsmooth.json").read_text() == before
+    code, _, err = run(capsys, "build", *CHEAP, "--dt", "5e-4", "--substeps", "2", "--force")
+    assert code == 0, err
+    assert meta(folder)["target"]["discretization"] == {"dt": 5e-4, "method": "rk4", "hold": "foh", "substeps": 2}
+    code, _, err = run(capsys, "build", *CHEAP, "--name", "su_fast", "--dt", "5e-4")     # elsewhere: fine
+    assert code == 0 and (workdir / "generated" / "su_fast").is_dir()
+
+
+def test_generate_a_users_targets_file_in_parallel(capsys, workdir):
+    """generate -c FILE builds each target (two processes), outputs in the file's out folder."""
+    (workdir / "robots").mkdir()
+    (workdir / "robots" / "gripper.urdf").write_bytes(URDF.read_bytes())
+    Path("my.toml").write_text(
+        '[[target]]\nurdf = "robots/gripper.urdf"\nlock = { finger_left = 0.0, finger_right = 0.0 }\n'
+        'family = "su_nonsmooth"\nout = "c"\n\n'
+        '[[target]]\nrobot = "seed002_2r"\nfamily = "su_nonsmooth"\nname = "two_link_su"\nout = "c"\n')
+    code, out, err = run(capsys, "generate", "-c", "my.toml", "-j", 2, "--T", 0.5)
+    assert code == 0, err
+    assert sorted(p.name for p in (workdir / "c").iterdir()) == ["gripper_su_nonsmooth", "two_link_su"]
+    assert out.count("C harness == ctypes: True") == 2 and "|qd - qd_hat|" in out
+    assert out.splitlines()[-1] == f"2 of 2 targets in {workdir / 'c'}"
+
+
+def test_list(capsys):
+    Path("targets.toml").write_text('[[target]]\nrobot = "seed000_2r"\n')
+    code, out, _ = run(capsys, "list")
+    assert code == 0
+    assert "ciccarella_germani     elastic variants O1, O2, O3, O4 (default O1)" in out
+    assert "reduced_order          rigid   design: k0, eta, v_max" in out
+    assert out.splitlines()[-1] == "targets of ./targets.toml: seed000_2r_reduced_order"
+
+
+def test_every_option_has_help():
+    """Help text on every option and positional of every command."""
+    ap = cli.parser()
+    sub = next(a for a in ap._actions if a.dest == "cmd")
+    for name, p in sub.choices.items():
+        for action in p._actions:
+            assert action.help, f"{name} {action.option_strings or action.dest} has no help"
