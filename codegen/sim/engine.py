@@ -49,25 +49,44 @@ class Result:
 
     def write_csv(self, path):
         """One row per sample: t, q, qd, y, u, then each observer's estimate."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        cols = {"t": self.t[:, None]}
-        n = self.n
-        cols.update({f"q{i}": self.q[:, i:i + 1] for i in range(n)})
-        cols.update({f"qd{i}": self.qd[:, i:i + 1] for i in range(n)})
-        cols.update({f"y{i}": self.y[:, i:i + 1] for i in range(self.y.shape[1])})
-        cols.update({f"u{i}": self.u[:, i:i + 1] for i in range(self.u.shape[1])})
-        for name, E in self.est.items():
-            cols.update({f"{name}_est{i}": E[:, i:i + 1] for i in range(E.shape[1])})
-        for name, S in self.states.items():
-            cols.update({f"{name}_x{i}": S[:, i:i + 1] for i in range(S.shape[1])})
-        tmp = path.with_suffix(".tmp")
-        with open(tmp, "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(list(cols))
-            w.writerows(np.hstack(list(cols.values())).tolist())
-        tmp.replace(path)
-        return path
+        cols = {"t": self.t, "q": self.q, "qd": self.qd, "y": self.y, "u": self.u}
+        cols.update({f"{name}_est": E for name, E in self.est.items()})
+        cols.update({f"{name}_x": S for name, S in self.states.items()})
+        return write_columns(path, cols)
+
+
+def write_columns(path, columns):
+    """A CSV with one row per sample, written through a temporary file (nothing half-written).
+
+    Parameters
+    ----------
+    path : path of the CSV
+    columns : dict
+        name -> (N,) array (one column ``name``) or (N, k) array (columns ``name0`` ..
+        ``name{k-1}``); every array has the same N.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    names, blocks = [], []
+    for name, a in columns.items():
+        a = np.asarray(a, dtype=float)
+        if a.ndim == 1:
+            names.append(name)
+            blocks.append(a[:, None])
+        else:
+            names.extend(f"{name}{i}" for i in range(a.shape[1]))
+            blocks.append(a)
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(names)
+        w.writerows(np.hstack(blocks).tolist())
+    tmp.replace(path)
+    return path
 
 
 class Port:

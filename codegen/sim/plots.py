@@ -8,6 +8,8 @@ PNG and returns the path:
     panels               traces on stacked (or gridded) axes          [S002 Figs. 1-4, S003 Figs. 4, 5]
     positions_and_bound  positions, speed norms and the bound r vbar [S000 Figs. 4, 6]
     tracking             tracking errors and torques                  [S000 Example 3]
+    elastic_errors       link/motor position/velocity errors, 2 x 2   [S004 Figs. 3, 4, 8-17]
+    joint_trajectory     q_d and its derivatives 1..3, 2 x 2          [S004 Figs. 2, 7]
 """
 from __future__ import annotations
 
@@ -99,24 +101,37 @@ def panels(path, x, rows, title="", cols=1, cell=(8.0, 2.6), xlabel="t [s]"):
     return _save(fig, path)
 
 
-def per_joint(path, t, truth, estimates, ylabel="qd{} [rad/s]", truth_label="true", title=""):
+def per_joint(path, t, truth, estimates, ylabel="qd{} [rad/s]", truth_label="true", title="", zoom=None):
     """Per joint i: the true signal (solid) and each estimate (dashed, dash-dotted, ...).
 
     Parameters
     ----------
     t : (N,) s;  truth : (N, n);  estimates : dict label -> (N, >= n) (first n columns drawn)
     ylabel : axis label per joint, ``{}`` replaced by the joint number (1-based)
+    zoom : (t0, t1) in s, optional
+        Adds the same curves over [t0, t1] in an inset box of each axes [S000 Fig. 7].
     """
     plt = _plt()
     n = truth.shape[1]
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n), sharex=True, squeeze=False)
     for i, ax in enumerate(axes[:, 0]):
-        ax.plot(t, truth[:, i], "k-", lw=1.4, label=truth_label)
-        for (name, E), ls in zip(estimates.items(), STYLES):
-            ax.plot(t, E[:, i], linestyle=ls, lw=1.1, label=name)
+        boxes = [ax]
+        if zoom is not None:
+            box = ax.inset_axes([0.55, 0.5, 0.42, 0.45])
+            sel = (t >= zoom[0]) & (t <= zoom[1])
+            box.set_xlim(*zoom)
+            ax.indicate_inset_zoom(box, edgecolor="gray")
+            box.tick_params(labelsize=7)
+            box.grid(alpha=0.3)
+            boxes.append((box, sel))
+        for target in boxes:
+            a, sel = (target, slice(None)) if target is ax else target
+            a.plot(t[sel], truth[sel, i], "k-", lw=1.4, label=truth_label)
+            for (name, E), ls in zip(estimates.items(), STYLES):
+                a.plot(t[sel], E[sel, i], linestyle=ls, lw=1.1, label=name)
         ax.set_ylabel(ylabel.format(i + 1))
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(loc="best", fontsize=8)
+    axes[0, 0].legend(loc="lower left", fontsize=8)
     axes[0, 0].set_title(title)
     axes[-1, 0].set_xlabel("t [s]")
     return _save(fig, path)
@@ -167,3 +182,41 @@ def positions_and_bound(path, t, q, qd, est, r, vbar, q_ref=None, title=""):
     a2.grid(alpha=0.3)
     a2.legend(loc="best", fontsize=8)
     return _save(fig, path)
+
+
+ELASTIC_QUANTITIES = (("Link", "position", "rad", 0), ("Motor", "position", "rad", 2),
+                      ("Link", "velocity", "rad/s", 1), ("Motor", "velocity", "rad/s", 3))
+
+
+def elastic_errors(path, t, E, title=""):
+    """Estimation errors x - xhat of an elastic robot, one curve per joint, on a 2 x 2 grid:
+    link positions, motor positions (top), link velocities, motor velocities (bottom)
+    [S004 Figs. 3, 4, 8-17].
+
+    Parameters
+    ----------
+    t : (N,) s
+    E : (N, 4n) errors in the state order [q1; q1'; q2; q2'] (rad, rad/s)
+    """
+    n = E.shape[1] // 4
+    rows = [Panel({f"{who} {i + 1} {what} error": E[:, block * n + i] for i in range(n)},
+                  ylabel=f"{who.lower()} {what} error [{unit}]")
+            for who, what, unit, block in ELASTIC_QUANTITIES]
+    return panels(path, t, rows, title=title, cols=2, cell=(5.2, 3.0))
+
+
+def joint_trajectory(path, t, R, n, title=""):
+    """Desired joint trajectory: position, acceleration (top), velocity, jerk (bottom), one
+    curve per joint [S004 Figs. 2, 7].
+
+    Parameters
+    ----------
+    t : (N,) s
+    R : (N, >= 4n) rows [q_d, its 1st, 2nd, 3rd derivative, ...] (rad, rad/s, rad/s^2, rad/s^3)
+    n : int, number of joints
+    """
+    order = ((0, "position", "rad"), (2, "acceleration", "rad/s^2"), (1, "velocity", "rad/s"),
+             (3, "jerk", "rad/s^3"))
+    rows = [Panel({f"Link {i + 1} {what}": R[:, k * n + i] for i in range(n)}, ylabel=f"{what} [{unit}]")
+            for k, what, unit in order]
+    return panels(path, t, rows, title=title, cols=2, cell=(5.2, 3.0))

@@ -18,7 +18,10 @@ Step: dt = 1e-4 s for everything (SPEC §3.3: the sign of (35) is integrated lit
 smoothing; RK4 with the measurement held over the step).
 
 Scenarios: ``seed002`` (noise-free, Figs. 1–2 plus the comparison), ``seed002-noisy``
-(std = 0.3 RMS(q_i), Figs. 3–4), ``seed002-noise-3mrad`` (std = 0.003 rad), ``seed002-ur5``.
+(std = 0.3 RMS(q_i), Figs. 3–4), ``seed002-noise-3mrad`` (std = 0.003 rad), ``seed002-ur5``,
+``seed002-claims`` (the paper's two comparisons with (35) examined, issue 15: the noise-free
+transient per 0.5 s window with one setting changed at a time, and the noise std at which the
+steady-state ordering flips, by bisection, per noise realisation).
 """
 from __future__ import annotations
 
@@ -112,10 +115,14 @@ _TRACKS = {}
 
 
 def experiment(robot_name="seed002_2r", T=5.0, dt=1e-4, noise=0.0, reference=False,
-               su=True, reference_traj=None, substeps=1, T_ss=1.0, seed=0, rows="all"):
+               su=True, reference_traj=None, substeps=1, T_ss=1.0, seed=0, rows="all", gains=None,
+               su_est0=None):
     """Run the plant and the observers; returns a dict of arrays (see ``summarize``).
 
-    noise  0 (none), "rms30" (std = 0.3 RMS(q_i), A2-3) or a std in rad."""
+    noise    0 (none), "rms30" (std = 0.3 RMS(q_i), A2-3) or a std in rad
+    gains    keyword arguments of the adaptive observer's ``build`` (alpha, lam, gamma,
+             thetahat0, zhat1_from_y0); None: Table II
+    su_est0  initial [qd_hat, qhat] of (35); None: the seed's [2, 2, -1, -1] on the 2R arm"""
     from models import load_robot
 
     from ...observers import build
@@ -136,7 +143,7 @@ def experiment(robot_name="seed002_2r", T=5.0, dt=1e-4, noise=0.0, reference=Fal
     else:
         std = np.full(robot.n, float(noise))
     Qs = noisy(Q, std, dt, seed=seed)
-    spec = build("lotfi_namvar", robot, rows=rows)
+    spec = build("lotfi_namvar", robot, rows=rows, **(gains or {}))
     nm = nonminimal(robot, rows)
     N = len(t)
     FF = np.asarray(nm.force_function().map(N)(Q.T, QD.T, TAU.T)).T            # SPEC §3.1
@@ -149,10 +156,11 @@ def experiment(robot_name="seed002_2r", T=5.0, dt=1e-4, noise=0.0, reference=Fal
     out = {"robot": robot_name, "t": t, "q": Q, "qd": QD, "tau": TAU, "q_s": Qs, "std": std,
            "f_f": FF, "nu": NU, "joints": nm.joints, "row_names": nm.row_names,
            "theta": nm.theta, "qd_hat": EST[:, :no], "nu_hat": EST[:, no:no + r],
-           "theta_hat": EST[:, no + r:], "T_ss": T_ss, "dt": dt, "reference": reference}
+           "theta_hat": EST[:, no + r:], "T_ss": T_ss, "dt": dt, "reference": reference,
+           "J_n_smin": np.linalg.svd(Jall.transpose(1, 0, 2), compute_uv=False)[:, -1]}
     if su:
         sspec = build("su_nonsmooth", robot)
-        est0 = SU_INIT if robot.n == 2 else None
+        est0 = su_est0 if su_est0 is not None else SU_INIT if robot.n == 2 else None
         out["su_est"] = run_observer(sspec, Qs, TAU, dt, reference, est0=est0)
         out["qd_hat_su"] = out["su_est"][:, :robot.n]
     return out
@@ -180,6 +188,85 @@ def summarize(d):
         s["qd_err_rms_ss_su"] = _rms(e_su[ss])
     s["observers"] = "numpy reference" if d["reference"] else "compiled C"
     return s
+
+
+# ---------------------------------------------------------------------------- the two open claims
+WINDOWS = ((0.0, 0.5), (0.5, 1.0), (1.0, 1.5), (1.5, 2.0))   # s, the transient (issue 15, 4a)
+TABLE_II_GAMMA = np.array([200.0, 250.0, 250.0, 100.0])
+TRANSIENT_CASES = {   # name -> (adaptive gains, (35)'s initial estimate); None = the paper's
+    "paper (Table II, (35) from [2, 2, -1, -1])": (None, None),
+    "thetahat(0) = theta": ({"thetahat0": [0.5, 0.5, 1.0, 1.0]}, None),
+    "gamma x 4": ({"gamma": 4 * TABLE_II_GAMMA}, None),
+    "gamma / 4": ({"gamma": TABLE_II_GAMMA / 4}, None),
+    "alpha = 60": ({"alpha": 60.0}, None),
+    "lambda = 48": ({"lam": 48.0}, None),
+    "zhat1(0) = pi(q0)": ({"zhat1_from_y0": 1.0}, None),
+    "(35) from [0, 0, q(0)]": (None, np.array([0.0, 0.0, 0.0, 1.0])),
+}
+
+
+def windowed_rms(d, windows=WINDOWS):
+    """RMS over each window [a, b) of ||qd_hat - qd|| for the adaptive observer and (35), and of
+    ||nuhat - nu|| (rad/s, m/s): {"adaptive": [...], "su": [...], "nu": [...]}."""
+    t, J = d["t"], d["joints"]
+    errs = {"adaptive": d["qd_hat"] - d["qd"][:, J], "su": d["qd_hat_su"] - d["qd"], "nu": d["nu_hat"] - d["nu"]}
+    return {k: [_rms(E[(t >= a) & (t < b)]) for a, b in windows] for k, E in errs.items()}
+
+
+def transient_study(T=2.0, cases=TRANSIENT_CASES):
+    """Issue 15, 4a: the noise-free transient of the adaptive observer (13) against (35) per
+    window WINDOWS, for the paper's setting and one change at a time (thetahat(0), gamma, alpha,
+    lambda, zhat(0), (35)'s initial estimate); plus the conditioning of J_n along the run."""
+    rows = {}
+    for name, (gains, su0) in cases.items():
+        d = experiment(T=T, gains=gains, su_est0=su0)
+        rows[name] = windowed_rms(d)
+    smin = d["J_n_smin"]
+    return {"windows_s": [list(w) for w in WINDOWS], "qd_error_rms": rows,
+            "J_n_sigma_min": {"min": float(smin.min()), "median": float(np.median(smin))}}
+
+
+def ordering(std, T=5.0, seed=0):
+    """log(RMS_adaptive / RMS_(35)) of the steady-state joint-velocity error (last 1 s of T) at
+    noise std (rad): < 0 while the adaptive observer is the quieter one."""
+    s = summarize(experiment(T=T, noise=float(std), seed=seed))
+    return float(np.log(s["qd_err_rms_ss_adaptive"] / s["qd_err_rms_ss_su"]))
+
+
+def flip_noise(lo=0.03, hi=0.3, rel_tol=0.02, T=5.0, seed=0):
+    """Issue 15, 4b: the noise std (rad, 1 kHz, held) at which the steady-state ordering of the
+    adaptive observer and (35) flips, by bisection on log(std) between lo (adaptive quieter) and
+    hi (adaptive noisier). Returns {"std_rad", "bracket", "evaluations"}."""
+    f_lo, f_hi = ordering(lo, T, seed), ordering(hi, T, seed)
+    if not (f_lo < 0 < f_hi):
+        raise ValueError(f"no flip between lo={lo} ({f_lo:+.3f}) and hi={hi} ({f_hi:+.3f})")
+    evals = [(lo, f_lo), (hi, f_hi)]
+    while hi / lo > 1 + rel_tol:
+        mid = float(np.sqrt(lo * hi))
+        f = ordering(mid, T, seed)
+        evals.append((mid, f))
+        lo, hi = (mid, hi) if f < 0 else (lo, mid)
+    return {"std_rad": float(np.sqrt(lo * hi)), "bracket": [lo, hi],
+            "evaluations": [[float(a), float(b)] for a, b in sorted(evals)]}
+
+
+FLIP_SEEDS = (0, 1, 2)                 # noise realisations of the flip search
+
+
+def claims(reference=False, out=Path("build/sim") / "seed002-claims"):
+    """Scenario seed002-claims: the transient study (4a) and the flip noise level (4b), the
+    latter per noise realisation FLIP_SEEDS (it moves with the realisation), 5 s runs."""
+    if reference:
+        raise ValueError("seed002-claims runs the compiled observers only (reference=False)")
+    flips = {seed: flip_noise(seed=seed, rel_tol=0.05) for seed in FLIP_SEEDS}
+    std = np.array([f["std_rad"] for f in flips.values()])
+    rms_q = np.sqrt(np.mean(experiment(T=5.0)["q"] ** 2, axis=0))
+    return {"transient": transient_study(),
+            "flip": {"std_rad_per_seed": {str(k): f["std_rad"] for k, f in flips.items()},
+                     "std_rad_median": float(np.median(std)), "std_rad_range": [float(std.min()), float(std.max())],
+                     "median_over_rms_q": [float(np.median(std) / r) for r in rms_q],
+                     "spec_30pct_std_rad": [float(0.3 * r) for r in rms_q],
+                     "bisection": {str(k): f["evaluations"] for k, f in flips.items()}}}
 
 
 def plot(d, out, tag):
@@ -223,6 +310,7 @@ SCENARIOS = {
     "seed002": _scenario("seed002", noise=0.0),
     "seed002-noisy": _scenario("seed002-noisy", noise="rms30"),
     "seed002-noise-3mrad": _scenario("seed002-noise-3mrad", noise=0.003),
+    "seed002-claims": claims,
     "seed002-ur5": _scenario("seed002-ur5", robot_name="ur5", T=20.0, dt=1e-3, su=False,
                              substeps=2, T_ss=2.0),
 }

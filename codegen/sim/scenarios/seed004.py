@@ -18,6 +18,13 @@ is sampled at dt = 1e-4 s.
     The 3R kernels call the RHS routine instead of inlining it (``inline=False``): ~1 s compile.
 ``dt_check`` in Sim 1's summary compares with dt = 5e-5.
 
+Figures: one PNG per figure of the paper, named after it (``fig08_sim3_o1_errors.png``), with
+the paper's quantities (per-component errors x - xhat of link and motor positions and
+velocities; link tracking errors; the desired trajectory) over the paper's time spans
+(FIG_SPAN, read off the axes of the authors' report), each with a CSV of the plotted data;
+``run.csv`` holds the whole run at 1 kHz. The 3R manifold controller uses the authors' fast
+poles 70 [-1, -1.2, ..., -1.6] (SPEC §10), the 2R one the seed's -70 {1.1, ..., 1.4} (A4-5).
+
 When the controller uses the true state, the plant/controller loop runs first and the observers
 then run over the recorded (y, u) in C (``obs.run``): they do not act on the loop. With an
 estimated state (Sim 2) the observer is stepped inside the loop.
@@ -33,6 +40,7 @@ from ...target import Discretization
 from .. import plots
 from ..blocks import bind, block
 from ..elastic_plant import ElasticPlant
+from ..engine import write_columns
 
 DT = 1e-4
 PLANT_SUBSTEPS = 2
@@ -40,6 +48,12 @@ OBSERVER_HOLD = "foh"
 OBSERVER_SUBSTEPS = {2: 1, 3: 4}          # per number of joints (see the module docstring)
 T_SIM, T_TRAJ = 10.0, 5.0
 THRESHOLD = 0.02                  # convergence: ||e(t)|| < 2 % of ||e(0)|| from then on
+FAST_POLES_2R = -70.0 * np.array([1.1, 1.2, 1.3, 1.4])     # [S004 Sim. 2] (A4-5: the seed's set)
+FAST_POLES_3R = 70.0 * np.array([-1, -1.2, -1.3, -1.4, -1.5, -1.6])   # [CODE-CP config_3R.m] SPEC §10
+STATE_BLOCKS = ("link_q", "link_qd", "motor_q", "motor_qd")   # x = [q1; q1'; q2; q2'] (SPEC §6)
+CSV_EVERY = 10                    # run.csv (and figure CSVs over spans > 1 s) at 1 kHz
+FIG_SPAN = {3: 2.2, 4: 0.045, 8: 0.2, 9: 0.2, 10: 0.1, 11: 0.032, 12: 0.5, 13: 0.1,
+            14: 0.2, 15: 0.05, 16: 0.15, 17: 0.2}   # time axis of the paper's figures [s] (report.pdf)
 
 
 # ---------------------------------------------------------------------------- building blocks
@@ -78,10 +92,13 @@ def measurement(spec, X):
 
 
 def controller(robot, kind, dt=DT):
-    """Spong's controller, kind 'fl' (feedback linearisation) or 'manifold', compiled; evaluated
-    once per sample (u held)."""
+    """Spong's controller, kind 'fl' (feedback linearisation) or 'manifold' (fast poles
+    FAST_POLES_2R / FAST_POLES_3R), compiled; evaluated once per sample (u held)."""
     from ...controllers import spong
-    spec = spong.feedback_linearization(robot) if kind == "fl" else spong.integral_manifold(robot)
+    if kind == "fl":
+        spec = spong.feedback_linearization(robot)
+    else:
+        spec = spong.integral_manifold(robot, fast_poles=FAST_POLES_2R if robot.n == 2 else FAST_POLES_3R)
     return block(spec, Discretization(dt=dt, method="rk4", hold="zoh"))
 
 
@@ -186,43 +203,103 @@ def sign_changes(t, E, t_end, floor=1e-3):
     return total
 
 
-def _error_plot(out, name, t, curves, ylabel, title):
-    """<out>/<name>.png: the norms ``curves`` on a log axis; returns the path as a string."""
-    return str(plots.error_norms(Path(out) / f"{name}.png", t, curves, levels=(), ylabel=ylabel, title=title))
+# ---------------------------------------------------------------------------- figures and CSVs
+def _stride(span):
+    """Rows kept in a CSV: every sample over a short span, every CSV_EVERY-th over a long one."""
+    return 1 if span <= 1.0 else CSV_EVERY
+
+
+def _window(t, span):
+    """Samples with t <= span (to half a sample)."""
+    return slice(0, int(np.searchsorted(t, span + 0.5 * (t[1] - t[0]), side="right")))
+
+
+def error_figure(out, fig, name, t, E, title):
+    """[S004 Fig. fig]: the per-component errors E (N, 4n) over the paper's span FIG_SPAN[fig]
+    (or as far as E goes) as <out>/figNN_<name>.png and .csv. Returns {"png", "csv", "span_s"}."""
+    w = _window(t, FIG_SPAN[fig])
+    t, E = t[w][:len(E)], E[w][:len(t[w])]
+    stem = Path(out) / f"fig{fig:02d}_{name}"
+    n = E.shape[1] // 4
+    png = plots.elastic_errors(stem.with_suffix(".png"), t, E, title=f"Fig. {fig}: {title}")
+    csv = write_columns(stem.with_suffix(".csv"),
+                        {"t": t, **{f"e_{k}": E[:, i * n:(i + 1) * n] for i, k in enumerate(STATE_BLOCKS)}})
+    return {"png": str(png), "csv": str(csv), "span_s": float(t[-1])}
+
+
+def trajectory_figure(out, fig, name, t, R, n, title):
+    """[S004 Figs. 2, 7]: the desired trajectory (q_d and derivatives 1..3) as PNG and CSV."""
+    stem = Path(out) / f"fig{fig:02d}_{name}"
+    png = plots.joint_trajectory(stem.with_suffix(".png"), t, R, n, title=f"Fig. {fig}: {title}")
+    k = slice(None, None, _stride(t[-1]))
+    csv = write_columns(stem.with_suffix(".csv"), {"t": t[k], **{name: R[k, d * n:(d + 1) * n] for d, name in
+                                                                  enumerate(("q_d", "qd_d", "qdd_d", "qddd_d"))}})
+    return {"png": str(png), "csv": str(csv)}
+
+
+def tracking_figure(out, fig, name, t, errors, title):
+    """[S004 Figs. 5, 6]: one panel per controller, the link tracking errors q_d - q1 (N, n) of
+    ``errors`` (label -> array, or None when the run failed), 0-10 s, as PNG and CSV."""
+    stem = Path(out) / f"fig{fig:02d}_{name}"
+    done = {k: e for k, e in errors.items() if e is not None}
+    rows = [plots.Panel({f"Link {i + 1} tracking error": e[:, i] for i in range(e.shape[1])},
+                        ylabel="q_d - q1 [rad]", title=label) for label, e in done.items()]
+    png = plots.panels(stem.with_suffix(".png"), t, rows, title=f"Fig. {fig}: {title}", cell=(8, 2.8))
+    k = slice(None, None, _stride(t[-1]))
+    csv = write_columns(stem.with_suffix(".csv"),
+                        {"t": t[k], **{f"{label.split()[0]}_e": e[k] for label, e in done.items()}})
+    return {"png": str(png), "csv": str(csv), "failed": [k for k, e in errors.items() if e is None]}
+
+
+def write_run(out, t, X, U, estimates, name="run.csv"):
+    """<out>/<name>: t, true state, input and each observer's estimate, every CSV_EVERY-th
+    sample (1 kHz); an estimate shorter than t (an observer that failed) is padded with NaN."""
+    n = X.shape[1] // 4
+    k = slice(None, None, CSV_EVERY)
+    cols = {"t": t[k], **{k_: X[k, i * n:(i + 1) * n] for i, k_ in enumerate(STATE_BLOCKS)}, "u": U[k]}
+    for kind, EST in estimates.items():
+        full = np.full(X.shape, np.nan)
+        full[:len(EST)] = EST
+        cols[f"{kind}_est"] = full[k]
+    return str(write_columns(Path(out) / name, cols))
 
 
 # ---------------------------------------------------------------------------- Sim 1
 SIM1_X0 = np.array([-np.pi / 2, 0, 0, 0, -np.pi / 2, 0, 0, 0])
 SIM1_XHAT0 = np.array([-np.pi / 2, 0, 0, 0, 0, 0, 0, 0])
+QF_2R = [np.pi / 2, 0]
+O1_2R = -100.0 * np.arange(3, 11)                 # [S004 Sim. 1] sigma(A - KC) = -100 {3, ..., 10}
 
 
 def sim1(reference=False, out="build/sim/seed004-sim1", T=T_SIM, dt=DT, dt_check=True):
     """2R: Tomei (A = K2 = Q = 2000 I, Ka_eff = 10000 I) vs CG O1 (-100{3..10}); true-state FL
-    controller (A4-10) on the swing-up reference."""
+    controller (A4-10) on the swing-up reference. Figs. 2-4, run.csv."""
     robot = _robot("seed004_2r")
     t0 = time.perf_counter()
-    t, X, U = closed_loop(robot, controller(robot, "fl"), SIM1_X0, [np.pi / 2, 0], T=T, dt=dt)
+    t, X, U = closed_loop(robot, controller(robot, "fl"), SIM1_X0, QF_2R, T=T, dt=dt)
     summary = {"dt": dt, "plant_substeps": PLANT_SUBSTEPS, "controller": "feedback linearisation (true state)"}
-    curves = {}
-    for kind, eig in (("tomei", None), ("O1", -100.0 * np.arange(3, 11))):
+    ests, figures = {}, {}
+    for kind, eig, fig in (("tomei", None, 3), ("O1", O1_2R, 4)):
         spec, obs = observer(robot, kind, eig, reference=reference, dt=dt)
-        EST = run_observer(spec, obs, X, U, SIM1_XHAT0)
+        ests[kind] = EST = run_observer(spec, obs, X, U, SIM1_XHAT0)
         E = X - EST
-        curves[kind] = np.linalg.norm(E, axis=1)
         summary[f"{kind}_t_2pct_s"] = convergence_time(t, E)
         summary[f"{kind}_max_motor_velocity_error"] = float(np.abs(E[:, 6:]).max())
-        if kind == "O1":
-            summary["O1_final_error"] = float(curves[kind][-1])
+        name = "Tomei" if kind == "tomei" else "Ciccarella-Germani O1"
+        figures[f"fig{fig:02d}"] = error_figure(out, fig, f"sim1_{kind.lower()}_errors", t, E,
+                                                f"Sim 1, estimation error of the {name} observer")
+    summary["O1_final_error"] = float(np.linalg.norm(X[-1] - ests["O1"][-1]))
     if dt_check:   # the same O1 run at half the sample time: the figure must not move
-        spec, obs = observer(robot, "O1", -100.0 * np.arange(3, 11), reference=reference, dt=dt / 2)
-        th, Xh, Uh = closed_loop(robot, controller(robot, "fl", dt / 2), SIM1_X0, [np.pi / 2, 0],
-                                 T=0.2, dt=dt / 2)
+        spec, obs = observer(robot, "O1", O1_2R, reference=reference, dt=dt / 2)
+        th, Xh, Uh = closed_loop(robot, controller(robot, "fl", dt / 2), SIM1_X0, QF_2R, T=0.2, dt=dt / 2)
         Eh = Xh - run_observer(spec, obs, Xh, Uh, SIM1_XHAT0)
         summary["O1_t_2pct_s_half_dt_0.2s"] = convergence_time(th, Eh)
     summary["max_|u|"] = float(np.abs(U).max())
-    summary["tracking_rms_rad"] = float(np.sqrt(np.mean((X[:, :2] - _ref_path(t, SIM1_X0[:2], [np.pi / 2, 0])) ** 2)))
-    summary["plot"] = _error_plot(out, "sim1_error_norm", t, curves, "||x - xhat||",
-                                 title="Sim 1 (2R): Tomei vs Ciccarella-Germani O1")
+    summary["tracking_rms_rad"] = float(np.sqrt(np.mean((X[:, :2] - _ref_path(t, SIM1_X0[:2], QF_2R)) ** 2)))
+    figures["fig02"] = trajectory_figure(out, 2, "2r_desired_trajectory", t,
+                                         reference_table(t, SIM1_X0[:2], QF_2R), 2, "2R desired trajectory")
+    summary["figures"] = dict(sorted(figures.items()))
+    summary["csv"] = write_run(out, t, X, U, ests)
     summary["wall_s"] = time.perf_counter() - t0
     return summary
 
@@ -233,32 +310,41 @@ def _ref_path(t, q0, qf):
 
 # ---------------------------------------------------------------------------- Sim 2
 def sim2(reference=False, out="build/sim/seed004-sim2", T=T_SIM, dt=DT):
-    """2R: FL vs integral-manifold controller, each with the true state and with the CG-O1
-    estimate (initial estimate as Sim 1)."""
+    """2R: FL vs integral-manifold controller, each with the true state (Fig. 5) and with the
+    CG-O1 estimate (Fig. 6; initial estimate as Sim 1). run.csv holds the estimated-state runs."""
     robot = _robot("seed004_2r")
     t0 = time.perf_counter()
-    qf = [np.pi / 2, 0]
-    summary, curves = {"dt": dt}, {}
+    summary = {"dt": dt, "manifold_fast_poles": FAST_POLES_2R.tolist()}
+    errors = {"true": {}, "estimated": {}}
+    ests, runs = {}, {}
     for kind in ("fl", "manifold"):
+        label = "FL controller" if kind == "fl" else "manifold controller"
         ctrl = controller(robot, kind)
-        t, X, U = closed_loop(robot, ctrl, SIM1_X0, qf, T=T, dt=dt)
-        R = _ref_path(t, SIM1_X0[:2], qf)
+        t, X, U = closed_loop(robot, ctrl, SIM1_X0, QF_2R, T=T, dt=dt)
+        R = _ref_path(t, SIM1_X0[:2], QF_2R)
         summary[f"{kind}_true_rms_rad"] = float(np.sqrt(np.mean((X[:, :2] - R) ** 2)))
-        curves[f"{kind} true"] = np.linalg.norm(X[:, :2] - R, axis=1)
-        obs = observer(robot, "O1", -100.0 * np.arange(3, 11), reference=reference, dt=dt)
+        errors["true"][label] = R - X[:, :2]
+        obs = observer(robot, "O1", O1_2R, reference=reference, dt=dt)
         try:
-            t, X, U, _ = closed_loop(robot, ctrl, SIM1_X0, qf, T=T, dt=dt, est_observer=obs,
-                                     est0=SIM1_XHAT0)
+            t, X, U, EST = closed_loop(robot, ctrl, SIM1_X0, QF_2R, T=T, dt=dt, est_observer=obs,
+                                       est0=SIM1_XHAT0)
             summary[f"{kind}_estimated_rms_rad"] = float(np.sqrt(np.mean((X[:, :2] - R) ** 2)))
-            curves[f"{kind} estimated"] = np.linalg.norm(X[:, :2] - R, axis=1)
+            errors["estimated"][label] = R - X[:, :2]
+            ests[f"{kind}_O1"], runs[kind] = EST, (X, U)
         except Exception as exc:
             summary[f"{kind}_estimated_rms_rad"] = float("inf")
             summary[f"{kind}_estimated_failure"] = str(exc)[:120]
+            errors["estimated"][label] = None
     for state in ("true", "estimated"):   # SPEC §12.4: the manifold controller tracks better
         fl, mf = summary[f"fl_{state}_rms_rad"], summary[f"manifold_{state}_rms_rad"]
         summary[f"fl_over_manifold_rms_{state}"] = fl / mf if mf > 0 else float("inf")
-    summary["plot"] = _error_plot(out, "sim2_tracking", t, curves, "||q1 - q_d|| (rad)",
-                                 title="Sim 2 (2R): FL vs integral manifold")
+    summary["figures"] = {
+        "fig05": tracking_figure(out, 5, "sim2_tracking_state_feedback", t, errors["true"],
+                                 "Sim 2, tracking error with state feedback"),
+        "fig06": tracking_figure(out, 6, "sim2_tracking_estimated_state", t, errors["estimated"],
+                                 "Sim 2, tracking error with the Ciccarella-Germani O1 estimate")}
+    summary["csv"] = [write_run(out, t, X, U, {f"{kind}_O1": ests[f"{kind}_O1"]}, name=f"run_{kind}.csv")
+                      for kind, (X, U) in runs.items()]
     summary["wall_s"] = time.perf_counter() - t0
     return summary
 
@@ -270,58 +356,66 @@ X0_SIM5 = np.r_[-np.pi, np.pi, -np.pi, 0, 0, 0, -np.pi, np.pi, -np.pi, 0, 0, 0] 
 X0_SIM6 = np.r_[-np.pi, np.pi, -np.pi, -4, 5, 10, -1.5 * np.pi, 0.5 * np.pi, -np.pi, 6, 10, -20]  # (5.8)
 QF_3R = [np.pi / 2, np.pi, 0]                                                             # (5.5)
 STUDIES = {
-    # sim: (observers, x0, initial estimate, eigenvalue range)
-    3: (("O1", "O2"), X0_SIM3, np.r_[Q3_REST, np.zeros(9)], (-250, -260)),
-    4: (("O1",), X0_SIM3, np.r_[Q3_REST, np.zeros(9)], (-500, -510)),
-    5: (("O1", "O2"), X0_SIM5, np.zeros(12), (-85, -90)),
-    6: (("O2",), X0_SIM6, np.zeros(12), (-250, -260)),
-    7: (("O3",), X0_SIM3, np.zeros(12), (-250, -260)),
-    8: (("O3",), X0_SIM6, np.zeros(12), (-250, -260)),
-    9: (("O4",), X0_SIM3, np.zeros(12), (-250, -260)),
-    10: (("O4",), X0_SIM6, np.zeros(12), (-250, -260)),
+    # sim: (observers with their paper figure, x0, initial estimate, eigenvalue range)
+    3: ((("O1", 8), ("O2", 9)), X0_SIM3, np.r_[Q3_REST, np.zeros(9)], (-250, -260)),
+    4: ((("O1", 10),), X0_SIM3, np.r_[Q3_REST, np.zeros(9)], (-500, -510)),
+    5: ((("O1", 11), ("O2", 12)), X0_SIM5, np.zeros(12), (-85, -90)),
+    6: ((("O2", 13),), X0_SIM6, np.zeros(12), (-250, -260)),
+    7: ((("O3", 14),), X0_SIM3, np.zeros(12), (-250, -260)),
+    8: ((("O3", 15),), X0_SIM6, np.zeros(12), (-250, -260)),
+    9: ((("O4", 16),), X0_SIM3, np.zeros(12), (-250, -260)),
+    10: ((("O4", 17),), X0_SIM6, np.zeros(12), (-250, -260)),
 }
 
 
 def study_3r(k, reference=False, out=None, T=T_SIM, dt=DT):
-    """3R study k (SPEC §12.4 table): manifold controller on the true state to [pi/2, pi, 0]."""
+    """3R study k (SPEC §12.4 table): manifold controller (fast poles FAST_POLES_3R) on the true
+    state to [pi/2, pi, 0]; the paper's error figures (and Fig. 7 for Sim 3), run.csv."""
     observers_, x0, xhat0, (e0, e1) = STUDIES[k]
     robot = _robot("seed004_3r")
     t0 = time.perf_counter()
     t, X, U = closed_loop(robot, controller(robot, "manifold"), x0, QF_3R, T=T, dt=dt)
     eig = np.linspace(e0, e1, 12)
-    summary, curves = {"dt": dt, "observer": f"RK4 x{OBSERVER_SUBSTEPS[3]} substeps, {OBSERVER_HOLD}",
-                       "eigenvalues": [e0, e1], "max_|u|": float(np.abs(U).max()),
-                       "max_|link_velocity|": float(np.abs(X[:, 3:6]).max()),
-                       "loop_s": time.perf_counter() - t0}, {}
-    for kind in observers_:
+    summary = {"dt": dt, "observer": f"RK4 x{OBSERVER_SUBSTEPS[3]} substeps, {OBSERVER_HOLD}",
+               "eigenvalues": [e0, e1], "manifold_fast_poles": FAST_POLES_3R.tolist(),
+               "max_|u|": float(np.abs(U).max()), "max_|link_velocity|": float(np.abs(X[:, 3:6]).max()),
+               "loop_s": time.perf_counter() - t0}
+    ests, figures = {}, {}
+    for kind, fig in observers_:
         spec, obs = observer(robot, kind, eig, reference=reference, dt=dt)
         EST, fail = _safe_run(spec, obs, X, U, xhat0)
         if EST is None or not np.all(np.isfinite(EST)):
             summary[f"{kind}_converged"] = False
             summary[f"{kind}_failure"] = fail
-            part, k_fail = _run_until_failure(spec, obs, X, U, xhat0)
+            EST, k_fail = _run_until_failure(spec, obs, X, U, xhat0)
             if k_fail:
-                nrm = np.linalg.norm(X[:k_fail] - part, axis=1)
-                curves[kind] = nrm
+                nrm = np.linalg.norm(X[:k_fail] - EST, axis=1)
                 summary[f"{kind}_failed_at_s"] = float(t[k_fail])
                 summary[f"{kind}_error_before_failure"] = float(nrm[-1])
                 summary[f"{kind}_initial_error"] = float(nrm[0])
-            continue
-        E = X - EST
-        nrm = np.linalg.norm(E, axis=1)
-        curves[kind] = nrm
-        tc = convergence_time(t, E)
-        summary[f"{kind}_converged"] = bool(nrm[-1] < THRESHOLD * nrm[0])
-        summary[f"{kind}_t_2pct_s"] = tc
-        summary[f"{kind}_initial_error"] = float(nrm[0])
-        summary[f"{kind}_peak_error"] = float(nrm.max())
-        summary[f"{kind}_peak_velocity_error"] = float(np.abs(E[:, [3, 4, 5, 9, 10, 11]]).max())
-        summary[f"{kind}_peak_position_error"] = float(np.abs(E[:, [0, 1, 2, 6, 7, 8]]).max())
-        summary[f"{kind}_sign_changes_to_2pct"] = sign_changes(t, E, tc)
-        summary[f"{kind}_final_error"] = float(nrm[-1])
-    if curves and out is not None:
-        summary["plot"] = _error_plot(out, f"sim{k}_error_norm", t, curves, "||x - xhat||",
-                                     title=f"Sim {k} (3R)")
+        else:
+            E = X - EST
+            nrm = np.linalg.norm(E, axis=1)
+            tc = convergence_time(t, E)
+            summary[f"{kind}_converged"] = bool(nrm[-1] < THRESHOLD * nrm[0])
+            summary[f"{kind}_t_2pct_s"] = tc
+            summary[f"{kind}_initial_error"] = float(nrm[0])
+            summary[f"{kind}_peak_error"] = float(nrm.max())
+            summary[f"{kind}_peak_velocity_error"] = float(np.abs(E[:, [3, 4, 5, 9, 10, 11]]).max())
+            summary[f"{kind}_peak_position_error"] = float(np.abs(E[:, [0, 1, 2, 6, 7, 8]]).max())
+            summary[f"{kind}_sign_changes_to_2pct"] = sign_changes(t, E, tc)
+            summary[f"{kind}_final_error"] = float(nrm[-1])
+        ests[kind] = EST
+        if out is not None and len(EST):
+            figures[f"fig{fig:02d}"] = error_figure(
+                out, fig, f"sim{k}_{kind.lower()}_errors", t, X[:len(EST)] - EST,
+                f"Sim {k}, estimation error of {kind}, eigenvalues in [{e0}, {e1}]")
+    if out is not None:
+        if k == 3:
+            figures["fig07"] = trajectory_figure(out, 7, "3r_desired_trajectory", t,
+                                                 reference_table(t, x0[:3], QF_3R), 3, "3R desired trajectory")
+        summary["figures"] = dict(sorted(figures.items()))
+        summary["csv"] = write_run(out, t, X, U, ests)
     summary["wall_s"] = time.perf_counter() - t0
     return summary
 
