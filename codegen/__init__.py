@@ -34,7 +34,8 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         What to build (a Target is built into its spec first).
     discretization : codegen.target.Discretization or dict, optional
         How to step it; default ``codegen.target.DEFAULT_DISCRETIZATION`` (or the Target's own).
-        ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields.
+        ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields;
+        ``substeps="auto"``: the fewest substeps that make the discrete observer stable.
     out_dir : path, optional
         Where the generated folder goes (default <repo>/build/targets).
     prefix : str, optional
@@ -50,30 +51,36 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     -------
     codegen.runtime.CompiledObserver
         Loaded from the content-hash cache: compiling the same target twice costs one generation.
+        Its ``spec`` is attached, so ``obs.params = ...`` runs the full stability check.
+
+    Raises
+    ------
+    codegen.stability.UnstableDiscretization
+        (a ValueError) when the discretised observer is unstable for its parameters, naming the
+        gain, dt and the fix.
     """
+    from dataclasses import replace
+
     from .build import build, repo_root
-    from .emit import emit
+    from .emit import emit, with_params
     from .runtime import load
+    from .stability import auto_substeps
     from .target import Target
 
-    over = dict(dt=dt, method=method, substeps=substeps, hold=hold)
+    auto = substeps == "auto"
+    over = dict(dt=dt, method=method, substeps=None if auto else substeps, hold=hold)
     if isinstance(spec, Target):
         target = spec.with_discretization(discretization, **over)
-        target = target if prefix is None else _renamed(target, prefix)
-        target = target if inline == "auto" else _reshaped(target, inline)
-        spec = None
+        target = target if prefix is None else replace(target, name=prefix)
+        target = target if inline == "auto" else replace(target, inline=inline)
+        spec = build_spec(target)
     else:
         target = spec.target(discretization, name=prefix, inline=inline, **over)
+    if auto:
+        checked = with_params(spec, target.params) if target.params else spec
+        target = replace(target, discretization=auto_substeps(checked, target.discretization))
     out_dir = out_dir or (repo_root() / "build" / "targets")
     folder = emit(target, out_dir, spec=spec)
-    return load(folder, build(folder, native=native, extra_flags=cflags))
-
-
-def _renamed(target, name):
-    from dataclasses import replace
-    return replace(target, name=name)
-
-
-def _reshaped(target, inline):
-    from dataclasses import replace
-    return replace(target, inline=inline)
+    obs = load(folder, build(folder, native=native, extra_flags=cflags))
+    obs.spec = spec
+    return obs

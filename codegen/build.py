@@ -17,6 +17,8 @@ from collections import namedtuple
 from functools import lru_cache
 from pathlib import Path
 
+from .cache import cache_dir, repo_root  # noqa: F401  (re-exported: one place for the paths)
+
 C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic"]
 # -fno-semantic-interposition: let gcc inline CasADi's non-static helpers (casadi_sq) under -fPIC
 SHARED_FLAGS = ["-fPIC", "-shared", "-fno-semantic-interposition"]
@@ -39,15 +41,6 @@ class ToolError(RuntimeError):
 
 class BuildError(ToolError):
     """The C (or C++) compiler failed or is missing."""
-
-
-def repo_root():
-    return Path(__file__).resolve().parent.parent
-
-
-def cache_dir():
-    """$CODEGEN_CACHE, else <repo>/build/cache."""
-    return Path(os.environ.get("CODEGEN_CACHE", repo_root() / "build" / "cache"))
 
 
 def compiler(cc=None, env="CC", default="gcc"):
