@@ -143,12 +143,14 @@ def _pieces(spec, dt, method, substeps, hold, inline, syms=None):
         xj = spec.jump(x, y, p) if spec.jump is not None else x
         est = spec.output(xj, y, u, p)
         xn = _advance(spec, xj, lambda t: y, u, p, dt, method, substeps)
+        flow = (xj, xn)
     else:
         # linear y over the last interval; active = 0 collapses it to no step at all
         xa = _advance(spec, x, lambda t: yp + (t / dt) * (y - yp), up, p, active * dt, method, substeps)
         xn = spec.jump(xa, y, p) if spec.jump is not None else xa
         est = spec.output(xn, y, u, p)
-    return [x, yp, y, up, u, p, active], xn, est
+        flow = (x, xa)
+    return [x, yp, y, up, u, p, active], xn, est, flow
 
 
 _NAMES_IN = ["x", "y_prev", "y", "u_prev", "u", "p", "active"]
@@ -170,14 +172,14 @@ def discretize(spec, disc, inline="auto"):
     casadi.Function
         ``step(x, y_prev, y, u_prev, u, p, active) -> (x_next, est)``.
     """
-    ins, xn, est = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
+    ins, xn, est, _ = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
     return ca.Function("step", ins, [xn, est], _NAMES_IN, ["x_next", "est"])
 
 
 def estimate(spec, disc, inline="auto"):
     """The estimate of ``discretize(spec, disc)`` as its own Function (same inputs), without
     advancing the state."""
-    ins, _, est = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
+    ins, _, est, _ = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
     return ca.Function("estimate", ins, [est], _NAMES_IN, ["est"])
 
 
@@ -187,17 +189,18 @@ def step_jacobians(spec, disc, inline="auto"):
     Returns
     -------
     casadi.Function
-        ``(x, y, u, p, dt) -> (dx_next/dx, J(x), J(x_next))``: the step of ``disc`` (its
+        ``(x, y, u, p, dt) -> (dx_next/dx, J(x_a), J(x_b))``: the step of ``disc`` (its
         method, hold, substeps; its dt replaced by the input dt) at y_prev = y, u_prev = u,
         active = 1 (the measurement held over the sample), and the continuous-time Jacobian
-        J = drhs/dx of the flow at both ends of the step.
+        J = drhs/dx of the flow at both ends x_a, x_b of the step's flow (a hybrid jump, before
+        or after it, is not part of the flow).
     """
     inline = _inline(spec, disc.method, disc.substeps, inline)
     sym = ca.SX.sym if inline else ca.MX.sym
     x, y, u, p, dt = sym("x", spec.nx), sym("y", spec.ny), sym("u", spec.nu), sym("p", spec.np), sym("dt")
-    _, xn, _ = _pieces(spec, dt, disc.method, disc.substeps, disc.hold, inline,
-                       syms=(x, y, y, u, u, p, 1))
+    _, xn, _, (xa, xb) = _pieces(spec, dt, disc.method, disc.substeps, disc.hold, inline,
+                                 syms=(x, y, y, u, u, p, 1))
     J = ca.Function("J", [x, y, u, p], [ca.jacobian(spec.rhs(x, y, u, p), x)])
     return ca.Function("step_jacobians", [x, y, u, p, dt],
-                       [ca.jacobian(xn, x), J(x, y, u, p), J(xn, y, u, p)],
+                       [ca.jacobian(xn, x), J(xa, y, u, p), J(xb, y, u, p)],
                        ["x", "y", "u", "p", "dt"], ["Phi", "J0", "J1"])

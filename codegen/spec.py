@@ -33,6 +33,9 @@ class ObserverSpec:
                                             integrated exactly by the default "etdrk4"
       retune(x, y, p_old, p_new) -> x+  (or None: identity)  the state after a parameter change
                                             at measurement y that keeps the estimate continuous
+      measurement(est)   -> y    (or None)  the measurement of a plant in the estimated state
+                                            (families estimating the whole state): consistent
+                                            working points for the stability check
 
     Declared data (what the reference and the cross-check read, never guessed):
       variant     the family's variant (None if it has none)
@@ -59,6 +62,7 @@ class ObserverSpec:
     jump: ca.Function | None = None
     rate: ca.Function | None = None
     retune: ca.Function | None = None
+    measurement: ca.Function | None = None
     variant: str | None = None
     options: Options = field(default_factory=Options)
     inputs: InputRanges = DEFAULT_INPUTS

@@ -3,7 +3,7 @@
 The step x_k+1 = Phi(x_k; y, u, p) of ``codegen.discretize`` is linearised in x (CasADi
 Jacobian of the step with dt as an input; the robot's F, M, C enter through the flow) at working
 points: sampled configurations y (``spec.inputs``), each at rest (estimate 0) and moving
-(velocity-sized estimate), x = init(y, est, p). At each point i
+(velocity-sized estimate), x = init(y, est, p) (elastic robots: sampled plant states as estimates). At each point i
 
     rho_i   = spectral radius of dPhi/dx                      (the discrete observer)
     rho_c,i = rho(expm(dt (J(x_i) + J(x_i+)) / 2)),  J = d rhs/dx   (the exact linearised flow
@@ -32,7 +32,7 @@ from .cache import cached_json
 from .check.inputs import declared_slots, measurements
 from .discretize import step_jacobians
 
-VERSION = 1            # of this check (part of the cache key)
+VERSION = 2            # of this check (part of the cache key)
 POINTS = 8             # sampled configurations; each at rest and moving
 TOL = 1e-6             # relative slack on the spectral radius
 GROWTH = 4.0 ** 10     # a gain is searched up to this multiple of its value (x4 at a time)
@@ -111,16 +111,39 @@ def _gain_value(p, idx):
     return float(np.max(p[idx])) if len(idx) else 0.0
 
 
+def _working_points(spec, points, seed, rng):
+    """(Y, U, EST), 2 ``points`` rows: each measurement with the estimate at rest, then moving.
+
+    A rigid robot: y, u where ``spec.inputs`` declares them (codegen.check.inputs), estimates
+    0 and velocity-sized. An elastic one (no joint-space sampling of its own): sampled plant
+    states as the estimates (at rest: velocities 0), y and u at unit scale."""
+    robot = spec.robot
+    if hasattr(robot, "sample_configurations"):
+        Y, U = measurements(spec, points, seed, rng)
+        moving = 0.5 * spec.inputs.est_scale * rng.normal(size=(points, spec.nest))
+        rest = np.zeros_like(moving)
+    else:
+        Y, U = rng.normal(size=(points, spec.ny)), rng.normal(size=(points, spec.nu))
+        if spec.nest == robot.nx:
+            moving = robot.sample_states(points, seed)
+            rest = robot.sample_states(points, seed, speed=0.0)
+        else:
+            moving = 0.5 * spec.inputs.est_scale * rng.normal(size=(points, spec.nest))
+            rest = np.zeros_like(moving)
+    EST = np.vstack([rest, moving])
+    if spec.measurement is not None:          # y of a plant in the estimated state: converged
+        Y = np.asarray(spec.measurement.map(2 * points)(EST.T)).reshape(spec.ny, 2 * points).T
+        return Y, np.vstack([U, U]), EST
+    return np.vstack([Y, Y]), np.vstack([U, U]), EST
+
+
 class _Linearisation:
     """The step's Jacobian and the exact flow's growth at the working points, for any p, dt."""
 
     def __init__(self, spec, disc, points=POINTS, seed=0):
         self.spec, self.disc = spec, disc
         rng = np.random.default_rng(seed)
-        Y, U = measurements(spec, points, seed, rng)
-        moving = 0.5 * spec.inputs.est_scale * rng.normal(size=(points, spec.nest))
-        self.Y, self.U = np.vstack([Y, Y]), np.vstack([U, U])
-        self.EST = np.vstack([np.zeros_like(moving), moving])
+        self.Y, self.U, self.EST = _working_points(spec, points, seed, rng)
         self.slots = declared_slots(spec, self.Y, rng)
         self.S = len(self.Y)
         self.jac = step_jacobians(spec, disc).map(self.S)
@@ -214,7 +237,7 @@ def _compute(spec, disc, p, gains, bounds=True):
 def _digest(spec):
     """Digests of the spec's functions: the check depends on nothing else of the spec."""
     from .cache import key_digest
-    fns = [spec.rhs, spec.output, spec.init, spec.jump, spec.rate]
+    fns = [spec.rhs, spec.output, spec.init, spec.jump, spec.rate, spec.measurement]
     return key_digest([f.serialize() if f is not None else None for f in fns]
                       + [list(spec.rate_states), spec.inputs.to_dict()])
 
@@ -239,6 +262,9 @@ def check(spec, disc, p=None, cache=True, bounds=True):
     StabilityReport
     """
     p = np.asarray(spec.p_default if p is None else p, dtype=float).reshape(spec.np)
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"{spec.family}: non-finite parameter(s) "
+                         f"{[n for n, v in zip(spec.p_names, p) if not np.isfinite(v)]}")
     key = {"version": VERSION, "spec": _digest(spec), "disc": disc.to_dict(), "p": p.tolist(),
            "gains": {g: list(s) for g, s in spec.gains.items()}, "points": POINTS, "bounds": bounds}
 

@@ -30,6 +30,7 @@ T_OPEN, T_CLOSED = 20.0, 12.0                    # [ASSUMPTION SPEC §12.1] hori
 NOISE_1A = dict(noise_std=2e-4, quantum=7e-4)    # [S000 Ex. 1a] Delta_q; sigma [ASSUMPTION]
 NOISE_HIGH = dict(noise_std=1e-3, quantum=7e-4)  # [ASSUMPTION SPEC §12.1] "high level of noise"
 ETA, VMAX, VBAR = 1.0, 2.0, 2.0                  # [S000 §V]
+PAPER = "guarantee"                              # the papers' gains: (12), (16), K_P = 500 I
 DELTA_HIGH_NOISE = 0.3   # [ASSUMPTION SPEC §1.3 "scale delta with the noise"]: > noise peak of x2hat (~0.2)
 LEVELS = (1e-2, 1e-3)
 _ROBOTS = {}
@@ -45,12 +46,13 @@ def robot(mass_scale=1.0):
 
 
 def observer(spec, reference, dt=DT, prefix=None, hold="zoh"):
-    """The observer of ``spec`` as compiled C, or the numpy reference."""
+    """The observer of ``spec`` as compiled C, or the numpy reference (RK4, as in the figures of
+    the README; ``hold`` zero-order unless asked)."""
     if reference:
         from ...reference import reference_observer
-        return reference_observer(spec, dt=dt, hold=hold)
+        return reference_observer(spec, dt=dt, method="rk4", hold=hold)
     from ... import compile_observer
-    return compile_observer(spec, dt=dt, prefix=prefix, hold=hold)
+    return compile_observer(spec, dt=dt, method="rk4", prefix=prefix, hold=hold)
 
 
 def plant(mass_scale=1.0, dt=DT):
@@ -116,7 +118,7 @@ def example1(reference=False, noisy=True, mass_scale=1.0, T=T_OPEN, dt=DT, seed=
     Returns (Result, summary)."""
     from ...observers import build
     nominal = robot()
-    obs = {f: observer(build(f, nominal, eta=ETA, v_max=VMAX), reference, dt, hold=hold)
+    obs = {f: observer(build(f, nominal, eta=ETA, v_max=VMAX, design=PAPER), reference, dt, hold=hold)
            for f in ("reduced_order", "nicosia_tomei")}
     sensor = Sensor(**NOISE_1A, seed=seed) if noisy else Sensor()
     res = simulate(plant(mass_scale, dt), Q0, QD0, T, dt, open_loop_law(1, dt), obs, sensor=sensor)
@@ -167,7 +169,7 @@ def example2(reference=False, T=T_OPEN, dt=DT, seed=2, fixed=None, delta=None):
     with k = k_r for r in ``fixed`` (default 2..r_max). Returns (Result, summary, gains)."""
     from ...observers import build
     nominal = robot()
-    hyb = build("reduced_order_hybrid", nominal, eta=ETA, vbar=VBAR,
+    hyb = build("reduced_order_hybrid", nominal, eta=ETA, vbar=VBAR, design=PAPER,
                 delta=DELTA_HIGH_NOISE if delta is None else delta)
     gains = hyb.p_default[:-3]
     fixed = range(2, len(gains) + 1) if fixed is None else fixed
@@ -218,7 +220,7 @@ def example3(reference=False, T=T_CLOSED, dt=DT, seed=3, setpoint=False):
     q_d = qbar (an initial tracking error, as the seed's Fig. 6 shows)."""
     from ...controllers.seed000 import Q_GOAL, T_MOVE, quintic
     from ...observers import build
-    hyb = build("reduced_order_hybrid", robot(), eta=ETA, vbar=VBAR)
+    hyb = build("reduced_order_hybrid", robot(), eta=ETA, vbar=VBAR, design=PAPER)
     q_start = np.asarray(Q_GOAL) if setpoint else Q0
     res = simulate(plant(1.0, dt), Q0, QD0, T, dt, tracking_law("hybrid", dt, q_start),
                    {"hybrid": observer(hyb, reference, dt)}, sensor=Sensor(**NOISE_1A, seed=seed),
@@ -275,7 +277,7 @@ def bench(T=T_OPEN):
     out = {"T_s": T, "samples": int(round(T / DT)) + 1}
     for key, ref in (("c", False), ("reference", True)):
         t0 = time.perf_counter()
-        specs = [build(f, robot(), eta=ETA, v_max=VMAX) for f in ("reduced_order", "nicosia_tomei")]
+        specs = [build(f, robot(), eta=ETA, v_max=VMAX, design=PAPER) for f in ("reduced_order", "nicosia_tomei")]
         obs = {sp.family: observer(sp, ref) for sp in specs}
         pl, law = plant(), open_loop_law(1)
         t1 = time.perf_counter()
