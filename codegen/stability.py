@@ -32,7 +32,7 @@ from .cache import cached_json
 from .check.inputs import declared_slots, measurements
 from .discretize import step_jacobians
 
-VERSION = 2            # of this check (part of the cache key)
+VERSION = 3            # of this check (part of the cache key)
 POINTS = 8             # sampled configurations; each at rest and moving
 TOL = 1e-6             # relative slack on the spectral radius
 GROWTH = 4.0 ** 10     # a gain is searched up to this multiple of its value (x4 at a time)
@@ -114,12 +114,14 @@ def _gain_value(p, idx):
 def _working_points(spec, points, seed, rng):
     """(Y, U, EST), 2 ``points`` rows: each measurement with the estimate at rest, then moving.
 
-    A rigid robot: y, u where ``spec.inputs`` declares them (codegen.check.inputs), estimates
-    0 and velocity-sized. An elastic one (no joint-space sampling of its own): sampled plant
+    A rigid robot: y where ``spec.inputs`` declares it (codegen.check.inputs), u = g(y) when u
+    is the joint torque (else as declared), estimates 0 and velocity-sized. An elastic one (no joint-space sampling of its own): sampled plant
     states as the estimates (at rest: velocities 0), y and u at unit scale."""
     robot = spec.robot
     if hasattr(robot, "sample_configurations"):
         Y, U = measurements(spec, points, seed, rng)
+        if spec.nu == robot.n:                # u = tau: the static torque g(y), at rest an equilibrium
+            U = np.asarray(robot.g.map(points)(Y[:, :robot.n].T)).T
         moving = 0.5 * spec.inputs.est_scale * rng.normal(size=(points, spec.nest))
         rest = np.zeros_like(moving)
     else:
@@ -144,7 +146,11 @@ class _Linearisation:
         self.spec, self.disc = spec, disc
         rng = np.random.default_rng(seed)
         self.Y, self.U, self.EST = _working_points(spec, points, seed, rng)
-        self.slots = declared_slots(spec, self.Y, rng)
+        # the declared continuous slots (about y, uniform); a discrete one (a hybrid logic state)
+        # stays as init sets it, consistent with the rest of the state, and the step's jump moves it
+        slots = declared_slots(spec, self.Y, rng)
+        integer = {spec.x_names.index(name) for name, _, _ in spec.inputs.x_integer}
+        self.slots = {i: v for i, v in slots.items() if i not in integer}
         self.S = len(self.Y)
         self.jac = step_jacobians(spec, disc).map(self.S)
         self.init = spec.init.map(self.S)
@@ -172,14 +178,20 @@ class _Linearisation:
         if J is None:
             return math.inf, math.inf, math.inf, math.inf if accuracy else None
         rho = np.max(np.abs(np.linalg.eigvals(Phi)), axis=1)
-        rho_c = np.maximum(1.0, np.exp(dt * np.max(np.linalg.eigvals(J).real, axis=1)))
+        rho_c = np.maximum(1.0, np.exp(np.minimum(dt * np.max(np.linalg.eigvals(J).real, axis=1), 700.0)))
         excess = rho / rho_c
         worst = int(np.argmax(excess))
-        error = float(max(np.linalg.norm(a - expm(dt * b), 2) for a, b in zip(Phi, J))) if accuracy else None
+        error = float(max(_distance(a, expm(dt * b)) for a, b in zip(Phi, J))) if accuracy else None
         return float(rho.max()), float(rho_c[worst]), float(excess[worst]), error
 
     def stable(self, p, dt):
         return self.radii(p, dt)[2] <= 1 + TOL
+
+
+def _distance(a, b):
+    """||a - b||_2, inf when not finite."""
+    d = a - b
+    return float(np.linalg.norm(d, 2)) if np.all(np.isfinite(d)) else math.inf
 
 
 def _largest(ok, lo, hi, grow):

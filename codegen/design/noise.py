@@ -15,7 +15,12 @@ under the default discretisation (ETD-RK4, first-order hold) the scalar observer
 
     noise std  s(k0) = sigma_e (1 - E) / dt sqrt(2 / (1 + E))   (~ k0 sigma_e for k0 dt << 1)
     bias             = |e| / k0
-    E(k0)^2          = n s(k0)^2 + d^2 rms_q |M^-1 g|^2 / k0^2                 (error norm, RMS)
+
+and the noise also enters through the model: the acceleration FD(y, ...) moves with y by
+~ -M^-1 dg/dq n (gravity stiffness; slow motions), white noise of PSD sigma_e^2 G^2 dt with
+G = rms_q ||M^-1 dg/dq||_F, which the error dynamics filter by 1/(s + k0):
+
+    E(k0)^2 = n s(k0)^2 + sigma_e^2 G^2 dt / (2 k0) + d^2 rms_q |M^-1 g|^2 / k0^2   (norm, RMS)
 
 and the error from an initial eps0 = eta decays like eta exp(-k0 t): below ``tol`` within
 ``t_conv`` needs k0 >= ln(eta / tol) / t_conv (the convergence floor).
@@ -81,9 +86,11 @@ def smoother_noise(k0, dt, sigma):
     return sigma * (1 - E) / dt * math.sqrt(2 / (1 + E))
 
 
-def reduced_order_error(k0, dt, n, sigma, e_rms):
-    """Predicted RMS of the error norm (rad/s): sqrt(n s(k0)^2 + (e_rms / k0)^2)."""
-    return math.sqrt(n * smoother_noise(k0, dt, sigma) ** 2 + (e_rms / k0) ** 2)
+def reduced_order_error(k0, dt, n, sigma, e_rms, G=0.0):
+    """Predicted RMS of the error norm (rad/s), module docstring:
+    sqrt(n s(k0)^2 + sigma^2 G^2 dt / (2 k0) + (e_rms / k0)^2)."""
+    return math.sqrt(n * smoother_noise(k0, dt, sigma) ** 2 + sigma ** 2 * G ** 2 * dt / (2 * k0)
+                     + (e_rms / k0) ** 2)
 
 
 @dataclass
@@ -105,6 +112,7 @@ class NoiseAwareDesign:
     quantization: float | None
     uncertainty: float
     e_rms: float               # rms_q |M^-1 g| * uncertainty (rad/s^2)
+    G: float                   # rms_q ||M^-1 dg/dq||_F (1/s^2)
     dt: float
     t_conv: float
     eta: float
@@ -127,18 +135,20 @@ class NoiseAwareDesign:
         ])
 
 
-def reduced_order_noise_gain(n, dt, sigma, e_rms, floor, guarantee):
+def reduced_order_noise_gain(n, dt, sigma, e_rms, G, floor, guarantee):
     """Choose k0 (see NoiseAwareDesign): the predicted-error minimiser, raised to the convergence
     floor; without noise the guarantee gain (12) (a higher gain only lowers the bias), raised to
     the floor. (The families then keep it inside the stable region, codegen.stability.)
 
     Returns (k0, choice, why, k0_noise, predicted errors dict)."""
     def err(k):
-        return reduced_order_error(k, dt, n, sigma, e_rms)
-    if sigma > 0 and e_rms > 0:
-        k_small = (e_rms ** 2 / (n * sigma ** 2)) ** 0.25          # the k0 dt << 1 optimum
+        return reduced_order_error(k, dt, n, sigma, e_rms, G)
+    if sigma > 0 and (e_rms > 0 or G > 0):
+        # the k0 dt << 1 optima of each pair of terms bracket the minimiser
+        guesses = [(e_rms ** 2 / (n * sigma ** 2)) ** 0.25, (G ** 2 * dt / (4 * n)) ** (1 / 3)]
+        lo, hi = min(g for g in guesses if g > 0), max(guesses)
         res = minimize_scalar(lambda lk: err(math.exp(lk)), method="bounded",
-                              bounds=(math.log(k_small) - 3, math.log(k_small) + 3))
+                              bounds=(math.log(lo) - 2, math.log(hi) + 2))
         k_noise = math.exp(res.x)
     elif sigma > 0:
         k_noise = 0.0          # the error only grows with k0: the floor decides
@@ -149,7 +159,8 @@ def reduced_order_noise_gain(n, dt, sigma, e_rms, floor, guarantee):
         why = "no sensor noise: a higher gain only lowers the model-error bias; (12) certifies the region (13)"
     elif k_noise >= floor:
         k0, choice = k_noise, "noise-aware optimum"
-        why = "minimises the predicted error (noise ~ k0 sigma against model-error bias ~ |e|/k0)"
+        why = ("minimises the predicted error (measurement noise ~ k0 sigma against noise through the model "
+               "~ sigma G sqrt(dt / 2 k0) and model-error bias ~ |e|/k0)")
     else:
         k0, choice = floor, "convergence floor"
         why = (f"the noise-aware optimum {k_noise:.4g} is below the gain that converges to 1e-2 rad/s in time; "
@@ -195,24 +206,27 @@ def nicosia_tomei_noise_gains(dt, sigma, g_rms, uncertainty, trace_minv2, mu_min
     return kd, kp, error(kd, kp)
 
 
-def gravity_statistics(M, g, points):
+def gravity_statistics(M, g, dg, points):
     """Statistics of the model over sampled configurations (for the predictions above).
 
     Parameters
     ----------
-    M, g : casadi.Function q -> M(q) (n, n), g(q) (n,)
+    M, g, dg : casadi.Function q -> M(q) (n, n), g(q) (n,), dg/dq (n, n)
     points : (S, n) configurations
 
     Returns
     -------
-    dict: minv_g_rms (rms |M^-1 g|, rad/s^2), g_rms (rms |g|, N m), trace_minv2 (mean
-    tr(M^-2)), mu_min (1 / max lambda_max(M)), mu_max (1 / min lambda_min(M))."""
+    dict: minv_g_rms (rms |M^-1 g|, rad/s^2), minv_dg_rms (rms ||M^-1 dg/dq||_F, 1/s^2), g_rms
+    (rms |g|, N m), trace_minv2 (mean tr(M^-2)), mu_min (1 / max lambda_max(M)), mu_max
+    (1 / min lambda_min(M))."""
     S, n = points.shape
     Ms = np.asarray(M.map(S)(points.T)).reshape(n, S, n).transpose(1, 0, 2)
     gs = np.asarray(g.map(S)(points.T)).reshape(n, S).T
+    dgs = np.asarray(dg.map(S)(points.T)).reshape(n, S, n).transpose(1, 0, 2)
     Minv_g = np.linalg.solve(Ms, gs[:, :, None])[:, :, 0]
     lam = np.linalg.eigvalsh(Ms)
     return {"minv_g_rms": float(np.sqrt(np.mean(np.sum(Minv_g ** 2, axis=1)))),
+            "minv_dg_rms": float(np.sqrt(np.mean(np.sum(np.linalg.solve(Ms, dgs) ** 2, axis=(1, 2))))),
             "g_rms": float(np.sqrt(np.mean(np.sum(gs ** 2, axis=1)))),
             "trace_minv2": float(np.mean(np.sum(lam ** -2.0, axis=1))),
             "mu_min": float(1 / lam[:, -1].max()), "mu_max": float(1 / lam[:, 0].min())}

@@ -155,7 +155,9 @@ def scheduled_gains(robot, eta=1.0, vbar=2.0, r_max=6, samples=SAMPLES, seed=0):
 @lru_cache(maxsize=32)
 def model_statistics(robot, samples=SAMPLES, seed=0):
     """``noise.gravity_statistics`` of ``robot`` over the design's sampled configurations."""
-    return gravity_statistics(robot.M, robot.g, sample_points(robot, samples, seed))
+    q = ca.SX.sym("q", robot.n)
+    dg = ca.Function("dg", [q], [ca.jacobian(robot.gravity(q), q)])
+    return gravity_statistics(robot.M, robot.g, dg, sample_points(robot, samples, seed))
 
 
 def reduced_order_design(robot, dt, noise=None, quantization=None, uncertainty=0.0, eta=1.0, v_max=2.0,
@@ -179,13 +181,14 @@ def reduced_order_design(robot, dt, noise=None, quantization=None, uncertainty=0
     uncertainty = check_uncertainty(uncertainty)
     sigma = sensor_sigma(noise, quantization)
     guarantee = reduced_order_gain(robot, eta=eta, v_max=v_max)
-    e_rms = uncertainty * model_statistics(robot)["minv_g_rms"]
+    stats = model_statistics(robot)
+    e_rms, G = uncertainty * stats["minv_g_rms"], stats["minv_dg_rms"]
     floor = convergence_floor(eta, t_conv)
-    k0, choice, why, k_noise, predicted = reduced_order_noise_gain(robot.n, dt, sigma, e_rms, floor,
+    k0, choice, why, k_noise, predicted = reduced_order_noise_gain(robot.n, dt, sigma, e_rms, G, floor,
                                                                    guarantee.k0)
     return NoiseAwareDesign(
         robot=robot.name, k0=float(k0), choice=choice, why=why, k0_noise=float(k_noise), k0_floor=floor,
         k0_guarantee=guarantee.k0, k0_remark3=guarantee.k0_remark3,
         predicted_error=predicted, sigma=sigma, noise=noise, quantization=quantization,
-        uncertainty=uncertainty, e_rms=e_rms, dt=float(dt), t_conv=float(t_conv), eta=float(eta),
+        uncertainty=uncertainty, e_rms=e_rms, G=G, dt=float(dt), t_conv=float(t_conv), eta=float(eta),
         v_max=float(v_max), guarantee=guarantee.as_dict())
