@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from .build import BuildError, build, repo_root
+from .stability import UnstableDiscretization
+from .target import METHODS
 from .targets import DEFAULT_FAMILY, DEFAULT_ROBOTS, default_spec
 
 
@@ -33,16 +35,32 @@ def cmd_list(args):
     return 0
 
 
-def _discretization(args):
+def _discretization(args, spec=None):
+    """The discretisation of the options; ``--substeps auto``: the fewest stable ones for spec."""
     from .target import discretization
-    return discretization(None, dt=args.dt, method=args.method, substeps=args.substeps, hold=args.hold)
+    auto = args.substeps == "auto"
+    disc = discretization(None, dt=args.dt, method=args.method, substeps=None if auto else args.substeps,
+                          hold=args.hold)
+    if auto and spec is not None:
+        from .stability import auto_substeps
+        disc = auto_substeps(spec, disc)
+    return disc
+
+
+def _substeps(text):
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a positive integer or 'auto', got {text!r}") from None
 
 
 def _emit_and_build(robot_name, args):
     from .emit import emit
     spec = default_spec(robot_name, args.family)
     t0 = time.perf_counter()
-    target = emit(spec.target(_discretization(args)), args.out, spec=spec)
+    target = emit(spec.target(_discretization(args, spec)), args.out, spec=spec)
     t1 = time.perf_counter()
     lib = build(target, native=args.native)
     return spec, target, lib, t1 - t0, time.perf_counter() - t1
@@ -88,7 +106,8 @@ def cmd_check(args):
     worst = 0.0
     for name in args.robots:
         from .check import cross_check
-        r = cross_check(default_spec(name, args.family), _discretization(args), count=args.count)
+        spec = default_spec(name, args.family)
+        r = cross_check(spec, _discretization(args, spec), count=args.count)
         w = float(np.max([v for k, v in r.items() if k != "samples"]))
         worst = float(np.max([worst, w]))
         print(f"{name}_{args.family}: worst relative error {w:.2e}  "
@@ -107,17 +126,18 @@ def cmd_bench(args):
         out = repo_root() / "build" / "bench"
         spec = default_spec(name)
         from .emit import emit
-        target = emit(spec.target(dt=1e-3, method="rk4", substeps=1, hold="zoh"), out, spec=spec)
+        target = emit(spec.target(dt=1e-3), out, spec=spec)      # the default discretisation
         build(target, native=args.native)
         ours = harness.time_target(target)
         src = robot.source
         pin = harness.time_pin(src["path"], list(src.get("locked_joints", {})))
-        rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_rk4_step": ours["ns_per_step"],
+        rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_step": ours["ns_per_step"],
                      "ns_pin_aba": pin["ns_aba"], "ratio_rhs_over_aba": ours["ns_per_rhs"] / pin["ns_aba"],
                      "ratio_step_over_aba": ours["ns_per_step"] / pin["ns_aba"]})
-    print(f"{'robot':8s} {'RHS ns':>9s} {'rk4 step ns':>12s} {'pin aba ns':>11s} {'RHS/aba':>8s} {'step/aba':>9s}")
+    print(f"{'robot':8s} {'RHS ns':>9s} {'step ns':>12s} {'pin aba ns':>11s} {'RHS/aba':>8s} {'step/aba':>9s}"
+          f"   (step: {spec.target(dt=1e-3).discretization.method}, {spec.target(dt=1e-3).discretization.hold})")
     for r in rows:
-        print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_rk4_step']:12.1f} {r['ns_pin_aba']:11.1f} "
+        print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_step']:12.1f} {r['ns_pin_aba']:11.1f} "
               f"{r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f}")
     extra = {}
     if not args.no_scenarios:
@@ -149,8 +169,10 @@ def main(argv=None):
             p.add_argument("robots", nargs="*", default=DEFAULT_ROBOTS, help="catalog names")
         p.add_argument("--family", default=DEFAULT_FAMILY)
         p.add_argument("--dt", type=float, help="sample time in s (default: codegen.target.DEFAULT_DISCRETIZATION)")
-        p.add_argument("--method", choices=["euler", "rk4"], help="integrator (default rk4)")
-        p.add_argument("--substeps", type=int, help="integrator sub-steps per sample (default 1)")
+        p.add_argument("--method", choices=list(METHODS),
+                       help="integrator (default etdrk4: RK4 with the gain term integrated exactly)")
+        p.add_argument("--substeps", type=_substeps,
+                       help="integrator sub-steps per sample (default 1; 'auto': the fewest that are stable)")
         p.add_argument("--hold", choices=["zoh", "foh"],
                        help="measurement hold between samples (default foh; see codegen.discretize)")
         p.add_argument("--native", action="store_true", help="add -march=native")
@@ -166,7 +188,7 @@ def main(argv=None):
     common(c)
     c.add_argument("--count", type=int, default=1000)
     c.add_argument("--tol", type=float, default=1e-9)
-    be = sub.add_parser("bench", help="ns per RHS / rk4 step vs pinocchio native aba")
+    be = sub.add_parser("bench", help="ns per RHS / step (default discretisation) vs pinocchio native aba")
     be.add_argument("bench_robots", nargs="*", default=["ur5", "panda"])
     be.add_argument("--native", action="store_true")
     be.add_argument("--json", help="also write the figures to this file")
@@ -179,6 +201,6 @@ def main(argv=None):
     try:
         return {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
                 "bench": cmd_bench, "simulate": cmd_simulate}[args.cmd](args)
-    except BuildError as e:
+    except (BuildError, UnstableDiscretization) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

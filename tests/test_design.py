@@ -102,12 +102,12 @@ def test_smoother_noise_formula_matches_its_filter():
 
 
 def test_noise_aware_choices():
-    """No uncertainty: the convergence floor ln(eta/1e-2)/t_conv decides; 10 % uncertainty: an
+    """No uncertainty: the convergence floor ln(v_max/1e-2)/t_conv decides; 10 % uncertainty: an
     interior optimum; no noise at all: the guarantee gain (12)."""
     from codegen.design import reduced_order_design
     robot = load_robot("ur5")
     plain = reduced_order_design(robot, 1e-3)
-    assert plain.choice == "convergence floor" and plain.k0 == pytest.approx(np.log(100) / 0.2)
+    assert plain.choice == "convergence floor" and plain.k0 == pytest.approx(np.log(200) / 0.2)
     mism = reduced_order_design(robot, 1e-3, quantization=1e-4, uncertainty=0.1)
     assert mism.choice == "noise-aware optimum" and 100 < mism.k0 < 400
     assert mism.predicted_error["default"] < mism.predicted_error["guarantee (12)"]

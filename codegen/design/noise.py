@@ -22,8 +22,9 @@ G = rms_q ||M^-1 dg/dq||_F, which the error dynamics filter by 1/(s + k0):
 
     E(k0)^2 = n s(k0)^2 + sigma_e^2 G^2 dt / (2 k0) + d^2 rms_q |M^-1 g|^2 / k0^2   (norm, RMS)
 
-and the error from an initial eps0 = eta decays like eta exp(-k0 t): below ``tol`` within
-``t_conv`` needs k0 >= ln(eta / tol) / t_conv (the convergence floor).
+and the error from an initial eps0 decays like eps0 exp(-k0 t): below ``tol`` within ``t_conv``
+needs k0 >= ln(eps0 / tol) / t_conv (the convergence floor), eps0 = v_max: the estimate starts at 0
+while the robot may move at up to v_max [ASSUMPTION].
 
 Nicosia-Tomei (kd, kp) (SPEC §2), per mode mu of M^-1: eps1'' + kd eps1' + kp mu eps1 = e, the
 estimate x2hat = kp mu s / (s^2 + kd s + kp mu) y [DERIVED], so
@@ -73,11 +74,11 @@ def check_uncertainty(uncertainty):
     return float(uncertainty)
 
 
-def convergence_floor(eta, t_conv, tol=TOL):
-    """Rate (1/s) that brings an error eta below tol within t_conv: ln(eta/tol) / t_conv."""
-    if not (t_conv > 0 and eta > 0):
-        raise ValueError(f"t_conv and eta must be positive, got t_conv={t_conv}, eta={eta}")
-    return max(math.log(eta / tol), 0.0) / t_conv
+def convergence_floor(eps0, t_conv, tol=TOL):
+    """Rate (1/s) that brings an error eps0 below tol within t_conv: ln(eps0/tol) / t_conv."""
+    if not (t_conv > 0 and eps0 > 0):
+        raise ValueError(f"t_conv and the initial error must be positive, got t_conv={t_conv}, eps0={eps0}")
+    return max(math.log(eps0 / tol), 0.0) / t_conv
 
 
 def smoother_noise(k0, dt, sigma):
@@ -103,7 +104,7 @@ class NoiseAwareDesign:
     choice: str                # "noise-aware optimum" | "convergence floor" | "guarantee (12)"
     why: str
     k0_noise: float            # argmin of the predicted error (unconstrained), inf without noise
-    k0_floor: float            # ln(eta / tol) / t_conv
+    k0_floor: float            # ln(v_max / tol) / t_conv
     k0_guarantee: float        # (12)
     k0_remark3: float
     predicted_error: dict      # name -> predicted RMS error norm at that gain (rad/s)
@@ -129,7 +130,7 @@ class NoiseAwareDesign:
             f"  sensor std {self.sigma:.3g} rad (noise {self.noise}, quantization {self.quantization}),"
             f" model uncertainty {self.uncertainty:g}, dt {self.dt:g} s",
             f"  noise-aware optimum {self.k0_noise:.6g}, convergence floor {self.k0_floor:.6g}"
-            f" (below 1e-2 within {self.t_conv:g} s from {self.eta:g} rad/s),",
+            f" (below 1e-2 within {self.t_conv:g} s from {self.v_max:g} rad/s),",
             f"  guarantee (12) {self.k0_guarantee:.6g}, Remark 3 {self.k0_remark3:.6g}",
             "  predicted RMS error: " + ", ".join(f"{k} {v:.3g}" for k, v in pe.items()) + " rad/s",
         ])

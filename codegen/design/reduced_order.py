@@ -172,8 +172,9 @@ def reduced_order_design(robot, dt, noise=None, quantization=None, uncertainty=0
     noise, quantization : float or None, Gaussian std and quantisation step of y (rad);
         both None: a 2^16 counts/rev encoder
     uncertainty : float, relative error of masses and inertias (0.1 = 10 %)
-    eta : float, initial error (rad/s) for the convergence floor and (12);  v_max : (12)'s speed bound
-    t_conv : float, time (s) to fall below 1e-2 rad/s from eta
+    eta, v_max : float, (12)'s error radius and speed bound (rad/s); v_max is also the initial
+        error of the convergence floor (the estimate starts at 0, the robot at up to v_max)
+    t_conv : float, time (s) to fall below 1e-2 rad/s from v_max
 
     Returns
     -------
@@ -183,7 +184,7 @@ def reduced_order_design(robot, dt, noise=None, quantization=None, uncertainty=0
     guarantee = reduced_order_gain(robot, eta=eta, v_max=v_max)
     stats = model_statistics(robot)
     e_rms, G = uncertainty * stats["minv_g_rms"], stats["minv_dg_rms"]
-    floor = convergence_floor(eta, t_conv)
+    floor = convergence_floor(v_max, t_conv)
     k0, choice, why, k_noise, predicted = reduced_order_noise_gain(robot.n, dt, sigma, e_rms, G, floor,
                                                                    guarantee.k0)
     return NoiseAwareDesign(

@@ -32,7 +32,7 @@ def design_gains(robot, design, eta, v_max, noise, quantization, uncertainty, dt
         return guarantee.k0, KP_DEFAULT, {"design": design, "reduced_order": guarantee.as_dict()}
     stats = model_statistics(robot)
     sigma, unc = sensor_sigma(noise, quantization), check_uncertainty(uncertainty)
-    rate = convergence_floor(eta, t_conv)
+    rate = convergence_floor(v_max, t_conv)
     kd, kp, predicted = nicosia_tomei_noise_gains(dt, sigma, stats["g_rms"], unc, stats["trace_minv2"],
                                                   stats["mu_min"], rate)
     return kd, kp, {"design": design, "why": "minimises the predicted error (noise ~ kp^2/kd, model-error "
@@ -46,7 +46,7 @@ def build(robot, kd=None, kp=None, eta=1.0, v_max=2.0, noise=None, quantization=
           design="noise", dt=None, t_conv=1.0):
     """Nicosia–Tomei observer for ``robot``; (kd, kp) designed unless both are given (a given
     one overrides its designed value). noise, quantization, uncertainty, dt: as in
-    ``reduced_order.build``; t_conv: the time (s) to fall below 1e-2 rad/s from eta."""
+    ``reduced_order.build``; t_conv: the time (s) to fall below 1e-2 rad/s from v_max."""
     report = None
     if kd is None or kp is None:
         disc = design_discretization(dt)

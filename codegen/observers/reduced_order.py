@@ -34,8 +34,8 @@ def build(robot, k0=None, eta=1.0, v_max=2.0, noise=None, quantization=None, unc
     k0 : float, optional
         The gain (1/s); given, it bypasses the design (not the stability check at compile time).
     eta, v_max : float
-        (12)'s error radius and speed bound (rad/s); eta is also the initial error of the
-        convergence floor.
+        (12)'s error radius and speed bound (rad/s); v_max is also the initial error of the
+        convergence floor (the estimate starts at 0, the robot at up to v_max).
     noise, quantization : float or None
         Gaussian std and quantisation step of the measured q (rad); both None: a 2^16 counts/rev
         encoder (codegen.design.noise).
@@ -47,7 +47,7 @@ def build(robot, k0=None, eta=1.0, v_max=2.0, noise=None, quantization=None, unc
     dt : float, optional
         Sample time the default is designed for (default: codegen.target.DEFAULT_DISCRETIZATION).
     t_conv : float
-        Time (s) to fall below 1e-2 rad/s from eta (the floor of the noise-aware gain).
+        Time (s) to fall below 1e-2 rad/s from v_max (the floor of the noise-aware gain).
     """
     report = None
     if k0 is None:
