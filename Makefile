@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 
-.PHONY: generate test bench clean check
+.PHONY: generate test sanitize c-tools bench clean check
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -18,8 +18,16 @@ $(VENV)/.installed-bench: $(VENV)/.installed
 generate: $(VENV)/.installed
 	$(PY) -m codegen generate
 
-test: $(VENV)/.installed
+test: $(VENV)/.installed c-tools
 	$(PY) -m pytest
+	$(PY) -m codegen sanitize
+
+# the C under ASan/UBSan on edge-case CSVs and a libFuzzer campaign (also part of `make test`)
+sanitize: $(VENV)/.installed c-tools
+	$(PY) -m codegen sanitize
+
+c-tools:
+	sh c_harness/install-tools.sh
 
 check: $(VENV)/.installed
 	$(PY) -m codegen check

@@ -10,16 +10,8 @@ from .version import __version__  # noqa: F401
 
 
 def build_spec(target):
-    """The ObserverSpec a Target describes (see ``codegen.targets.build_spec``).
-
-    Parameters
-    ----------
-    target : codegen.target.Target
-
-    Returns
-    -------
-    codegen.spec.ObserverSpec
-    """
+    """The ObserverSpec that ``target`` (a codegen.target.Target) describes: see
+    ``codegen.targets.build_spec``."""
     from .targets import build_spec as _build_spec
     return _build_spec(target)
 

@@ -17,6 +17,7 @@ from collections import namedtuple
 from functools import lru_cache
 from pathlib import Path
 
+from .atomic import replace_dir
 from .cache import cache_dir, repo_root  # noqa: F401  (re-exported: one place for the paths)
 
 C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic"]
@@ -91,7 +92,47 @@ def run_tool(cmd, what, error=BuildError, shown=()):
     return proc
 
 
-def cached_build(name, key, files, products, commands, cache, shown=None):
+MANIFEST = "manifest.json"   # beside the products of a cache folder: name -> size, sha256
+
+
+def _manifest(folder):
+    try:
+        return json.loads((Path(folder) / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _mismatch(path, record):
+    """None if the file has the recorded size and sha256, else what differs."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as e:
+        return f"unreadable ({e.strerror})"
+    if len(data) != record["size"]:
+        return f"{len(data)} bytes, {record['size']} recorded at build"
+    return None if digest(data) == record["sha256"] else "sha256 differs from the one recorded at build"
+
+
+def _complete(folder, names):
+    """Every file of ``names`` is in the folder's manifest and matches it."""
+    m = _manifest(folder)
+    return m is not None and set(names) <= set(m) and not any(
+        _mismatch(Path(folder) / n, m[n]) for n in names)
+
+
+def verify(path):
+    """``path`` if it matches the size and sha256 recorded when it was built (the manifest of
+    its cache folder; a file without one is not checked), else BuildError: a truncated
+    library must never be mapped (SIGBUS)."""
+    path = Path(path)
+    record = (_manifest(path.parent) or {}).get(path.name)
+    why = record and _mismatch(path, record)
+    if why:
+        raise BuildError(f"{path} is corrupt: {why}; build() rebuilds it (or delete {path.parent})")
+    return path
+
+
+def cached_build(name, key, files, products, commands, cache, shown=None, keep=()):
     """Compile once per content: ``<cache>/<name>-<hash>/`` holding ``products``.
 
     Parameters
@@ -114,17 +155,22 @@ def cached_build(name, key, files, products, commands, cache, shown=None):
         Cache root.
     shown : path, optional
         Where ``files`` came from; shown instead of ``work`` in error messages.
+    keep : sequence of str
+        Names of ``files`` copied into the folder beside the products (e.g. the metadata).
 
     Returns
     -------
     Path
-        The folder (built now, or found complete in the cache). Raises BuildError.
+        The folder (built now, or found complete in the cache: every product and kept file
+        with the size and sha256 of its ``manifest.json``; a corrupt one is rebuilt).
+        Raises BuildError.
     """
     h = hashlib.sha256(json.dumps(key, sort_keys=True).encode())
     for fname, data in sorted(files.items()):
         h.update(fname.encode() + b"\0" + data + b"\0")
     out_dir = Path(cache) / f"{name}-{h.hexdigest()[:16]}"
-    if all((out_dir / p).exists() for p in products):
+    names = [*products, *keep]
+    if _complete(out_dir, names):
         return out_dir
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=out_dir.parent))
@@ -136,13 +182,20 @@ def cached_build(name, key, files, products, commands, cache, shown=None):
         for cmd, what in commands(work, tmp):
             run_tool(cmd, what, shown=[(work, shown)] if shown is not None else ())
         shutil.rmtree(work)
+        for fname in keep:
+            (tmp / fname).write_bytes(files[fname])
+        record = {}
+        for n in names:
+            data = (tmp / n).read_bytes()
+            record[n] = {"size": len(data), "sha256": digest(data)}
+        (tmp / MANIFEST).write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
         try:
-            os.replace(tmp, out_dir)
+            os.rename(tmp, out_dir)
         except OSError:
-            # a concurrent build got there first (non-empty out_dir): keep theirs if complete
-            if not all((out_dir / p).exists() for p in products):
-                shutil.rmtree(out_dir, ignore_errors=True)
-                os.replace(tmp, out_dir)
+            # out_dir exists: a concurrent build got there first (keep theirs: it may be loaded
+            # right now), or it is corrupt (swap ours in, in one step)
+            if not _complete(out_dir, names):
+                replace_dir(tmp, out_dir)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return out_dir
@@ -171,14 +224,15 @@ def build(target_dir, native=False, strict=False, cc=None, extra_flags=(), cache
         flags and the compiler, so an unchanged target is never rebuilt.
     """
     target_dir = Path(target_dir).resolve()
-    meta_file = next(iter(sorted(target_dir.glob("*.json"))), None)
+    files = read_target(target_dir)
+    meta_file = next((n for n in sorted(files) if n.endswith(".json")), None)
     if meta_file is None:
         raise BuildError(f"target_dir: {target_dir} is not a generated target (no metadata .json)")
-    prefix = json.loads(meta_file.read_text())["prefix"]
+    prefix = json.loads(files[meta_file])["prefix"]
     tool = compiler(cc)
     flags = c_flags(native, strict, shared=True, extra=extra_flags)
-    files = {f.name: f.read_bytes() for f in sorted(target_dir.iterdir()) if f.suffix in (".c", ".h")}
-    missing = {f"{prefix}.c", f"{prefix}_kernels.c"} - set(files)
+    files = {n: b for n, b in files.items() if n.endswith((".c", ".h")) or n == f"{prefix}.json"}
+    missing = {f"{prefix}.c", f"{prefix}_kernels.c", f"{prefix}.json"} - set(files)
     if missing:
         raise BuildError(f"target_dir: {target_dir} misses {', '.join(sorted(missing))}")
     lib = f"lib{prefix}.so"
@@ -188,8 +242,35 @@ def build(target_dir, native=False, strict=False, cc=None, extra_flags=(), cache
                 work / f"{prefix}_kernels.c", "-lm"], f"compiling {prefix}")
 
     out = cached_build(prefix, [tool, flags], files, [lib], commands, cache or cache_dir(),
-                       shown=target_dir)
+                       shown=target_dir, keep=[f"{prefix}.json"])
     return out.resolve() / lib
+
+
+def read_target(target_dir, suffixes=(".c", ".h", ".json")):
+    """The files of a generated folder (name -> bytes), all of one version of it.
+
+    Read through one directory descriptor, then checked to still be the folder at that path:
+    ``emit`` swaps a new version in and deletes the old one, so a read that raced with it is
+    done again (what is read is what is compiled, and the metadata is the one it was built from).
+    """
+    for _ in range(20):
+        try:
+            fd = os.open(target_dir, os.O_RDONLY | os.O_DIRECTORY)
+        except (FileNotFoundError, NotADirectoryError):
+            raise BuildError(f"target_dir: {target_dir} is not a generated target folder") from None
+        try:
+            files = {}
+            for name in sorted(os.listdir(fd)):
+                if name.endswith(tuple(suffixes)):
+                    with open(name, "rb", opener=lambda p, flags: os.open(p, flags, dir_fd=fd)) as f:
+                        files[name] = f.read()
+            if os.stat(target_dir).st_ino == os.fstat(fd).st_ino:
+                return files
+        except FileNotFoundError:       # the old version was being deleted: read the new one
+            pass
+        finally:
+            os.close(fd)
+    raise BuildError(f"target_dir: {target_dir} kept changing while it was read")
 
 
 def clear_cache():

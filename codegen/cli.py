@@ -1,4 +1,4 @@
-"""`python -m codegen list | generate | build | check | simulate | bench`."""
+"""`python -m codegen list | generate | build | check | simulate | compare | bench | sanitize`."""
 from __future__ import annotations
 
 import argparse
@@ -118,45 +118,64 @@ def cmd_check(args):
 
 
 def cmd_bench(args):
-    from . import harness
-    rows = []
-    for name in args.bench_robots:
-        from models import load_robot
-        robot = load_robot(name)
-        out = repo_root() / "build" / "bench"
-        spec = default_spec(name)
-        from .emit import emit
-        target = emit(spec.target(dt=1e-3), out, spec=spec)      # the default discretisation
-        build(target, native=args.native)
-        ours = harness.time_target(target)
-        src = robot.source
-        pin = harness.time_pin(src["path"], list(src.get("locked_joints", {})))
-        rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_step": ours["ns_per_step"],
-                     "ns_pin_aba": pin["ns_aba"], "ratio_rhs_over_aba": ours["ns_per_rhs"] / pin["ns_aba"],
-                     "ratio_step_over_aba": ours["ns_per_step"] / pin["ns_aba"]})
-    print(f"{'robot':8s} {'RHS ns':>9s} {'step ns':>12s} {'pin aba ns':>11s} {'RHS/aba':>8s} {'step/aba':>9s}"
-          f"   (step: {spec.target(dt=1e-3).discretization.method}, {spec.target(dt=1e-3).discretization.hold})")
-    for r in rows:
-        print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_step']:12.1f} {r['ns_pin_aba']:11.1f} "
-              f"{r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f}")
-    extra = {}
-    if not args.no_scenarios:
-        from .sim.scenarios import benches
-        for name, fn in benches().items():
-            print(f"\n{name}:", flush=True)
-            extra[name] = fn()
-            for row in (extra[name] if isinstance(extra[name], list) else [extra[name]]):
-                print("  " + "  ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
-                                       for k, v in row.items()))
-    if args.json:
-        Path(args.json).write_text(json.dumps({"observer_rhs": rows, "scenarios": extra}, indent=2,
-                                              default=float))
-    return 0
+    from .bench import main
+    return main(args.bench_robots, native=args.native, json_path=args.json, scenarios=not args.no_scenarios)
 
 
 def cmd_simulate(args):
     from .sim import scenarios
-    return scenarios.run(args.name, reference=args.reference, out=args.out)
+    options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T")
+               if getattr(args, k) is not None}
+    return scenarios.run(args.name, reference=args.reference, out=args.out, **options)
+
+
+def _compare_source(args):
+    """(Recording, robot, title) of ``compare``'s source: a mujoco-* scenario run with the
+    sensor and mismatch options, or a recorded CSV of ``--robot``."""
+    from .compare import robot_by_name
+    from .recording import read_csv
+    from .sim.scenarios import mujoco
+    if args.source in mujoco.SCENARIOS:
+        name = args.source.removeprefix("mujoco-")
+        if args.robot not in (None, name):
+            raise ValueError(f"robot: scenario {args.source} is {name}, got --robot {args.robot}")
+        rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
+        return rec, robot_by_name(name), mujoco.title(name, args.quantization, args.noise, args.mismatch)
+    if not str(args.source).endswith(".csv"):
+        raise ValueError(f"source: expected a scenario ({', '.join(mujoco.SCENARIOS)}) or a .csv file, "
+                         f"got {args.source!r}")
+    if args.robot is None:
+        raise ValueError("robot: a CSV needs --robot (the robot it was recorded on)")
+    robot = robot_by_name(args.robot)
+    return read_csv(args.source, robot.joint_names), robot, f"{Path(args.source).name} ({robot.name})"
+
+
+def cmd_compare(args):
+    """Observers and tuned baselines on a scenario or a CSV: table, figures, JSON."""
+    from .compare import compare, design_inputs
+    from .recording import RecordingError
+    try:
+        rec, robot, title = _compare_source(args)
+        families = [f for f in args.observers.split(",") if f]
+        bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
+        cmp = compare(rec, robot, families=families, t_ss=args.t_ss, level=args.level,
+                      design=design_inputs(args.quantization, args.noise, args.mismatch),
+                      baseline_names=bl, reference=args.reference, title=title)
+    except (RecordingError, ValueError, KeyError) as e:
+        print(f"error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
+        return 2
+    print(cmp.table())
+    out = Path(args.out)
+    paths = cmp.figures(out)
+    (out / "compare.json").write_text(json.dumps({"title": title, "t_ss": cmp.t_ss, "level": cmp.level,
+                                                  "rows": cmp.rows()}, indent=2, default=float) + "\n")
+    print(f"figures and compare.json in {out.resolve()} ({', '.join(p.name for p in paths)})")
+    return 0
+
+
+def cmd_sanitize(args):
+    from .check import sanitize
+    return sanitize.run(args.runs, args.seconds)
 
 
 def main(argv=None):
@@ -197,10 +216,33 @@ def main(argv=None):
     s.add_argument("name")
     s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     s.add_argument("--out", default=str(repo_root() / "build" / "sim"))
+    s.add_argument("--quantization", type=float, help="encoder step (rad; mujoco-* scenarios)")
+    s.add_argument("--noise", type=float, help="Gaussian noise std (rad; mujoco-* scenarios)")
+    s.add_argument("--mismatch", type=float, help="plant masses and inertias x (1 + mismatch) (mujoco-*)")
+    s.add_argument("--T", type=float, help="length (s; mujoco-* scenarios)")
+    cp = sub.add_parser("compare", help="observers against tuned baselines on a scenario or a CSV")
+    cp.add_argument("source", help="mujoco-ur5, mujoco-panda, or a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>])")
+    cp.add_argument("--robot", help="robot of a CSV: catalog name or a .urdf path")
+    cp.add_argument("--observers", default="reduced_order,nicosia_tomei", help="comma-separated families")
+    cp.add_argument("--baselines", help="comma-separated (default: all of codegen.baselines)")
+    cp.add_argument("--quantization", type=float, default=0.0, help="encoder step (rad)")
+    cp.add_argument("--noise", type=float, default=0.0, help="Gaussian noise std (rad)")
+    cp.add_argument("--mismatch", type=float, default=0.0,
+                    help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
+    cp.add_argument("--T", type=float, help="scenario length (s, default 20)")
+    cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, default half the run)")
+    cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
+    cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
+    cp.add_argument("--out", default=str(repo_root() / "build" / "compare"))
+    sa = sub.add_parser("sanitize", help="C harness and sample targets under ASan/UBSan on edge-case "
+                        "CSVs, and a libFuzzer campaign of their step")
+    sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
+    sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
     args = ap.parse_args(argv)
     try:
         return {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
-                "bench": cmd_bench, "simulate": cmd_simulate}[args.cmd](args)
+                "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare,
+                "sanitize": cmd_sanitize}[args.cmd](args)
     except (BuildError, UnstableDiscretization) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

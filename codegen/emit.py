@@ -3,8 +3,9 @@
 Bytes room: nothing here knows any particular observer. The C wrapper, header, Makefile and
 CMakeLists.txt are the template files of ``codegen/templates/`` (package data) with their
 ``{{name}}`` placeholders filled from the metadata (``template_values``); CasADi writes the kernels.
-The folder is written to a temporary sibling and renamed into place, so a failure never leaves
-half a target; the process's working directory is never changed. Same inputs give
+The folder is written to a temporary sibling and swapped into place in one step
+(``codegen.atomic``), so a failure never leaves half a target and a concurrent reader never
+finds it absent; the process's working directory is never changed. Same inputs give
 byte-identical files.
 """
 from __future__ import annotations
@@ -20,9 +21,10 @@ from pathlib import Path
 
 import casadi as ca
 
+from .atomic import replace_dir
 from .version import __version__
 from .discretize import discretize, estimate
-from .spec import ObserverSpec
+from .spec import ObserverSpec, real_number
 from .stability import require_stable
 from .target import sanitize
 
@@ -147,11 +149,7 @@ def emit(target, out_dir, spec=None):
             (tmp / name.format(prefix=prefix)).write_text(render(template, values))
         (tmp / f"{prefix}.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
         final = out_dir / prefix
-        old = None
-        if final.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{prefix}.old.", dir=out_dir))
-            os.replace(final, old / prefix)
-        os.replace(tmp, final)
+        old = replace_dir(tmp, final)    # one step: the folder is never absent nor mixed
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
         return final
@@ -178,7 +176,7 @@ def with_params(spec, params):
                          f"known: {spec.p_names}")
     p = spec.p_default.copy()
     for k, v in params.items():
-        p[spec.p_names.index(k)] = float(v)
+        p[spec.p_names.index(k)] = real_number(f"params[{k!r}]", v)
     return dataclasses.replace(spec, p_default=p)
 
 
@@ -243,12 +241,15 @@ def _stability_macros(P, report):
 
 
 def _slot_macros(P, names):
-    """``#define <P>_<KIND>_<NAME> <index>`` per slot of x, y, u, p, est."""
+    """``#define <P>_<KIND>_<NAME> <index>`` per slot of x, y, u, p, est.
+
+    Names equal after sanitising (k_m and k_M; x and x.) get the slot index as a suffix,
+    repeated until the macro is new (x_2, x, x. -> X_2, X, X_2_2): each macro is defined once."""
     out, used = [], set()
     for kind, slots in names.items():
         for i, nm in enumerate(slots):
             macro = f"{P}_{kind.upper()}_{sanitize(nm).upper()}"
-            if macro in used:  # names differing only in case or punctuation (k_m, k_M)
+            while macro in used:
                 macro = f"{macro}_{i}"
             used.add(macro)
             out.append(f"#define {macro} {i}")

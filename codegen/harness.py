@@ -34,7 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .build import BuildError, ToolError, c_flags, cached_build, compiler, digest, run_tool
+from .build import (BuildError, ToolError, c_flags, cached_build, compiler, digest, read_target,
+                    run_tool)
 
 REPO = Path(__file__).resolve().parent.parent
 HARNESS_SRC = REPO / "c_harness"
@@ -129,7 +130,7 @@ def build_harness(target_dir, build_dir=None, native=False, cc=None, extra_flags
     harness_flags = c_flags(native, strict=True)   # -Werror on the harness's own files only
     # the target's sources are read once: what is hashed is what is compiled (from a private
     # copy), even if another process regenerates the folder meanwhile
-    files = {f.name: f.read_bytes() for f in sorted(d.iterdir()) if f.suffix in (".c", ".h")}
+    files = read_target(d, (".c", ".h"))
     key = [prefix, tool, target_flags, harness_flags,
            {name: digest((HARNESS_SRC / name).read_bytes()) for name in HARNESS_FILES}]
 

@@ -88,6 +88,9 @@ def options_from_dict(d):
     return cls(**d)
 
 
+U_DRAWS = ("gravity", "scaled", "plain")
+
+
 @dataclass(frozen=True)
 class InputRanges:
     """Where the cross-check draws random (x, y, u) for a family, at physical scales.
@@ -99,18 +102,24 @@ class InputRanges:
         of y. A number (rad): configurations from one fixed draw plus N(0, y_jitter^2) noise,
         so that two samples of a draw differ like consecutive fast samples (stiff filters).
     y_extra : tuple of (mean, std)
-        Normal distribution of each y slot after the first n (e.g. measured forces).
-    u_gravity : bool
-        u around the gravity torque g(y) (True) or zero-mean scaled by max(1, |g|) (False).
+        Normal distribution of each y slot after the first n (e.g. measured forces, N).
+    u : {"gravity", "scaled", "plain"}
+        u = g(q) + u_scale N(0, 1) (around the gravity torque), u = u_scale N(0, 1) max(1, |g_i|)
+        per joint (zero-mean at the gravity scale), or u = u_scale N(0, 1) (e.g. an unused input).
     u_scale : float
-        Standard deviation of u (N m): around g(y) when ``u_gravity``, else a multiplier.
+        Standard deviation of u (N m), or its multiplier for "scaled".
     est_scale : float
         Standard deviation of the initial estimate passed to init (velocity-sized).
+    init_p : tuple of (parameter name, value)
+        Parameters init(y, est, p) is evaluated with to centre the states (the others: the
+        spec's defaults), e.g. a filter started on a function of the measurement.
     x_scale : float or tuple
         Standard deviation of the perturbation of the state around init(y, est, p), scalar or
-        per slot.
+        per slot (nx,).
     x_uniform : tuple of (slot name, lo, hi)
         State slots drawn uniformly in [lo, hi] instead (e.g. a dynamic scaling r).
+    x_normal : tuple of (slot name, mean, std)
+        State slots drawn from N(mean, std^2) instead (e.g. a filter at its working level).
     x_integer : tuple of (slot name, lo, hi)
         State slots drawn as integers in [lo, hi] (e.g. a hybrid logic state).
     x_about_y : tuple of (state slot name, measurement slot name)
@@ -123,21 +132,26 @@ class InputRanges:
 
     y_jitter: float | None = None
     y_extra: tuple = ()
-    u_gravity: bool = False
+    u: str = "scaled"
     u_scale: float = 1.0
     est_scale: float = 2.0
+    init_p: tuple = ()
     x_scale: object = 0.1
     x_uniform: tuple = ()
+    x_normal: tuple = ()
     x_integer: tuple = ()
     x_about_y: tuple = ()
     x_fine: float | None = None
 
     def __post_init__(self):
+        if self.u not in U_DRAWS:
+            raise ValueError(f"u must be one of {U_DRAWS}, got {self.u!r}")
         object.__setattr__(self, "y_extra", tuple((float(m), float(s)) for m, s in self.y_extra))
+        object.__setattr__(self, "init_p", tuple((str(k), float(v)) for k, v in self.init_p))
         if not isinstance(self.x_scale, (int, float)):
             object.__setattr__(self, "x_scale", _tuple(self.x_scale, float))
-        for name in ("x_uniform", "x_integer"):
-            object.__setattr__(self, name, tuple((str(k), lo, hi) for k, lo, hi in getattr(self, name)))
+        for name, kind in (("x_uniform", float), ("x_normal", float), ("x_integer", int)):
+            object.__setattr__(self, name, tuple((str(k), kind(a), kind(b)) for k, a, b in getattr(self, name)))
         object.__setattr__(self, "x_about_y", tuple((str(a), str(b)) for a, b in self.x_about_y))
 
     def to_dict(self):

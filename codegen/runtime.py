@@ -12,16 +12,40 @@ from pathlib import Path
 
 import numpy as np
 
+from .build import verify
+
 _D = ct.POINTER(ct.c_double)
 
 
 class ObserverError(RuntimeError):
-    """The C step returned a non-zero status (the state was left unchanged)."""
+    """A C function returned a non-zero status; the observer state is as it was before the call
+    (a failing run() is rolled back to its start)."""
+
+
+def _floats(name, value, expected):
+    """value as a float64 array, or ValueError naming ``name``: text, dicts, complex numbers
+    and integers beyond a double are refused (numpy would raise without the name, or silently
+    drop an imaginary part)."""
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as e:              # ragged nesting
+        raise ValueError(f"{name}: expected {expected}, got {type(value).__name__} ({e})") from None
+    if a.dtype.kind == "c" or (a.dtype.kind == "O" and any(isinstance(v, complex) for v in a.flat)):
+        raise ValueError(f"{name}: expected {expected}, got complex numbers")
+    try:
+        if a.dtype.kind not in "biufO":
+            raise TypeError(a.dtype)
+        return a.astype(float)
+    except OverflowError:
+        raise ValueError(f"{name}: a value is too large for a double (expected {expected})") from None
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected {expected}, got {type(value).__name__} "
+                         f"{str(value)[:60]!r}") from None
 
 
 def as_vector(name, value, size):
     """value as a finite float64 vector of length size, or ValueError naming ``name``."""
-    a = np.asarray(value, dtype=float)
+    a = _floats(name, value, f"{size} real numbers")
     if a.shape not in ((size,), (size, 1), (1, size)):
         raise ValueError(f"{name}: expected shape ({size},), got {np.shape(value)}")
     a = a.reshape(size)
@@ -31,7 +55,8 @@ def as_vector(name, value, size):
 
 
 def as_matrix(name, value, cols, rows=None):
-    a = np.asarray(value, dtype=float)
+    """value as a finite C-contiguous float64 (rows, cols) array, or ValueError naming ``name``."""
+    a = _floats(name, value, f"an (N, {cols}) array of real numbers")
     if a.ndim != 2 or a.shape[1] != cols or (rows is not None and a.shape[0] != rows):
         want = f"({rows if rows is not None else 'N'}, {cols})"
         raise ValueError(f"{name}: expected shape {want}, got {np.shape(value)}")
@@ -64,7 +89,7 @@ class CompiledObserver:
         self.nx, self.ny, self.nu, self.np, self.nest = s["nx"], s["ny"], s["nu"], s["np"], s["nest"]
         self.dt = self.meta["discretization"]["dt"]
         self.status_names = {v: k for k, v in self.meta["status"].items()}
-        lib = ct.CDLL(str(self.lib_path))  # absolute path: never LD_LIBRARY_PATH
+        lib = ct.CDLL(str(verify(self.lib_path)))  # absolute path: never LD_LIBRARY_PATH
         f = lambda name: getattr(lib, f"{self.prefix}_{name}")  # noqa: E731
         self._lib = lib
         self._state_size = f("state_size")
@@ -158,7 +183,10 @@ class CompiledObserver:
         return st, self._buf["est"][: self.nest].copy()
 
     def run(self, Y, U):
-        """Many samples at once (rows of Y, U); the loop runs in C. Returns EST (N, nest)."""
+        """Many samples at once (rows of Y, U); the loop runs in C. Returns EST (N, nest).
+
+        On a non-zero status at sample k, ObserverError names k, and the C has rolled the
+        state back to what it was before the call."""
         Y = as_matrix("Y", Y, self.ny)
         U = as_matrix("U", U, self.nu, rows=len(Y))
         EST = np.empty((len(Y), self.nest))
@@ -167,7 +195,8 @@ class CompiledObserver:
                        EST.ctypes.data_as(_D), ct.byref(done))
         if st != 0:
             raise ObserverError(f"{self.prefix}_run stopped at sample {done.value} with status {st} "
-                                f"({self.status_names.get(st, 'unknown')})")
+                                f"({self.status_names.get(st, 'unknown')}); state rolled back to "
+                                f"before the run")
         return EST
 
     def rhs(self, x, y, u):
@@ -224,7 +253,10 @@ class CompiledObserver:
 
 
 def load(target_dir, lib_path):
-    """CompiledObserver from a generated folder and its built library."""
-    target_dir = Path(target_dir)
-    meta = next(iter(sorted(target_dir.glob("*.json"))))
+    """CompiledObserver from a generated folder and its built library, with the metadata the
+    library was built from (kept beside it by ``codegen.build.build``; else the folder's)."""
+    lib_path = Path(lib_path)
+    meta = lib_path.parent / f"{lib_path.stem.removeprefix('lib')}.json"
+    if not meta.is_file():
+        meta = next(iter(sorted(Path(target_dir).glob("*.json"))))
     return CompiledObserver(lib_path, json.loads(meta.read_text()))

@@ -5,6 +5,8 @@ Every observer family builds one of these; ``discretize``, ``emit``, ``build`` a
 """
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -75,6 +77,10 @@ class ObserverSpec:
         self.p_default = np.asarray(self.p_default, dtype=float).reshape(-1)
         if self.p_default.size != len(self.p_names):
             raise ValueError(f"p_default has {self.p_default.size} entries, p_names {len(self.p_names)}")
+        for name, v in zip(self.p_names, self.p_default):
+            if not np.isfinite(v):
+                raise ValueError(f"{self.family}: the default of parameter {name!r} is {v}; "
+                                 f"parameters must be finite")
         for f, ins, outs in ((self.rhs, (self.nx, self.ny, self.nu, self.np), (self.nx,)),
                              (self.output, (self.nx, self.ny, self.nu, self.np), (self.nest,)),
                              (self.init, (self.ny, self.nest, self.np), (self.nx,))):
@@ -127,6 +133,39 @@ class ObserverSpec:
                 "p_default": [float(v) for v in self.p_default], "options": self.options.to_dict(),
                 "hybrid": self.jump is not None, "rate_states": list(self.rate_states),
                 "gains": {g: list(slots) for g, slots in self.gains.items()}}
+
+
+def real_number(name, value):
+    """float(value) for a finite real number (not a bool or text), else ValueError naming ``name``."""
+    if isinstance(value, complex):
+        raise ValueError(f"{name}: expected a finite real number, got the complex number {value!r}")
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name}: expected a finite real number, got {type(value).__name__} {value!r}")
+    try:
+        v = float(value)
+    except OverflowError:
+        raise ValueError(f"{name}: {value} is too large for a double") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: expected a finite real number, got {v}")
+    return v
+
+
+def checked_args(args, name=None):
+    """The keyword arguments of a family's build, every number in them (also in lists, arrays
+    and dicts) checked by ``real_number`` under its name (k0, K1[2], bounds['m']); text and
+    other objects are left to the family."""
+    if name is None:
+        for k, v in args.items():
+            checked_args(v, k)
+    elif isinstance(args, dict):
+        for k, v in args.items():
+            checked_args(v, f"{name}[{k!r}]")
+    elif isinstance(args, (list, tuple, np.ndarray)):
+        for i, v in enumerate(args):
+            checked_args(v, f"{name}[{i}]")
+    elif isinstance(args, numbers.Number) and not isinstance(args, bool):
+        real_number(name, args)
+    return args
 
 
 def plain(value):

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from .cache import cached_json
-from .check.inputs import declared_slots, measurements
+from .sampling import declared_slots, measurements
 from .discretize import step_jacobians
 
 VERSION = 3            # of this check (part of the cache key)

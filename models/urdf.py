@@ -30,7 +30,9 @@ import hashlib
 import importlib.metadata
 import math
 import pathlib
+import re
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from functools import cached_property
 
 import casadi as ca
@@ -86,13 +88,21 @@ def example_robot_data_dir() -> pathlib.Path:
 # checks
 # =============================================================================================
 def _check_urdf_xml(path, locked):
-    """Reject joint types and mimic joints we do not support, naming the joint."""
+    """Reject joint types and mimic joints we do not support, and numbers the URDF parser
+    would misread, naming the joint or link; returns the XML root."""
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as e:
         raise ModelError(f"{path}: not a valid URDF (XML error: {e})") from None
     if root.tag != "robot":
         raise ModelError(f"{path}: not a URDF (root element <{root.tag}>, expected <robot>)")
+    for kind in ("link", "joint"):
+        seen = set()
+        for e in root.findall(kind):
+            if e.get("name") in seen or e.get("name") is None:
+                raise ModelError(f"{path}: {kind} {e.get('name')!r} is defined twice or has no name "
+                                 f"(URDF {kind} names are unique)")
+            seen.add(e.get("name"))
     for j in root.iter("joint"):
         name, jtype = j.get("name"), j.get("type")
         if jtype is None:                      # <joint> inside <transmission> etc.
@@ -106,17 +116,71 @@ def _check_urdf_xml(path, locked):
         if j.find("mimic") is not None and name not in locked:
             raise ModelError(f"{path}: joint {name!r} is a mimic joint, which is not supported "
                              f"(lock it with locked_joints={{{name!r}: value}})")
+        for tag, attrs in _JOINT_NUMBERS.items():
+            for attr, count in attrs:
+                e = j.find(tag)
+                if e is not None and e.get(attr) is not None:
+                    _number(e.get(attr), count, f"{path}: joint {name!r}: <{tag}> {attr}")
+    _check_inertials(root, path)
+    return root
+
+
+# numbers urdfdom reads from a joint: <tag> -> (attribute, how many numbers)
+_JOINT_NUMBERS = {"origin": (("xyz", 3), ("rpy", 3)), "axis": (("xyz", 3),),
+                  "limit": (("lower", 1), ("upper", 1), ("effort", 1), ("velocity", 1)),
+                  "dynamics": (("damping", 1), ("friction", 1))}
+# urdfdom reads a number with a C++ stream: decimal, leading blanks only; no inf, nan or 1_5
+_DECIMAL = re.compile(r"[ \t]*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+
+
+def _number(text, count, what):
+    """``count`` finite numbers (space separated) of a URDF attribute as urdfdom reads them,
+    or ModelError "<what> '<text>' is not ...". (Python's float would take 1_5, inf, nan.)"""
+    parts = [p for p in text.split(" ") if p] if count > 1 else [text]
+    values = [float(p) for p in parts if _DECIMAL.fullmatch(p)]
+    if len(parts) != count or len(values) != count or not all(map(math.isfinite, values)):
+        raise ModelError(f"{what} {text!r} is not {'a' if count == 1 else count} finite decimal "
+                         f"number{'s' if count > 1 else ''} (the URDF parser would drop or refuse it)")
+    return values
+
+
+def _check_inertials(root, path):
+    """Every <inertial> as urdfdom reads it: a link whose <inertial> it cannot parse is kept
+    WITHOUT mass (a silently wrong robot), so each value is checked here, naming the link."""
     for link in root.iter("link"):
         inertial = link.find("inertial")
-        mass = inertial.find("mass") if inertial is not None else None
-        if mass is not None:
-            try:
-                m = float(mass.get("value"))
-            except (TypeError, ValueError):
-                raise ModelError(f"{path}: link {link.get('name')!r} has an invalid mass "
-                                 f"{mass.get('value')!r}") from None
-            if not (m >= 0.0):
-                raise ModelError(f"{path}: link {link.get('name')!r} has negative mass {m}")
+        if inertial is None:
+            continue
+        owner = f"{path}: link {link.get('name')!r}: <inertial>"
+        origin = inertial.find("origin")
+        for attr in ("xyz", "rpy"):
+            if origin is not None and origin.get(attr) is not None:
+                _number(origin.get(attr), 3, f"{owner} origin {attr}")
+        mass, inertia = inertial.find("mass"), inertial.find("inertia")
+        if mass is None or mass.get("value") is None:
+            raise ModelError(f"{owner} mass missing")
+        m, = _number(mass.get("value"), 1, f"{owner} mass")
+        if m < 0.0:
+            raise ModelError(f"{path}: link {link.get('name')!r} has negative mass {m}")
+        for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
+            if inertia is None or inertia.get(key) is None:
+                raise ModelError(f"{owner} inertia {key} missing")
+            _number(inertia.get(key), 1, f"{owner} inertia {key}")
+
+
+def _check_total_mass(root, model, path):
+    """The masses of the URDF's <inertial> elements add up to the parsed model's: the second
+    line of defence should the parser read a value otherwise than ``_check_inertials``."""
+    def mass(e):
+        try:
+            return float(e.get("value"))
+        except (TypeError, ValueError):
+            return math.nan
+    xml = sum(mass(e) for e in root.findall("link/inertial/mass"))
+    parsed = sum(model.inertias[i].mass for i in range(model.njoints))
+    if not math.isclose(xml, parsed, rel_tol=1e-9, abs_tol=1e-12):
+        raise ModelError(f"{path}: the <inertial> masses total {xml} kg, the parsed model {parsed} kg: "
+                         f"the URDF parser dropped or misread an <inertial> (see its messages)")
 
 
 def _check_bodies(model, model_raw=None):
@@ -307,16 +371,25 @@ def load_urdf(path, locked_joints=None, name=None, snap_tol=1e-9):
         Unsupported joint (floating, planar, unknown type, mimic, ...), a body without
         positive mass or positive-definite inertia, an unknown locked joint, or M(q) singular.
     """
-    path = pathlib.Path(path).expanduser().resolve()
-    if not path.is_file():
+    try:
+        path = pathlib.Path(path).expanduser().resolve()
+        found = path.is_file()
+    except (OSError, ValueError) as e:                 # a name too long, a NUL byte
+        raise FileNotFoundError(f"URDF file {str(path)!r} cannot be opened: "
+                                f"{getattr(e, 'strerror', None) or e}") from None
+    if not found:
         raise FileNotFoundError(f"URDF file not found: {path}")
-    locked = {str(k): float(v) for k, v in (locked_joints or {}).items()}
+    locked = _locked_values(locked_joints)
+    snap_tol = _finite("snap_tol", snap_tol, "a non-negative number")
+    if snap_tol < 0.0:
+        raise ValueError(f"snap_tol: expected a non-negative number, got {snap_tol!r}")
     data = path.read_bytes()
-    _check_urdf_xml(path, locked)
+    root = _check_urdf_xml(path, locked)
     try:
         model = pin.buildModelFromUrdf(str(path))
     except Exception as e:  # pinocchio raises ValueError/RuntimeError on bad files
         raise ModelError(f"{path}: pinocchio could not parse the URDF: {e}") from None
+    _check_total_mass(root, model, path)
     if locked:
         ids = []
         q_ref = pin.neutral(model)
@@ -333,9 +406,55 @@ def load_urdf(path, locked_joints=None, name=None, snap_tol=1e-9):
             else:
                 raise ModelError(f"{path}: cannot lock joint {jn!r} of type {jm.shortname()}")
             ids.append(jid)
-        model = pin.buildReducedModel(model, sorted(ids), q_ref)
+        model = _reduced(model, sorted(ids), q_ref)
     name = name if name is not None else path.stem
     source = {"kind": "urdf", "name": name, "path": str(path), "sha256": hashlib.sha256(data).hexdigest(),
-              "locked_joints": locked, "snap_tol": float(snap_tol)}
+              "locked_joints": locked, "snap_tol": snap_tol}
     return UrdfRobot(model, name=name, source=source,
                      snap_tol=snap_tol)
+
+
+def _finite(name, value, expected):
+    """float(value) if it is a finite real number, else ValueError naming ``name``."""
+    try:
+        v = float(value) if not isinstance(value, (bool, complex, str, bytes)) else None
+    except (TypeError, ValueError, OverflowError):
+        v = None
+    if v is None or not math.isfinite(v):
+        raise ValueError(f"{name}: expected {expected}, got {value!r}")
+    return v
+
+
+def _locked_values(locked_joints):
+    """locked_joints as {joint name: finite value}, or ValueError naming the entry."""
+    if locked_joints is None:
+        return {}
+    if not isinstance(locked_joints, Mapping):
+        raise ValueError(f"locked_joints: expected a dict joint name -> value (rad or m), "
+                         f"got {type(locked_joints).__name__} {locked_joints!r}")
+    return {str(k): _finite(f"locked_joints[{str(k)!r}]", v, "a finite number (rad or m)")
+            for k, v in locked_joints.items()}
+
+
+def _reduced(model, ids, q_ref):
+    """pin.buildReducedModel(model, ids, q_ref) by joint, whatever the frame names.
+
+    pinocchio looks frames up by name while it reduces, and fails ("Several frames match the
+    filter") when a link is named like a joint, as in arm descriptions (joint "gripper" moving
+    link "gripper"); so the call sees every non-joint frame under a unique name, and the
+    reduced model gets the original names back."""
+    model = model.copy()
+    original = {}
+    for i in range(1, len(model.frames)):
+        f = model.frames[i]
+        if f.type != pin.FrameType.JOINT:
+            original[f"{i}#{f.name}"] = f.name
+            f.name = f"{i}#{f.name}"
+            model.frames[i] = f
+    reduced = pin.buildReducedModel(model, ids, q_ref)
+    for i in range(len(reduced.frames)):
+        f = reduced.frames[i]
+        if f.name in original:
+            f.name = original[f.name]
+            reduced.frames[i] = f
+    return reduced

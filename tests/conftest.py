@@ -1,10 +1,10 @@
-import sys
+"""Shared fixtures. The packages are imported as installed (``pip install -e .``), never through
+sys.path edits."""
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
 CLOSED_FORM = ["seed000_2r", "seed002_2r", "seed003_2r_abs"]
 DEFAULT = CLOSED_FORM + ["ur5", "panda"]
@@ -35,3 +35,16 @@ def compiled():
             cache[name] = compile_observer(default_spec(name), dt=1e-3)
         return cache[name]
     return get
+
+
+def ur5_source(**extra):
+    """The plain-data robot source of example-robot-data's ur5 (for the reference tests)."""
+    import pinocchio as pin
+
+    from codegen.reference.urdf import file_sha256
+    for parent in Path(pin.__file__).resolve().parents:      # <cmeel.prefix>/share/example-robot-data
+        path = parent / "share" / "example-robot-data" / "robots" / "ur_description" / "urdf" / "ur5_robot.urdf"
+        if path.is_file():
+            return dict({"kind": "urdf", "path": str(path), "sha256": file_sha256(path),
+                         "locked_joints": {}, "snap_tol": 1e-9}, **extra)
+    pytest.skip("example-robot-data's ur5 not found")

@@ -36,6 +36,6 @@ def test_other_discretizations_match_reference(name, method, substeps, hold, spe
 def test_cli_check_works_for_every_rigid_family(family, robot):
     """`python -m codegen check ROBOT --family F` (the generic cross-check with the family's own
     random inputs where it has them) for every rigid-robot family; elastic families are
-    cross-checked in tests/test_seed004.py."""
+    cross-checked in tests/papers/test_seed004.py."""
     from codegen.cli import main
     assert main(["check", robot, "--family", family, "--count", "100"]) == 0

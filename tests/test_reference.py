@@ -1,9 +1,12 @@
-"""The independent reference (codegen.reference): robots from SPEC's formulas and
-pinocchio, the reduced-order observer, its discretization and its input checks.
+"""The independent reference (codegen.reference): its independence (imports), the observer
+families bound to their options, the reduced-order observer, its discretization and its input
+checks. The robots are tested in test_reference_robots.py.
 
 Uses a tiny fake description (a plain dict), so it depends on no other module of the project.
 """
-import re
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -11,28 +14,16 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from codegen.reference import SEED_SOURCES, reference_observer, reference_robot
-from codegen.reference.robots import file_sha256
-
-pin = pytest.importorskip("pinocchio")
+from conftest import ur5_source
 
 RNG = np.random.default_rng(20240601)
-CLOSED_FORM = ["seed000_2r", "seed002_2r", "seed003_2r_abs"]
 
 
-def _erd_robots():
-    """example-robot-data's robots folder: <cmeel.prefix>/share/example-robot-data/robots,
-    found by walking up from the installed pinocchio package."""
-    for parent in Path(pin.__file__).resolve().parents:
-        cand = parent / "share" / "example-robot-data" / "robots"
-        if cand.is_dir():
-            return cand
-    pytest.skip("example-robot-data robots folder not found")
-
-
-def ur5_source(**extra):
-    path = _erd_robots() / "ur_description" / "urdf" / "ur5_robot.urdf"
-    return dict({"kind": "urdf", "path": str(path), "sha256": file_sha256(path),
-                 "locked_joints": {}, "snap_tol": 1e-9}, **extra)
+@pytest.fixture(autouse=True)
+def _fresh_rng():
+    """Every test draws the same numbers whatever ran before it (order-independent)."""
+    global RNG
+    RNG = np.random.default_rng(20240601)
 
 
 def fake_spec(source, k0=16.037, family="reduced_order"):
@@ -46,188 +37,58 @@ def fake_spec(source, k0=16.037, family="reduced_order"):
             "gains": {"k0": ["k0"]} if family == "reduced_order" else {}}
 
 
-# ---------------------------------------------------------------------------- closed forms
+# ---------------------------------------------------------------------------- independence
+# what the reference may import: the standard library, numpy, pinocchio, itself, and the two
+# plain-data modules of ours (DESIGN §1); nothing else of the project, no CasADi
+ALLOWED_THIRD_PARTY = {"numpy", "pinocchio"}
+ALLOWED_OURS = {"codegen.target", "codegen.options"}
+
+
+def _imports(path, package="codegen.reference"):
+    """Absolute names of every module a file imports (also inside functions)."""
+    import ast
+    names = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = package.split(".")[:len(package.split(".")) - node.level + 1] if node.level else []
+            mod = ".".join(base + ([node.module] if node.module else []))
+            names += [mod] if node.module else [f"{mod}.{a.name}" for a in node.names]
+    return names
+
+
+def _allowed(name):
+    root = name.split(".")[0]
+    return (root in sys.stdlib_module_names or root in ALLOWED_THIRD_PARTY or name in ALLOWED_OURS
+            or name == "codegen.reference" or name.startswith("codegen.reference."))
+
+
 def test_source_import_is_independent():
-    """The hook's rule, checked here too: no CasADi, no symbolic code."""
-    bad = re.compile(r"import casadi|from casadi|from codegen\.(observers|symbolic|emit|discretize|spec)|import models|from models")
-    for f in Path(__file__).parents[1].joinpath("codegen", "reference").glob("*.py"):
-        assert not bad.search(f.read_text()), f
+    """Every import of codegen/reference/*.py is on the allow-list (DESIGN §1)."""
+    files = sorted(Path(__file__).parents[1].joinpath("codegen", "reference").glob("*.py"))
+    assert len(files) > 10
+    for f in files:
+        bad = [m for m in _imports(f) if not _allowed(m)]
+        assert not bad, (f.name, bad)
+    assert not _allowed("casadi") and not _allowed("models.urdf") and not _allowed("codegen.spec")
 
 
-def test_seed000_mass_matrix_numbers():
-    """SPEC §1.2: M11 = 38.3333 + 30 cos q2, M12 = 15 + 15 cos q2, M22 = 15."""
-    robot = reference_robot(SEED_SOURCES["seed000_2r"])
-    for q in RNG.uniform(-np.pi, np.pi, (20, 2)):
-        c2 = np.cos(q[1])
-        expected = np.array([[115.0 / 3.0 + 30.0 * c2, 15.0 + 15.0 * c2], [15.0 + 15.0 * c2, 15.0]])
-        np.testing.assert_allclose(robot.M(q), expected, rtol=1e-14, atol=1e-12)
-    np.testing.assert_array_equal(robot.F, np.diag([0.1, 0.3]))
-
-
-def test_seed002_mass_matrix_from_jacobians():
-    """SPEC §11.2 Remark 2: M = J_p^T diag(m) J_p + J_o^T diag(I) J_o, J_p from [S002 (34)]."""
-    robot = reference_robot(SEED_SOURCES["seed002_2r"])
-    m1, m2, l1, lc1, lc2 = 2.0, 1.0, 0.4, 0.2, 0.1
-    I1, I2 = m1 * 0.4 ** 2 / 12, m2 * 0.2 ** 2 / 12
-    J_o = np.array([[1.0, 0.0], [1.0, 1.0]])
-    for q in RNG.uniform(-np.pi, np.pi, (20, 2)):
-        s1, c1, s12, c12 = np.sin(q[0]), np.cos(q[0]), np.sin(q.sum()), np.cos(q.sum())
-        J_p = np.array([[-lc1 * s1, lc1 * c1, -l1 * s1 - lc2 * s12, l1 * c1 + lc2 * c12],
-                        [0.0, 0.0, -lc2 * s12, lc2 * c12]]).T                    # [S002 (34)]
-        M = J_p.T @ np.diag([m1, m1, m2, m2]) @ J_p + J_o.T @ np.diag([I1, I2]) @ J_o
-        np.testing.assert_allclose(robot.M(q), M, rtol=1e-13, atol=1e-15)
-        np.testing.assert_allclose(robot.com_jacobian(q), J_p, rtol=1e-14, atol=1e-16)
-        # the Jacobian is that of the CoM positions (central differences, error ~ h^2)
-        h = 1e-6
-        fd = np.column_stack([(robot.com_positions(q + h * e) - robot.com_positions(q - h * e)) / (2 * h)
-                              for e in np.eye(2)])
-        np.testing.assert_allclose(fd, J_p, atol=1e-9)
-
-
-def _mdot_fd(robot, q, v, h=1e-5):
-    """Mdot = dM/dt along v, by central differences (truncation ~ h^2 |M'''|)."""
-    return (robot.M(q + h * v) - robot.M(q - h * v)) / (2 * h)
-
-
-def _christoffel_checks(robot, samples=10, rtol_mdot=1e-8):
-    n = robot.n
-    for _ in range(samples):
-        q = RNG.uniform(-np.pi, np.pi, n)
-        v, a, b = RNG.standard_normal((3, n))
-        C = robot.C(q, v)
-        # Mdot = C + C^T [SPEC §0]. With h = 1e-5 and O(1..100) entries the central
-        # difference is good to ~1e-9 absolute; 1e-8 relative to the largest entry of M.
-        scale = np.abs(robot.M(q)).max() * max(1.0, np.abs(v).max())
-        np.testing.assert_allclose(C + C.T, _mdot_fd(robot, q, v), rtol=0, atol=rtol_mdot * scale)
-        # C(q, a) b = C(q, b) a [S000 (3)]: exact up to round-off
-        lhs, rhs = robot.C(q, a) @ b, robot.C(q, b) @ a
-        np.testing.assert_allclose(lhs, rhs, rtol=0, atol=1e-12 * max(1.0, np.abs(lhs).max()))
-
-
-@pytest.mark.parametrize("name", CLOSED_FORM)
-def test_christoffel_properties_closed_form(name):
-    _christoffel_checks(reference_robot(SEED_SOURCES[name]))
-
-
-def test_seed003_equation_59_is_transposed_christoffel():
-    """SPEC §4.2 / A3-1: (59) equals M^{-1}(k1 I - C^T) with C the Christoffel matrix."""
-    robot = reference_robot(SEED_SOURCES["seed003_2r_abs"])
-    c1, c2, c3 = 0.9698, 0.1575, 0.264
-    k1 = 40.0
-    for _ in range(20):
-        y = RNG.uniform(-np.pi, np.pi, 2)
-        x = RNG.uniform(-10, 10, 2)
-        phi = y[0] - y[1]
-        s, c = np.sin(phi), np.cos(phi)
-        D = c1 * c2 - c3 ** 2 * c ** 2
-        H59 = np.array([[c2 * k1 + c3 ** 2 * x[1] * s * c, c3 * (c2 * x[0] * s - k1 * c)],
-                        [-c3 * (c1 * x[1] * s + k1 * c), c1 * k1 - c3 ** 2 * x[0] * s * c]]) / D
-        H = np.linalg.solve(robot.M(y), k1 * np.eye(2) - robot.C(y, x).T)
-        np.testing.assert_allclose(H, H59, rtol=1e-12, atol=1e-12)
-    # gravity_scale multiplies G (A3-2)
-    src = dict(SEED_SOURCES["seed003_2r_abs"], params=dict(SEED_SOURCES["seed003_2r_abs"]["params"], gravity_scale=9.81))
-    y = RNG.uniform(-1, 1, 2)
-    np.testing.assert_allclose(reference_robot(src).g(y), 9.81 * robot.g(y), rtol=1e-15)
-
-
-@pytest.mark.parametrize("name", CLOSED_FORM)
-def test_closed_form_forward_dynamics(name):
-    robot = reference_robot(SEED_SOURCES[name])
-    for _ in range(5):
-        q, v, tau = RNG.standard_normal((3, 2))
-        qdd = robot.forward_dynamics(q, v, tau)
-        np.testing.assert_allclose(robot.M(q) @ qdd + robot.C(q, v) @ v + robot.F @ v + robot.g(q), tau,
-                                   rtol=1e-12, atol=1e-12)
-
-
-# ---------------------------------------------------------------------------- URDF
-def test_ur5_forward_dynamics_matches_crba_nle():
-    robot = reference_robot(ur5_source())
-    assert robot.n == 6
-    model = pin.buildModelFromUrdf(robot.path)
-    data = model.createData()
-    for _ in range(10):
-        q, v, tau = RNG.uniform(-np.pi, np.pi, 6), RNG.standard_normal(6), 10 * RNG.standard_normal(6)
-        M = pin.crba(model, data, q)
-        M = np.triu(M) + np.triu(M, 1).T
-        nle = pin.nonLinearEffects(model, data, q, v)
-        expected = np.linalg.solve(M, tau - nle - robot.F @ v)
-        np.testing.assert_allclose(robot.forward_dynamics(q, v, tau), expected, rtol=1e-10, atol=1e-10)
-        np.testing.assert_allclose(robot.M(q), robot.M(q).T, rtol=0, atol=0)
-        np.testing.assert_allclose(robot.nle(q, v), robot.C(q, v) @ v + robot.g(q), rtol=1e-10, atol=1e-10)
-
-
-def test_ur5_christoffel_properties():
-    _christoffel_checks(reference_robot(ur5_source()), samples=5)
-
-
-def test_ur5_sha256_mismatch_raises():
-    with pytest.raises(ValueError, match="sha256"):
-        reference_robot(ur5_source(sha256="0" * 64))
-
-
-def test_ur5_locked_joint_is_a_sub_block():
-    """Locking wrist_3 at a value: the reduced M, g are the free block of the full ones."""
-    full = reference_robot(ur5_source())
-    locked = reference_robot(ur5_source(locked_joints={"wrist_3_joint": 0.7}))
-    assert locked.n == 5 and "wrist_3_joint" not in locked.joint_names
-    for _ in range(5):
-        q = RNG.uniform(-np.pi, np.pi, 5)
-        qf = np.append(q, 0.7)
-        np.testing.assert_allclose(locked.M(q), full.M(qf)[:5, :5], rtol=1e-10, atol=1e-12)
-        np.testing.assert_allclose(locked.g(q), full.g(qf)[:5], rtol=1e-10, atol=1e-10)
-    with pytest.raises(ValueError, match="not_a_joint"):
-        reference_robot(ur5_source(locked_joints={"not_a_joint": 0.0}))
-
-
-SEED000_URDF = """<?xml version="1.0"?>
-<robot name="seed000_2r">
-  <link name="world"/>
-  <joint name="j1" type="continuous">
-    <parent link="world"/><child link="link1"/>
-    <origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="0 -1 0"/>
-    <dynamics damping="0.1" friction="0"/>
-  </joint>
-  <link name="link1">
-    <inertial><origin xyz="0.5 0 0" rpy="0 0 0"/><mass value="10"/>
-      <inertia ixx="0" ixy="0" ixz="0" iyy="{I1}" iyz="0" izz="{I1}"/></inertial>
-  </link>
-  <joint name="j2" type="continuous">
-    <parent link="link1"/><child link="link2"/>
-    <origin xyz="1 0 0" rpy="0 0 0"/><axis xyz="0 -1 0"/>
-    <dynamics damping="0.3" friction="0"/>
-  </joint>
-  <link name="link2">
-    <inertial><origin xyz="0.75 0 0" rpy="0 0 0"/><mass value="20"/>
-      <inertia ixx="0" ixy="0" ixz="0" iyy="{I2}" iyz="0" izz="{I2}"/></inertial>
-  </link>
-</robot>
-"""
-
-
-def test_urdf_continuous_joints_match_seed000_closed_form(tmp_path):
-    """The seed-000 arm as a URDF with continuous joints (pinocchio nq = 2, (cos, sin)),
-    in the vertical x-z plane (rotation about -y maps x to (cos q, 0, sin q)): pinocchio's
-    M, C, g, F, forward dynamics equal the closed form of SPEC §11.1."""
-    path = tmp_path / "seed000_2r.urdf"
-    path.write_text(SEED000_URDF.format(I1=repr(10.0 / 12), I2=repr(20.0 * 2.25 / 12)))
-    urdf = reference_robot({"kind": "urdf", "path": str(path), "sha256": file_sha256(path),
-                            "locked_joints": {}, "snap_tol": 1e-9})
-    closed = reference_robot(SEED_SOURCES["seed000_2r"])
-    assert urdf.model.nq == 4 and urdf.n == 2
-    np.testing.assert_allclose(urdf.F, closed.F, rtol=1e-15)
-    for _ in range(10):
-        q, v, tau = RNG.uniform(-np.pi, np.pi, 2), RNG.standard_normal(2), 50 * RNG.standard_normal(2)
-        np.testing.assert_allclose(urdf.M(q), closed.M(q), rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(urdf.C(q, v), closed.C(q, v), rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(urdf.g(q), closed.g(q), rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(urdf.forward_dynamics(q, v, tau), closed.forward_dynamics(q, v, tau),
-                                   rtol=1e-10, atol=1e-10)
-    # locking a continuous joint at an angle: the remaining arm is link 1 carrying a rigid link 2
-    locked = reference_robot({"kind": "urdf", "path": str(path), "locked_joints": {"j2": 0.4}})
-    q1 = np.array([0.3])
-    np.testing.assert_allclose(locked.M(q1), closed.M(np.array([0.3, 0.4]))[:1, :1], rtol=1e-12)
-    np.testing.assert_allclose(locked.g(q1), closed.g(np.array([0.3, 0.4]))[:1], rtol=1e-12)
+def test_reference_runs_without_casadi_or_models():
+    """Importing the reference and stepping an observer loads neither CasADi nor ``models``, and
+    of ours only the reference and the plain-data modules (beyond what ``import codegen`` loads)."""
+    code = ("import sys, json; import codegen; package = set(sys.modules); "
+            "from codegen.reference import reference_observer; "
+            "ref = reference_observer(json.loads(sys.argv[1]), hold='zoh'); "
+            "ref.reset([0.1, 0.2], [1.0, 0.0]); ref.run([[0.1, 0.2]] * 3, [[1.0, 2.0]] * 3); "
+            "print(json.dumps([sorted(sys.modules), sorted(set(sys.modules) - package)]))")
+    out = subprocess.run([sys.executable, "-c", code, json.dumps(fake_spec(SEED_SOURCES["seed000_2r"]))],
+                         cwd=Path(__file__).parents[1], capture_output=True, text=True, check=True)
+    loaded, added = json.loads(out.stdout)
+    assert "casadi" not in loaded and not any(m.split(".")[0] == "models" for m in loaded)
+    ours = [m for m in added if m.split(".")[0] == "codegen"]
+    assert "codegen.reference.robots" in ours
+    assert all(m in ALLOWED_OURS or m.startswith("codegen.reference") for m in ours), ours
 
 
 # ---------------------------------------------------------------------------- observer
@@ -421,3 +282,75 @@ def test_bad_construction():
         reference_observer({**spec, "hybrid": True})
     with pytest.raises(ValueError, match="options"):
         reference_observer({**spec, "options": {"kind": "Nonsense"}})
+
+
+# ---------------------------------------------------------------------------- families bound to options
+def _family_configure(name):
+    from codegen.reference import FAMILIES
+    return FAMILIES[name].configure
+
+
+@pytest.mark.parametrize("name,source,options", [
+    ("ii_speed", SEED_SOURCES["seed003_2r_abs"], {"kind": "QuadratureOptions", "N": 4, "periodic": [True, True],
+                                                  "N_period": 8}),
+    ("lotfi_namvar", SEED_SOURCES["seed002_2r"], {"kind": "NonMinimalOptions", "rows": [1, 2, 3], "joints": [0, 1],
+                                                  "g_o": [0.0, -9.81]}),
+    ("ciccarella_germani", {"kind": "elastic", "rigid": SEED_SOURCES["seed000_2r"], "J": [1.0, 1.0],
+                            "K": [100.0, 100.0]}, {"kind": "VariantOptions", "variant": "O3"}),
+])
+def test_configure_binds_options_without_touching_the_robot(name, source, options):
+    """configure returns the family with the options bound as values; the robot is unchanged
+    (nothing stored on it), and the bound sizes follow the options."""
+    from codegen.options import options_from_dict
+    robot = reference_robot(source)
+    before = dict(vars(robot))
+    family = _family_configure(name)(robot, options_from_dict(options))
+    assert vars(robot).keys() == before.keys() and all(vars(robot)[k] is v for k, v in before.items())
+    bound, sizes = {"ii_speed": ({"N": 4, "periodic": [True, True], "N_period": 8},
+                                 {"nx": 7, "ny": 2, "nu": 2, "nest": 4}),
+                    "lotfi_namvar": ({}, {"nx": 12, "ny": 5, "nu": 2, "nest": 8}),
+                    "ciccarella_germani": ({"variant": "O3"}, {"nx": 8, "ny": 4, "nu": 2, "nest": 8})}[name]
+    assert {k: getattr(family, k) for k in bound} == bound
+    assert family.sizes(robot) == sizes
+    if name == "lotfi_namvar":
+        assert (family.nm.rows, family.nm.joints, list(family.nm.a)) == ([1, 2, 3], [0, 1], [-9.81, 0.0, -9.81])
+
+
+def test_two_observers_of_one_robot_keep_their_options():
+    """Two Ciccarella-Germani variants on the same reference robot object: each family keeps its
+    own variant (the first is not overwritten by the second)."""
+    from codegen.options import VariantOptions
+    robot = reference_robot({"kind": "elastic", "rigid": SEED_SOURCES["seed000_2r"], "J": [1.0, 1.0],
+                             "K": [100.0, 100.0]})
+    configure = _family_configure("ciccarella_germani")
+    o4, o3 = configure(robot, VariantOptions("O4")), configure(robot, VariantOptions("O3"))
+    assert (o4.variant, o3.variant) == ("O4", "O3")
+    assert o4.sizes(robot)["ny"] == 2 and o3.sizes(robot)["ny"] == 4
+
+
+def test_bound_refuses_an_option_no_function_takes():
+    from codegen.reference import _family, reduced_order
+    family = _family.bound(reduced_order)
+    assert family.rhs is reduced_order.rhs and family.P_NAMES == ("k0",)
+    with pytest.raises(TypeError, match="variant"):
+        _family.bound(reduced_order, variant="O1")
+
+
+@pytest.mark.parametrize("name,source,options,match", [
+    ("ciccarella_germani", {"kind": "elastic", "rigid": SEED_SOURCES["seed000_2r"], "J": [1.0, 1.0],
+                            "K": [100.0, 100.0]}, {"kind": "VariantOptions", "variant": "O5"}, "variant 'O5'"),
+    ("ciccarella_germani", {"kind": "elastic", "rigid": SEED_SOURCES["seed000_2r"], "J": [1.0, 1.0],
+                            "K": [100.0, 100.0]}, {"kind": "Options"}, "variant None"),
+    ("lotfi_namvar", SEED_SOURCES["seed002_2r"], {"kind": "Options"}, "NonMinimalOptions"),
+    ("lotfi_namvar", SEED_SOURCES["seed002_2r"], {"kind": "NonMinimalOptions", "rows": [0], "joints": [0],
+                                                  "g_o": [0.0, 9.81]}, "g_o"),
+    ("lotfi_namvar", SEED_SOURCES["seed002_2r"], {"kind": "NonMinimalOptions", "rows": [4], "joints": [0],
+                                                  "g_o": [0.0, -9.81]}, "out of range"),
+    ("ii_speed", SEED_SOURCES["seed000_2r"], {"kind": "QuadratureOptions", "N": 4,
+                                                                        "periodic": [True, True, True],
+                                                                        "N_period": 4}, "^periodic: expected 2"),
+])
+def test_configure_refuses_bad_options(name, source, options, match):
+    from codegen.options import options_from_dict
+    with pytest.raises(ValueError, match=match):
+        _family_configure(name)(reference_robot(source), options_from_dict(options))

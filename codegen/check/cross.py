@@ -16,11 +16,29 @@ from .measure import relative_error
 
 
 def cross_check(spec, discretization=None, count=1000, seed=0, **overrides):
-    """Worst relative errors of the compiled C against the reference.
+    """Worst relative errors of the compiled C against the independent reference (DESIGN §3).
 
-    From each of `count` random (x, y, u): two samples (the second with another random y, u, so a
-    first-order hold integrates a real interval), comparing estimates and states; the RHS at
-    (x, y, u); and a run of `count` samples along the built-in trajectory with noise. Returns a dict."""
+    From each of ``count`` random (x, y, u) (``random_inputs``): two samples (the second with
+    another random y, u, so a first-order hold integrates a real interval), comparing estimates
+    and states; the RHS at (x, y, u); and a run of ``count`` samples along the built-in
+    trajectory with noise (y = q, u = tau families) or on random inputs (the others).
+
+    Parameters
+    ----------
+    spec : codegen.spec.ObserverSpec
+    discretization : codegen.target.Discretization or dict, optional
+        Default: codegen.target.DEFAULT_DISCRETIZATION; ``overrides`` (dt in s, method,
+        substeps, hold) replace single fields.
+    count : int
+        Random samples, and the length of the run.
+    seed : int
+
+    Returns
+    -------
+    dict
+        "step_est", "step_state", "rhs", "run": worst relative error (``relative_error``,
+        NaN if anything is not finite); "samples": ``count``.
+    """
 
     disc = as_discretization(discretization, **overrides)
     dt = disc.dt

@@ -39,10 +39,10 @@ def build(family, robot, **kwargs):
     -------
     codegen.spec.ObserverSpec
     """
-    from ..spec import plain
+    from ..spec import checked_args, plain
     laws = _laws()
     if family not in laws:
         raise KeyError(f"unknown control law {family!r}; known: {', '.join(FAMILIES)}")
-    spec = laws[family](robot, **kwargs)
+    spec = laws[family](robot, **checked_args(kwargs))
     spec.build_args = {k: plain(v) for k, v in kwargs.items()}
     return spec

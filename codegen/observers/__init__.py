@@ -7,7 +7,7 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
-from ..spec import plain
+from ..spec import checked_args, plain
 
 FAMILIES = sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
 __all__ = ["FAMILIES", "build"]
@@ -32,7 +32,7 @@ def build(family, robot, **gains):
     """
     if family not in FAMILIES:
         raise KeyError(f"unknown observer family {family!r}; known: {', '.join(FAMILIES)}")
-    spec = importlib.import_module(f"{__name__}.{family}").build(robot, **gains)
+    spec = importlib.import_module(f"{__name__}.{family}").build(robot, **checked_args(gains))
     spec.build_args = {k: plain(v) for k, v in gains.items()}
     return spec
 

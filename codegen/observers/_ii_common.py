@@ -208,6 +208,6 @@ def ii_inputs(n, c_r):
     rad in 1 ms drives these stiff filters out of range); u = g(y) + N(0, 1); states from init
     at N(0, 1) estimates with the position filter off y by ~0.05 rad and r in
     [2 c_r, 2 c_r + 0.02]."""
-    return InputRanges(y_jitter=1e-2, u_gravity=True, u_scale=1.0, est_scale=1.0,
+    return InputRanges(y_jitter=1e-2, u="gravity", u_scale=1.0, est_scale=1.0,
                        x_scale=(0.0,) * n + (0.05,) * n + (0.0,) * (n + 1),
                        x_uniform=(("r", 2 * c_r, 2 * c_r + 0.02),))

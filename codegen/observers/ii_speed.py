@@ -40,9 +40,10 @@ import casadi as ca
 
 from ..design import ii_speed_bounds
 from ..symbolic import christoffel_column_matrix, ldl_solve
-from ._ii_common import (DEFAULT_N, beta_directional, designed_bounds, filter_symbols,
-                         frobenius_sq, ii_spec, lemma2_bound, lemma2_names, lemma2_values,
-                         quadrature_beta, resolve_wrap, split_params)
+from ._ii_common import DEFAULT_N  # public: default quadrature nodes N (docs/quadrature.md)
+from ._ii_common import (beta_directional, designed_bounds, filter_symbols, frobenius_sq, ii_spec,
+                         lemma2_bound, lemma2_names, lemma2_values, quadrature_beta, resolve_wrap,
+                         split_params)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..options import InputRanges, NonMinimalOptions
 from ..spec import ObserverSpec
-from ._nonminimal import nonminimal
+from ._nonminimal import nonminimal  # public: p rows, J_n and the CoM forces f_f of a robot (SPEC §3.1)
 
 # [S002 Table II]: alpha, lambda, gamma, thetahat(0) for j = 1..4 (zhat(0) = 0, zeta(0) = 0)
 TABLE_II = {"alpha": [30.0, 30.0, 30.0, 30.0], "lambda": [12.0, 12.0, 12.0, 12.0],
@@ -129,10 +129,14 @@ def build(robot, rows="all", alpha=None, lam=None, gamma=None, thetahat0=None,
         init=ca.Function("init", [y0, est0, p], [x0]),
         jump=ca.Function("jump", [x, y, p], [xj]),
         options=NonMinimalOptions(**nm.source),
-        # cross-check inputs: f_f = m (acc - g_o) with acc ~ N(0, 10^2); zhat1 near pi (~0.3 m),
-        # zhat2 near J_n est0, zeta at the static-load level m g / alpha, thetahat in [0.2, 3] theta
-        inputs=InputRanges(y_extra=tuple(zip(-mass * nm.a, 10.0 * mass)), u_scale=10.0,
-                           x_scale=(0.3,) * r + (1.0,) * r + tuple(10.0 * mass / 30.0) + (0.0,) * r,
+        # cross-check inputs: f_f = m (acc - g_o) with acc ~ N(0, 10^2); zhat1 = pi(q) + N(0, 0.1^2),
+        # zhat2 ~ N(0, 1), zeta ~ f_f / alpha (alpha = 30, Table II), thetahat in [0.2, 3] theta;
+        # u is unused
+        inputs=InputRanges(y_extra=tuple(zip(-mass * nm.a, 10.0 * mass)), u="plain", u_scale=10.0,
+                           est_scale=0.0, init_p=(("zhat1_from_y0", 1.0),),
+                           x_scale=(0.1,) * r + (1.0,) * r + (0.0,) * (2 * r),
+                           x_normal=tuple((f"zeta_{c}", -m * a / 30.0, 10.0 * m / 30.0)
+                                          for c, m, a in zip(ch, mass, nm.a)),
                            x_uniform=tuple((f"thetahat_{c}", 0.2 * t, 3.0 * t) for c, t in zip(ch, nm.theta))),
         design={"row_names": ch, "observable_joints": jn, "theta_true": nm.theta.tolist(),
                 "a": nm.a.tolist()},

@@ -75,7 +75,8 @@ def build(robot, form="literal", smoothing_eps=None, K0=None, K1=None, K2=None):
         design={"form": form, "smoothing_eps": smoothing_eps},
         # cross-check inputs: qhat near q (both signs of e, half the draws inside the tanh
         # layer), w ~ N(0, 5^2); u is unused
-        inputs=InputRanges(x_scale=(0.5,) * n + (5.0,) * n, x_fine=1e-4,
-                           x_about_y=tuple((f"qhat_{s}", f"q_{s}") for s in j)),
+        inputs=InputRanges(u="plain", x_scale=(0.5,) * n + (0.0,) * n, x_fine=1e-4,
+                           x_about_y=tuple((f"qhat_{s}", f"q_{s}") for s in j),
+                           x_normal=tuple((f"w_{s}", 0.0, 5.0) for s in j)),
     )
 

@@ -15,7 +15,13 @@ target's metadata JSON, and a ``codegen.target.Discretization`` (plain data too)
 A family module gives ``rhs(robot, x, y, u, p)``, ``output(robot, x, y, u, p)``,
 ``init(robot, y0, est0, p)``, ``sizes(robot)``, optionally ``P_NAMES``, for hybrid
 observers ``jump(robot, x, y, p)``, and, when it needs the spec's declared options,
-``configure(robot, options) -> family`` (options: the typed value of codegen.options).
+``configure(robot, options) -> family`` (options: the typed value of codegen.options): the
+module's functions with those options bound as keyword arguments (reference/_family.py),
+never state stored on the robot.
+
+Robots (reference/robots.py ``reference_robot``) are rebuilt from the spec's plain-data
+robot source: closed forms (rigid.py), URDF through pinocchio (urdf.py), DH tables by
+Newton-Euler (dh.py) and elastic joints over any of them (elastic.py).
 """
 from __future__ import annotations
 
@@ -30,7 +36,7 @@ from . import discretize
 from .robots import SEED_SOURCES, reference_robot
 
 # a family is a module of this package named like the symbolic one (codegen/observers/<family>.py)
-_NOT_FAMILIES = {"discretize", "robots", "elastic"}
+_NOT_FAMILIES = {"discretize", "robots", "rigid", "urdf", "dh", "elastic", "hyperdual"}
 FAMILIES = {m.name: importlib.import_module(f"{__name__}.{m.name}")
             for m in pkgutil.iter_modules(__path__)
             if m.name not in _NOT_FAMILIES and not m.name.startswith("_")}
@@ -90,6 +96,7 @@ def _jacobian(f, x, rel=1e-6):
 
 
 def _matrix(value, N, n, name, n_rows_name="N"):
+    """A finite float64 array of shape (N, n) (N None: any), or ValueError naming it."""
     try:
         a = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -218,17 +225,31 @@ class ReferenceObserver:
         return self._p if p is None else _vector(p, self.np, "p")
 
     def rhs(self, x, y, u, p=None):
-        """Flow xdot = rhs(x, y, u, p) of the continuous-time observer."""
+        """Flow xdot = rhs(x, y, u, p) of the continuous-time observer.
+
+        Parameters
+        ----------
+        x : (nx,) array
+        y : (ny,) array
+        u : (nu,) array
+        p : (np,) array, optional
+            Default: the parameters of the last ``reset`` (``p_default`` before).
+
+        Returns
+        -------
+        (nx,) array
+        """
         return self.family.rhs(self.robot, _vector(x, self.nx, "x"), _vector(y, self.ny, "y"),
                                _vector(u, self.nu, "u"), self._p_or(p))
 
     def output(self, x, y, u, p=None):
-        """Estimate est = output(x, y, u, p)."""
+        """Estimate est = output(x, y, u, p) (nest,); arguments as in ``rhs``."""
         return self.family.output(self.robot, _vector(x, self.nx, "x"), _vector(y, self.ny, "y"),
                                   _vector(u, self.nu, "u"), self._p_or(p))
 
     def jump(self, x, y, p=None):
-        """Hybrid jump map x+ = jump(x, y, p) (identity for non-hybrid families)."""
+        """Hybrid jump map x+ = jump(x, y, p) (nx,), the identity for non-hybrid families;
+        arguments as in ``rhs``."""
         x = _vector(x, self.nx, "x")
         if not self.hybrid:
             return x
@@ -245,7 +266,22 @@ class ReferenceObserver:
         self._x = _vector(x, self.nx, "x")
 
     def reset(self, y0, est0=None, p=None):
-        """x = init(y0, est0, p); est0 None -> zeros, p None -> spec.p_default."""
+        """Start the observer: x = init(y0, est0, p).
+
+        Parameters
+        ----------
+        y0 : (ny,) array
+            First measurement.
+        est0 : (nest,) array, optional
+            Initial estimate (default zeros).
+        p : (np,) array, optional
+            Parameters used from now on (default ``p_default``).
+
+        Returns
+        -------
+        (nx,) array
+            A copy of the state.
+        """
         y0 = _vector(y0, self.ny, "y0")
         est0 = np.zeros(self.nest) if est0 is None else _vector(est0, self.nest, "est0")
         p = self.p_default.copy() if p is None else _vector(p, self.np, "p")
@@ -280,8 +316,18 @@ class ReferenceObserver:
             raise RuntimeError("call reset(y0, est0=None, p=None) before step/run")
 
     def step(self, y, u):
-        """est from the current state (after the jump map, if hybrid), then x advances
-        over dt with y, u held constant (zero-order hold)."""
+        """One sample: est from the current state (after the first-order-hold interval and
+        the jump map, if any), then x advances over dt (zero-order hold).
+
+        Parameters
+        ----------
+        y : (ny,) array
+        u : (nu,) array
+
+        Returns
+        -------
+        (nest,) array
+        """
         self._require_reset()
         y = _vector(y, self.ny, "y")
         u = _vector(u, self.nu, "u")
@@ -290,14 +336,23 @@ class ReferenceObserver:
         return est
 
     def estimate(self, y, u):
-        """The estimate step(y, u) would return, without advancing the state."""
+        """The estimate (nest,) ``step(y, u)`` would return, without advancing the state."""
         self._require_reset()
         y, u = _vector(y, self.ny, "y"), _vector(u, self.nu, "u")
         return self._advance(self._x, self._prev, y, u)[0]
 
     def run(self, Y, U):
-        """Repeated step: Y (N, ny), U (N, nu) -> EST (N, nest). All-or-nothing: on an
-        error the state is left unchanged."""
+        """Repeated ``step``, all-or-nothing: on an error the state is left unchanged.
+
+        Parameters
+        ----------
+        Y : (N, ny) array
+        U : (N, nu) array
+
+        Returns
+        -------
+        (N, nest) array
+        """
         self._require_reset()
         Y = _matrix(Y, None, self.ny, "Y")
         U = _matrix(U, Y.shape[0], self.nu, "U")

@@ -8,25 +8,34 @@ matrix of the linear Phi (O3, O4; SPEC §8.4), and solved by a plain LU (np.lina
 -- not the block forward substitution of the generated code.
 
 Parameters: one gain per row of Phi (channel-major), then ``rcond_min`` (unused here: the
-reference has no conditioning guard). The variant is read from the spec's y names by
-``reference.elastic.reference_observer``, which sets ``robot.cg_variant``.
+reference has no conditioning guard). The variant is the spec's declared option
+(codegen.options.VariantOptions), bound by ``configure``.
 """
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 
-from .elastic import ElasticRobot
+from ._family import bound
+
+VARIANTS = ("O1", "O2", "O3", "O4")
 
 
 def configure(robot, options):
-    """The variant the spec declares (codegen.options.VariantOptions), recorded on the
-    reference robot."""
-    if options.variant not in ("O1", "O2", "O3", "O4"):
-        raise ValueError(f"unknown Ciccarella-Germani variant {options.variant!r} (O1..O4)")
-    robot.cg_variant = options.variant
-    return sys.modules[__name__]
+    """This family bound to the variant the spec declares.
+
+    Parameters
+    ----------
+    robot : reference elastic robot
+    options : codegen.options.VariantOptions
+
+    Returns
+    -------
+    family bound to ``variant``
+    """
+    variant = getattr(options, "variant", None)
+    if variant not in VARIANTS:
+        raise ValueError(f"options: unknown Ciccarella-Germani variant {variant!r} (one of {VARIANTS})")
+    return bound(__name__, variant=variant)
 
 
 def _phi_Q(robot, variant, x):
@@ -62,8 +71,27 @@ def _H_and_rows(robot, variant, x):
     return np.concatenate([x3, robot.K @ (x1 - x3)]), [i for i in range(2 * n) for _ in range(2)]
 
 
-def rhs(robot, x, y, u, p):
-    variant = robot.cg_variant
+def rhs(robot, x, y, u, p, variant):
+    """xhat' = f(xhat) + G u + Q(xhat)^{-1} Kg (y - H(xhat))  [S004 (3.10)].
+
+    Parameters
+    ----------
+    robot : reference elastic robot (n joints)
+    x : (4n,) array
+        xhat = [q1; q1'; q2; q2'] (rad, rad/s).
+    y : (n,) or (2n,) array
+        The variant's measurement H(x) (SPEC §8.4): O1 q1, O2 [q1_i, q1'_i]_i, O3 [q2; tau_el],
+        O4 q2.
+    u : (n,) array
+        Motor torques, N m.
+    p : (4n + 1,) array
+        Kg (one gain per row of Phi, channel-major), rcond_min (unused).
+    variant : {"O1", "O2", "O3", "O4"}
+
+    Returns
+    -------
+    (4n,) array
+    """
     H, row_error = _H_and_rows(robot, variant, x)
     e = y - H
     v = p[:robot.nx] * e[row_error]
@@ -72,14 +100,17 @@ def rhs(robot, x, y, u, p):
 
 
 def output(robot, x, y, u, p):
+    """est = xhat (4n,); arguments as in ``rhs``."""
     return np.array(x, dtype=float)
 
 
 def init(robot, y0, est0, p):
+    """xhat(0) = est0 (4n,) [CODE-CP]; y0 as ``rhs``'s y, p as its p."""
     return np.array(est0, dtype=float)
 
 
-def sizes(robot):
+def sizes(robot, variant):
+    """{"nx": 4n, "ny": n (O1, O4) or 2n (O2, O3), "nu": n, "nest": 4n}."""
     n = robot.n
-    ny = {"O1": n, "O4": n, "O2": 2 * n, "O3": 2 * n}[robot.cg_variant]
+    ny = {"O1": n, "O4": n, "O2": 2 * n, "O3": 2 * n}[variant]
     return {"nx": 4 * n, "ny": ny, "nu": n, "nest": 4 * n}

@@ -17,12 +17,27 @@ HOLDS = ("zoh", "foh")
 
 
 def euler_step(f, t, x, h):
-    """x + h f(t, x)."""
+    """Explicit Euler: x + h f(t, x).
+
+    Parameters
+    ----------
+    f : callable
+        (t, x) -> x' (m,).
+    t : float
+        Time since the start of the sample interval, s.
+    x : (m,) array
+    h : float
+        Step, s.
+
+    Returns
+    -------
+    (m,) array
+    """
     return x + h * f(t, x)
 
 
 def rk4_step(f, t, x, h):
-    """Classical Runge-Kutta: x + h/6 (k1 + 2 k2 + 2 k3 + k4)."""
+    """Classical Runge-Kutta: x + h/6 (k1 + 2 k2 + 2 k3 + k4); arguments as ``euler_step``."""
     k1 = f(t, x)
     k2 = f(t + 0.5 * h, x + 0.5 * h * k1)
     k3 = f(t + 0.5 * h, x + 0.5 * h * k2)
@@ -72,8 +87,28 @@ _STEPS = {"euler": euler_step, "rk4": rk4_step}
 
 
 def integrate(f, x, dt, method="rk4", substeps=1, rate=None, mask=None):
-    """Advance x over dt by ``substeps`` equal steps h = dt / substeps of ``method``
-    (``etdrk4`` with a rate ``a`` and its state ``mask``; plain RK4 when rate is None)."""
+    """Advance x over dt by ``substeps`` equal steps h = dt / substeps of ``method``.
+
+    Parameters
+    ----------
+    f : callable
+        (t, x) -> x' (m,), t in [0, dt] the time since the start of the interval (s).
+    x : (m,) array
+    dt : float
+        Sample time, s.
+    method : {"euler", "rk4", "etdrk4"}
+        ``etdrk4`` integrates -rate x exactly on the ``mask`` slots (plain RK4 when rate is None).
+    substeps : int
+    rate : float or None
+        The family's gain rate a (1/s) of x' = g - a x.
+    mask : sequence of int or None
+        State slots the rate applies to.
+
+    Returns
+    -------
+    (m,) array
+        x(dt).
+    """
     h = dt / substeps
     for i in range(substeps):
         if method == "etdrk4" and rate is not None:

@@ -22,24 +22,20 @@ p = [k1, k2, k3, c_r, deltabar_p, r0, a (n^2 row-major), b (n^3, j,i,m)]; est = 
 """
 from __future__ import annotations
 
-import sys
-
-from functools import partial
-from types import SimpleNamespace
-
 import numpy as np
 
-from .ii_speed import check_periodic, column_nodes
+from ._family import bound
+from .urdf import UrdfRobot
+from . import ii_speed
+from .ii_speed import DEFAULT_N, column_nodes, quadrature, sizes  # noqa: F401  (same sizes)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
-DEFAULT_N = 16
 _H = 1e-30
 
 
 def params(p, n):
-    s = dict(zip(SCALARS, p[:len(SCALARS)]))
-    o = len(SCALARS)
-    return s, np.asarray(p[o:o + n * n]).reshape(n, n), np.asarray(p[o + n * n:o + n * n + n ** 3]).reshape(n, n, n)
+    """(scalars dict, a (n, n), b (n, n, n)) of p = [SCALARS, a, b] (reference/ii_speed.params)."""
+    return ii_speed.params(p, n, SCALARS)
 
 
 def _chol_lower(A):
@@ -54,12 +50,25 @@ def _chol_lower(A):
 
 
 def _phi(X):
+    """Lower triangle of X with half its diagonal."""
     return np.tril(X, -1) + 0.5 * np.diag(np.diag(X))
 
 
 def kinematics(robot, q):
-    """(M, T, T^{-1}, [dT/dq_k]) at q."""
-    if not hasattr(robot, "dMw_dq") or robot.__class__.__name__ == "UrdfRobot":
+    """M^{-1} = T T^T (T lower) and dT/dq_k = T Phi(T^{-1} d(M^{-1})/dq_k T^{-T})  (SPEC §5 [DERIVED]).
+
+    Parameters
+    ----------
+    robot : closed-form reference robot (n joints; M, C and dMw_dq accept complex q)
+    q : (n,) array, real or complex
+        rad.
+
+    Returns
+    -------
+    M, T, Tinv : (n, n) arrays
+    dT : list of n (n, n) arrays
+    """
+    if not hasattr(robot, "dMw_dq") or isinstance(robot, UrdfRobot):
         raise NotImplementedError("the AOV reference needs closed-form (complex-capable) M and C; "
                                   "pinocchio robots are not supported (no second derivatives of M)")
     n = robot.n
@@ -76,12 +85,15 @@ def kinematics(robot, q):
 
 
 def S(robot, q, b):
+    """S(q, b) = -T^T M sum_k dT/dq_k (T b)_k - T^T C(q, T b) T  (SPEC §5) (n, n); q (n,) rad, b (n,)."""
     Mq, T, _, dT = kinematics(robot, q)
     Tb = T @ b
     return -T.T @ Mq @ sum(dT[k] * Tb[k] for k in range(robot.n)) - T.T @ robot.C(q, Tb) @ T
 
 
 def hbar_column(robot, q, p, k1, i):
+    """Hbar_i(q, p) = k1 T^{-1} e_i - T^T M dT/dq_i p - T^T C(q, e_i) T p  (SPEC §5) (n,);
+    q (n,) rad (complex allowed), p (n,) the momentum-like estimate, k1 (1/s), i the column."""
     Mq, T, Tinv, dT = kinematics(robot, q)
     e = np.zeros(robot.n)
     e[i] = 1.0
@@ -89,8 +101,27 @@ def hbar_column(robot, q, p, k1, i):
 
 
 def beta_and_derivatives(robot, y, qhat, phat, k1, N, derivatives=True, periodic=None, N_period=None):
-    """beta, dbeta/dq, dbeta/dqhat, dbeta/dphat; quadrature nodes (and the interval reduction
-    of the ``periodic`` joints) as in reference/ii_speed.column_nodes."""
+    """beta = sum_i int_0^{y_i} Hbar_i and its derivatives (SPEC §5 [DERIVED]).
+
+    Parameters
+    ----------
+    robot : closed-form reference robot (n joints)
+    y : (n,) array
+        q, rad.
+    qhat : (n,) array
+        rad.
+    phat : (n,) array
+    k1 : float
+        1/s.
+    N, derivatives, periodic, N_period
+        As in reference/ii_speed.py ``beta_and_derivatives`` (nodes by ``column_nodes``).
+
+    Returns
+    -------
+    beta : (n,) array
+    dbdq, dbdqhat, dbdphat : (n, n) arrays
+        dbeta/dq (exact), dbeta/dqhat (complex step), dbeta/dphat (exact).
+    """
     n = robot.n
     periodic = [False] * n if periodic is None else periodic
     beta = np.zeros(n)
@@ -116,6 +147,26 @@ def beta_and_derivatives(robot, y, qhat, phat, k1, N, derivatives=True, periodic
 
 
 def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
+    """[xi'; qhat'; phat'; r'] (SPEC §5, module docstring).
+
+    Parameters
+    ----------
+    robot : closed-form reference robot (n joints)
+    x : (3n + 1,) array
+        [xi; qhat (rad); phat; r].
+    y : (n,) array
+        q, rad.
+    u : (n,) array
+        tau, N m.
+    p : (6 + n^2 + n^3,) array
+        See ``params``.
+    N, periodic, N_period
+        The quadrature (N None: DEFAULT_N).
+
+    Returns
+    -------
+    (3n + 1,) array
+    """
     n = robot.n
     s, a, b = params(p, n)
     k1 = s["k1"]
@@ -141,6 +192,7 @@ def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
 
 
 def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
+    """est = [T(y) phat; T(y) (xi + beta)] (2n,), rad/s; arguments as in ``rhs``."""
     n = robot.n
     xi, qhat, phat = x[:n], x[n:2 * n], x[2 * n:3 * n]
     beta, *_ = beta_and_derivatives(robot, y, qhat, phat, params(p, n)[0]["k1"], N or DEFAULT_N, False,
@@ -150,6 +202,8 @@ def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
 
 
 def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
+    """x(0) = [T^{-1} est0[n:] - beta; y0; phat0 = T^{-1} est0[:n]; r0] (3n + 1,); y0 (n,) rad,
+    est0 (2n,) rad/s, the rest as in ``rhs``."""
     n = robot.n
     s = params(p, n)[0]
     Tinv = kinematics(robot, y0)[2]
@@ -159,20 +213,6 @@ def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
     return np.concatenate([Tinv @ est0[n:] - beta, y0, phat0, [s["r0"]]])
 
 
-def sizes(robot):
-    n = robot.n
-    return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
-
-
 def configure(robot, options):
-    """The family with the spec's quadrature (N, interval reduction, N_period), see
-    reference/ii_speed.configure."""
-    return bound(options.N, check_periodic(robot, options.periodic), options.N_period)
-
-
-def bound(N, periodic=None, N_period=None):
-    """This family with the quadrature fixed (see reference/ii_speed.py ``bound``)."""
-    kw = dict(N=N, periodic=periodic, N_period=N_period)
-    return SimpleNamespace(rhs=partial(rhs, **kw), output=partial(output, **kw),
-                           init=partial(init, **kw), sizes=sizes, N=N, periodic=periodic,
-                           N_period=N_period)
+    """This family bound to the spec's quadrature (reference/ii_speed.py ``quadrature``)."""
+    return bound(__name__, **quadrature(robot, options))

@@ -27,37 +27,86 @@ b (n^3, C order j,i,m)].
 """
 from __future__ import annotations
 
-import sys
-
 import numpy as np
+
+from ._family import bound
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 DEFAULT_N = 16
 
 
 def quadrature_nodes(N):
-    """Gauss-Legendre nodes and weights on [-1, 1]."""
+    """(t, w): N Gauss-Legendre nodes and weights on [-1, 1] (numpy leggauss), (N,) each."""
     return np.polynomial.legendre.leggauss(int(N))
 
 
-def params(p, n):
-    """(scalars dict, a (n, n), b (n, n, n) [j, i, m]) from the flat parameter vector."""
-    s = dict(zip(SCALARS, p[:len(SCALARS)]))
-    o = len(SCALARS)
+def params(p, n, scalars=SCALARS):
+    """The flat parameter vector of an I&I observer, split (module docstring).
+
+    Parameters
+    ----------
+    p : (len(scalars) + n^2 + n^3,) array
+    n : int
+        Joints.
+    scalars : tuple of str
+        Names of the leading scalars.
+
+    Returns
+    -------
+    s : dict
+        The scalars by name.
+    a : (n, n) array
+        Row-major (j, i).
+    b : (n, n, n) array
+        C order (j, i, m).
+    """
+    s = dict(zip(scalars, p[:len(scalars)]))
+    o = len(scalars)
     a = np.asarray(p[o:o + n * n]).reshape(n, n)
     b = np.asarray(p[o + n * n:o + n * n + n ** 3]).reshape(n, n, n)
     return s, a, b
 
 
 def h_column(robot, q, x, k1, i):
-    """H_i(q, x) = M(q)^{-1}(k1 e_i - C(q, x) e_i)."""
+    """H_i(q, x) = M(q)^{-1}(k1 e_i - C(q, x) e_i)  [S003 (11)], A3-1.
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    q : (n,) array
+        rad.
+    x : (n,) array
+        Velocity estimate s_x, rad/s.
+    k1 : float
+        1/s.
+    i : int
+        Column.
+
+    Returns
+    -------
+    (n,) array
+    """
     rhs = -robot.C(q, x)[:, i]
     rhs[i] += k1
     return np.linalg.solve(robot.M(q), rhs)
 
 
 def h_column_derivatives(robot, q, x, k1, i):
-    """(H_i, dH_i/dq (n x n), dH_i/dx (n x n)) at (q, x), all exact."""
+    """H_i and its exact derivatives, dH_i/dq_j = -M^{-1}(dM/dq_j H_i + d(C(q, x) e_i)/dq_j).
+
+    Parameters
+    ----------
+    robot, q, x, k1, i
+        As in ``h_column``; the robot gives ``dMw_dq`` and ``dCab_dq``.
+
+    Returns
+    -------
+    Hi : (n,) array
+    dq : (n, n) array
+        dH_i/dq.
+    dx : (n, n) array
+        dH_i/dx.
+    """
     Mq = robot.M(q)
     e = np.zeros(robot.n)
     e[i] = 1.0
@@ -68,9 +117,28 @@ def h_column_derivatives(robot, q, x, k1, i):
 
 
 def column_nodes(yi, N, periodic=False, N_period=None):
-    """(sigma_k, h_k) with int_0^{yi} f ~= sum_k h_k f(sigma_k): N-node Gauss-Legendre on
-    [0, yi]; for a 2 pi-periodic joint, with yi = 2 pi m + rho (m = floor(yi/2pi + 1/2)),
-    m times the N_period-node trapezoid over [-pi, pi) plus Gauss-Legendre on [0, rho]."""
+    """Quadrature of int_0^{yi} f ~= sum_k h_k f(sigma_k) (SPEC §4.1, docs/quadrature.md).
+
+    N-node Gauss-Legendre on [0, yi]; for a 2 pi-periodic joint, with yi = 2 pi m + rho
+    (m = floor(yi/2pi + 1/2)), m times the N_period-node trapezoid over [-pi, pi) plus
+    Gauss-Legendre on [0, rho].
+
+    Parameters
+    ----------
+    yi : float
+        Upper limit, rad.
+    N : int
+        Gauss-Legendre nodes.
+    periodic : bool
+        Reduce the interval modulo 2 pi.
+    N_period : int or None
+        Trapezoid nodes per whole period (None: N).
+
+    Returns
+    -------
+    list of (sigma_k, h_k)
+        Nodes (rad) and weights (rad).
+    """
     t, w = quadrature_nodes(N)
     if not periodic:
         return list(zip(0.5 * yi * (1.0 + t), 0.5 * yi * w))
@@ -84,8 +152,33 @@ def column_nodes(yi, N, periodic=False, N_period=None):
 
 
 def beta_and_derivatives(robot, y, s_y, s_x, k1, N, derivatives=True, periodic=None, N_period=None):
-    """beta (12), dbeta/dy (13), dbeta/ds_y (14), dbeta/ds_x (15); ``periodic`` (n bools):
-    the joints whose interval is reduced to |rho| <= pi plus whole periods (column_nodes)."""
+    """beta and its derivatives by quadrature  [S003 (12)-(15)].
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    y : (n,) array
+        Measured q, rad.
+    s_y : (n,) array
+        Position filter, rad.
+    s_x : (n,) array
+        Velocity filter, rad/s.
+    k1 : float
+        1/s.
+    N : int
+        Gauss-Legendre nodes per integral.
+    derivatives : bool
+        Also dbeta/ds_y and dbeta/ds_x (zeros otherwise).
+    periodic : sequence of n bools or None
+        The joints whose interval is reduced modulo 2 pi (``column_nodes``).
+    N_period : int or None
+
+    Returns
+    -------
+    beta : (n,) array
+    dbdy, dbdsy, dbdsx : (n, n) arrays
+        dbeta/dy (13), dbeta/ds_y (14), dbeta/ds_x (15).
+    """
     n = robot.n
     periodic = [False] * n if periodic is None else periodic
     beta = np.zeros(n)
@@ -113,6 +206,26 @@ def _split(x, n):
 
 
 def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
+    """[xi'; s_y'; s_x'; r']  [S003 (6), (38), (44), (45)] (module docstring).
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    x : (3n + 1,) array
+        [xi (rad/s); s_y (rad); s_x (rad/s); r].
+    y : (n,) array
+        q, rad.
+    u : (n,) array
+        tau, N m.
+    p : (8 + n^2 + n^3,) array
+        See ``params``.
+    N, periodic, N_period
+        The quadrature (``beta_and_derivatives``; N None: DEFAULT_N).
+
+    Returns
+    -------
+    (3n + 1,) array
+    """
     n = robot.n
     N = N or DEFAULT_N
     s, a, b = params(p, n)
@@ -137,7 +250,7 @@ def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
 
 
 def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
-    """est = [s_x; xhat]."""
+    """est = [s_x; xhat = xi + beta] (2n,), rad/s; arguments as in ``rhs``."""
     n = robot.n
     xi, s_y, s_x, _ = _split(x, n)
     beta, *_ = beta_and_derivatives(robot, y, s_y, s_x, params(p, n)[0]["k1"], N or DEFAULT_N,
@@ -146,7 +259,8 @@ def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
 
 
 def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
-    """s_y = y0, s_x = est0[:n], xi = est0[n:] - beta(y0, y0, s_x), r = r0."""
+    """x(0) = [est0[n:] - beta(y0, y0, s_x); y0; s_x = est0[:n]; r0] (3n + 1,); y0 (n,) rad,
+    est0 (2n,) rad/s, the rest as in ``rhs``."""
     n = robot.n
     s = params(p, n)[0]
     sx0, xhat0 = est0[:n], est0[n:]
@@ -156,34 +270,55 @@ def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
 
 
 def sizes(robot):
+    """{"nx": 3n + 1, "ny": n, "nu": n, "nest": 2n}."""
     n = robot.n
     return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
 
 
 def check_periodic(robot, periodic):
     """The spec's per-joint interval reduction, checked against this reference robot's own
-    ``periodic`` flags (pinocchio joint types / closed forms): ValueError if the spec reduces
-    a joint the reference robot does not know to be 2 pi-periodic (independent check)."""
+    ``periodic`` flags (pinocchio joint types / closed forms).
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    periodic : sequence of n bools
+
+    Returns
+    -------
+    list of n bools
+
+    Raises
+    ------
+    ValueError
+        If the spec reduces a joint the reference robot does not know to be 2 pi-periodic.
+    """
     declared = getattr(robot, "periodic", None)
     declared = np.zeros(robot.n, bool) if declared is None else np.asarray(declared, dtype=bool)
-    flags = np.asarray(periodic, dtype=bool).reshape(robot.n)
+    flags = np.asarray(periodic, dtype=bool).reshape(-1)
+    if flags.shape != (robot.n,):
+        raise ValueError(f"periodic: expected {robot.n} flags, got {list(flags)}")
     if np.any(flags & ~declared):
         raise ValueError(f"periodic {list(flags)}: the reference robot has non-periodic joints {list(declared)}")
     return [bool(v) for v in flags]
 
 
+def quadrature(robot, options):
+    """The spec's quadrature as keyword options of rhs, output and init.
+
+    Parameters
+    ----------
+    robot : reference robot
+    options : codegen.options.QuadratureOptions
+
+    Returns
+    -------
+    dict
+        N, periodic (checked by ``check_periodic``), N_period.
+    """
+    return dict(N=options.N, periodic=check_periodic(robot, options.periodic), N_period=options.N_period)
+
+
 def configure(robot, options):
-    """The family with the spec's quadrature (codegen.options.QuadratureOptions): order N,
-    per-joint interval reduction (checked against this robot's periodicity), N_period."""
-    return bound(options.N, check_periodic(robot, options.periodic), options.N_period)
-
-
-def bound(N, periodic=None, N_period=None):
-    """This family with the quadrature fixed (order N, per-joint ``periodic`` reduction,
-    N_period trapezoid nodes per period)."""
-    from functools import partial
-    from types import SimpleNamespace
-    kw = dict(N=N, periodic=periodic, N_period=N_period)
-    return SimpleNamespace(rhs=partial(rhs, **kw), output=partial(output, **kw),
-                           init=partial(init, **kw), sizes=sizes, N=N, periodic=periodic,
-                           N_period=N_period)
+    """This family bound to the spec's quadrature (see ``quadrature``)."""
+    return bound(__name__, **quadrature(robot, options))

@@ -12,68 +12,111 @@ x = [zhat1, zhat2, zeta, thetahat] (r each), y = [q (n), f_f (r)], u = tau (unus
 est = [qd_hat (n_o), nuhat (r), thetahat (r)],
 p = [alpha, lambda, gamma, thetahat0 (r each), zhat1_from_y0, projection, theta_min, theta_max].
 
-The rows and observable joints come from ``robot.source["nonminimal"]`` (plain data the spec
-adds to its robot source); without it: every row of J_p that is not identically zero and every
-joint whose column is not, found here by sampling the reference robot's own J_p.
+The rows and observable joints are the spec's declared options (codegen.options.
+NonMinimalOptions), bound by ``configure``; a = g_o entries of the rows, g_o the reference
+robot's own gravity vector (the declared one must agree).
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-_TOL = 1e-9
+from ._family import bound
 
 
-def _default_rows(robot, count=64, seed=0):
-    rng = np.random.default_rng(seed)
-    J = np.array([robot.com_jacobian(q) for q in rng.uniform(-np.pi, np.pi, (count, robot.n))])
-    scale = max(1.0, np.abs(J).max())
-    masses = np.repeat(np.asarray(robot.masses, float), robot.dim)
-    rows = [r for r in range(J.shape[1]) if np.abs(J[:, r]).max() > _TOL * scale and masses[r] > _TOL]
-    joints = [k for k in range(robot.n) if np.abs(J[:, rows, k]).max() > _TOL * scale]
-    return rows, joints
+class NonMinimal(NamedTuple):
+    """Seed 002's non-minimal coordinates on a reference robot (SPEC §3.1, A2-2).
+
+    Attributes
+    ----------
+    rows : list of int
+        Selected rows of the stacked CoM positions p(q) (dim n), r of them.
+    joints : list of int
+        Observable joints, n_o of them.
+    a : (r,) array
+        g_o entries of the rows, m/s^2.
+    """
+
+    rows: list
+    joints: list
+    a: np.ndarray
 
 
-def _coords(robot):
-    """(rows, joints, a) of the robot's non-minimal model, cached on the robot."""
-    c = getattr(robot, "_nonminimal_cache", None)
-    if c is None:
-        nm = (getattr(robot, "source", None) or {}).get("nonminimal")
-        rows, joints = (nm["rows"], nm["joints"]) if nm else _default_rows(robot)
-        go = np.asarray(robot.gravity_vector, float)
-        a = np.array([go[r % robot.dim] for r in rows])
-        c = robot._nonminimal_cache = (list(rows), list(joints), a)
-    return c
+def configure(robot, options):
+    """This family bound to the declared rows and joints (codegen.options.NonMinimalOptions).
+
+    Parameters
+    ----------
+    robot : reference robot with ``com_positions``, ``com_jacobian``, ``gravity_vector``, ``dim``
+    options : codegen.options.NonMinimalOptions
+
+    Returns
+    -------
+    family bound to ``nm`` (a ``NonMinimal``)
+    """
+    if not all(hasattr(options, k) for k in ("rows", "joints", "g_o")):
+        raise ValueError(f"lotfi_namvar: options must be NonMinimalOptions (rows, joints, g_o), got {options!r}")
+    go = np.asarray(robot.gravity_vector, dtype=float)
+    if not np.allclose(options.g_o, go, rtol=1e-9, atol=1e-12):
+        raise ValueError(f"lotfi_namvar: declared g_o {list(options.g_o)} differs from the reference robot's {go}")
+    rows, joints = list(options.rows), list(options.joints)
+    if not (all(0 <= r < robot.dim * robot.n for r in rows) and all(0 <= k < robot.n for k in joints)):
+        raise ValueError(f"lotfi_namvar: rows {rows} or joints {joints} out of range for {robot.n} joints")
+    return bound(__name__, nm=NonMinimal(rows, joints, np.array([go[r % robot.dim] for r in rows])))
 
 
-def _split(robot, x, y, p):
-    rows, joints, a = _coords(robot)
-    r, n = len(rows), robot.n
-    q = y[:n]
-    return (rows, joints, a, r, q, y[n:], x[:r], x[r:2 * r], x[2 * r:3 * r], x[3 * r:],
+def _split(robot, nm, x, y, p):
+    r, n = len(nm.rows), robot.n
+    return (r, y[:n], y[n:], x[:r], x[r:2 * r], x[2 * r:3 * r], x[3 * r:],
             p[:r], p[r:2 * r], p[2 * r:3 * r])
 
 
-def rhs(robot, x, y, u, p):
-    rows, joints, a, r, q, ff, zh1, zh2, zeta, th, al, la, ga = _split(robot, x, y, p)
-    pi = robot.com_positions(q)[rows]
+def rhs(robot, x, y, u, p, nm):
+    """[zhat1'; zhat2'; zeta'; thetahat']  [S002 (12), (13), (17)].
+
+    Parameters
+    ----------
+    robot : reference robot with CoM kinematics (n joints)
+    x : (4r,) array
+        [zhat1 (m); zhat2 (m/s); zeta (N s); thetahat (1/kg)].
+    y : (n + r,) array
+        [q (rad); f_f (N)].
+    u : (n,) array
+        tau, N m (unused).
+    p : (4r + 4,) array
+        [alpha; lambda; gamma; thetahat0 (r each); zhat1_from_y0; projection; theta_min;
+        theta_max].
+    nm : NonMinimal
+        The bound rows, joints and a.
+
+    Returns
+    -------
+    (4r,) array
+    """
+    r, q, ff, zh1, zh2, zeta, th, al, la, ga = _split(robot, nm, x, y, p)
+    pi = robot.com_positions(q)[nm.rows]
     k1, k2 = la + al, la * al
     return np.concatenate([-k1 * zh1 + zh2 + zeta * th + k1 * pi,
-                           -k2 * zh1 + a + al * zeta * th + k2 * pi,
+                           -k2 * zh1 + nm.a + al * zeta * th + k2 * pi,
                            -al * zeta + ff,
                            ga * zeta * (pi - zh1)])
 
 
-def output(robot, x, y, u, p):
-    rows, joints, a, r, q, ff, zh1, zh2, zeta, th, al, la, ga = _split(robot, x, y, p)
+def output(robot, x, y, u, p, nm):
+    """est = [qd_hat (n_o, rad/s); nuhat (r, m/s); thetahat (r)], qd_hat by the left
+    pseudo-inverse of J_n (A2-6); arguments as in ``rhs``."""
+    r, q, ff, zh1, zh2, zeta, th, al, la, ga = _split(robot, nm, x, y, p)
     nuhat = zh2 + zeta * th
-    Jn = robot.com_jacobian(q)[rows][:, joints]
+    Jn = robot.com_jacobian(q)[nm.rows][:, nm.joints]
     qd_hat = np.linalg.solve(Jn.T @ Jn, Jn.T @ nuhat)
     return np.concatenate([qd_hat, nuhat, th])
 
 
-def jump(robot, x, y, p):
-    """thetahat clipped into [theta_min, theta_max] when projection = 1 (identity otherwise)."""
-    r = len(_coords(robot)[0])
+def jump(robot, x, y, p, nm):
+    """x+ (4r,): thetahat clipped into [theta_min, theta_max] when projection = 1 (identity
+    otherwise); arguments as in ``rhs``."""
+    r = len(nm.rows)
     if p[4 * r + 1] == 0.0:
         return np.array(x, dtype=float)
     x = np.array(x, dtype=float)
@@ -82,16 +125,30 @@ def jump(robot, x, y, p):
     return x
 
 
-def init(robot, y0, est0, p):
-    rows, joints, a = _coords(robot)
-    r, n = len(rows), robot.n
+def init(robot, y0, est0, p, nm):
+    """x(0) = [zhat1_from_y0 pi(q0); J_n(q0) qd_hat(0); 0; thetahat0]  (SPEC §3.2).
+
+    Parameters
+    ----------
+    robot, p, nm
+        As in ``rhs``.
+    y0 : (n + r,) array
+        [q(0) (rad); f_f(0) (N)].
+    est0 : (n_o + 2r,) array
+        [qd_hat(0) (rad/s); nuhat(0); thetahat(0)] (only qd_hat(0) is read).
+
+    Returns
+    -------
+    (4r,) array
+    """
+    r, n = len(nm.rows), robot.n
     q0 = y0[:n]
-    Jn = robot.com_jacobian(q0)[rows][:, joints]
-    return np.concatenate([p[4 * r] * robot.com_positions(q0)[rows], Jn @ est0[:len(joints)],
+    Jn = robot.com_jacobian(q0)[nm.rows][:, nm.joints]
+    return np.concatenate([p[4 * r] * robot.com_positions(q0)[nm.rows], Jn @ est0[:len(nm.joints)],
                            np.zeros(r), p[3 * r:4 * r]])
 
 
-def sizes(robot):
-    rows, joints, _ = _coords(robot)
-    r, n = len(rows), robot.n
-    return {"nx": 4 * r, "ny": n + r, "nu": n, "nest": len(joints) + 2 * r}
+def sizes(robot, nm):
+    """{"nx": 4r, "ny": n + r, "nu": n, "nest": n_o + 2r}."""
+    r, n = len(nm.rows), robot.n
+    return {"nx": 4 * r, "ny": n + r, "nu": n, "nest": len(nm.joints) + 2 * r}

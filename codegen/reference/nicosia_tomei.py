@@ -3,7 +3,8 @@
     x1tilde = y - x1hat,   x1hat' = x2hat + kd x1tilde
     x2hat'  = M(y)^{-1}[tau - C(y, x1hat') x1hat' - F x1hat' - g(y) + kp x1tilde]
 
-C evaluated at x1hat' (A0-6). x = [x1hat; x2hat], y = q, u = tau, p = [kd, kp], est = x2hat.
+C evaluated at x1hat' (A0-6). x = [x1hat (n, rad); x2hat (n, rad/s)], y = q (n, rad),
+u = tau (n, N m), p = [kd (1/s), kp (N m/rad)], est = x2hat (n, rad/s).
 """
 from __future__ import annotations
 
@@ -13,12 +14,31 @@ P_NAMES = ("kd", "kp")
 
 
 def output(robot, x, y, u, p):
-    """The velocity estimate x2hat."""
+    """The velocity estimate x2hat (SPEC §2).
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    x : (2n,) array
+        [x1hat (rad); x2hat (rad/s)].
+    y : (n,) array
+        q, rad.
+    u : (n,) array
+        tau, N m.
+    p : (2,) array
+        [kd (1/s), kp (N m/rad)].
+
+    Returns
+    -------
+    (n,) array
+        x2hat, rad/s.
+    """
     return np.asarray(x[robot.n:], dtype=float)
 
 
 def rhs(robot, x, y, u, p):
-    """[x1hat'; x2hat'] of SPEC §2 (the K_P x1tilde term enters as a torque)."""
+    """[x1hat' (rad/s); x2hat' (rad/s^2)] (2n,) of SPEC §2, the K_P x1tilde term entering as a
+    torque; arguments as in ``output``."""
     n = robot.n
     x1hat, x2hat = x[:n], x[n:]
     kd, kp = p
@@ -38,11 +58,11 @@ def rate_states(robot):
 
 
 def init(robot, y0, est0, p):
-    """x1hat(0) = y(0), x2hat(0) = est0  [CODE-KUKA]."""
+    """x(0) = [x1hat(0) = y0; x2hat(0) = est0] (2n,)  [CODE-KUKA]; y0 (n,) rad, est0 (n,) rad/s."""
     return np.concatenate([np.asarray(y0, float), np.asarray(est0, float)])
 
 
 def sizes(robot):
-    """Vector sizes for this robot."""
+    """{"nx": 2n, "ny": n, "nu": n, "nest": n}."""
     n = robot.n
     return {"nx": 2 * n, "ny": n, "nu": n, "nest": n}

@@ -4,7 +4,7 @@
     z'    = M(y)^{-1} [tau - C(y, x2hat) x2hat - F x2hat - g(y)] - k0 x2hat  [S000 (6),(9)]
     z(0)  = x2hat(0) - k0 y(0)                            [CODE-KUKA controller_kuka.hpp]
 
-x = z (n), y = q (n), u = tau (n), p = [k0], est = x2hat (n).
+x = z (n, rad/s), y = q (n, rad), u = tau (n, N m), p = [k0 (1/s)], est = x2hat (n, rad/s).
 """
 from __future__ import annotations
 
@@ -14,13 +14,32 @@ P_NAMES = ("k0",)
 
 
 def output(robot, x, y, u, p):
-    """x2hat = z + k0 y  [S000 (9)]."""
+    """x2hat = z + k0 y  [S000 (9)].
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    x : (n,) array
+        z, rad/s.
+    y : (n,) array
+        q, rad.
+    u : (n,) array
+        tau, N m (unused).
+    p : (1,) array
+        [k0], 1/s.
+
+    Returns
+    -------
+    (n,) array
+        x2hat, rad/s.
+    """
     return x + p[0] * y
 
 
 def rhs(robot, x, y, u, p):
-    """z' = forward_dynamics(y, x2hat, tau) - k0 x2hat  [S000 (6)]
-    (M^{-1} k0 M x2hat = k0 x2hat, so the M(y) dk/dy term leaves the solve)."""
+    """z' = forward_dynamics(y, x2hat, tau) - k0 x2hat  [S000 (6)] (n,), rad/s^2
+    (M^{-1} k0 M x2hat = k0 x2hat, so the M(y) dk/dy term leaves the solve); arguments as in
+    ``output``."""
     x2hat = output(robot, x, y, u, p)
     return robot.forward_dynamics(y, x2hat, u) - p[0] * x2hat
 
@@ -41,11 +60,12 @@ def retune(robot, x, y, p_old, p_new):
 
 
 def init(robot, y0, est0, p):
-    """z(0) = x2hat(0) - k0 y(0)."""
+    """z(0) = x2hat(0) - k0 y(0)  [CODE-KUKA] (n,), rad/s; y0 = q(0) (n,) rad, est0 = x2hat(0)
+    (n,) rad/s, p as in ``output``."""
     return np.asarray(est0, dtype=float) - p[0] * np.asarray(y0, dtype=float)
 
 
 def sizes(robot):
-    """Vector sizes (nx, ny, nu, nest) for this robot."""
+    """{"nx", "ny", "nu", "nest"}: n each."""
     n = robot.n
     return {"nx": n, "ny": n, "nu": n, "nest": n}

@@ -6,8 +6,9 @@ Jumps before each step [DERIVED, SPEC §1.3]: while ||x2hat|| >= r vbar - eta an
 r += 1; else while r >= 2 and ||x2hat|| <= (r-1) vbar - eta - delta, r -= 1; then
 z+ = z + (k_r - k_{r+}) y, so x2hat is continuous.
 
-x = [z (n); r], y = q, u = tau, p = [k_1 .. k_{r_max}, eta, vbar, delta], est = x2hat.
-r_max = len(p) - 3 (no fixed P_NAMES: the number of gains is a build choice).
+x = [z (n, rad/s); r], y = q (n, rad), u = tau (n, N m), p = [k_1 .. k_{r_max} (1/s), eta,
+vbar, delta (rad/s)], est = x2hat (n, rad/s). r_max = len(p) - 3 (no fixed P_NAMES: the number
+of gains is a build choice).
 """
 from __future__ import annotations
 
@@ -23,29 +24,60 @@ def _split(p):
 
 
 def logic_state(r, r_max):
-    """r as an integer in [1, r_max] (nearest; clamped)."""
+    """The logic state as an integer in [1, r_max] (nearest; clamped).
+
+    Parameters
+    ----------
+    r : float
+        The stored logic-state slot.
+    r_max : int
+
+    Returns
+    -------
+    int
+    """
     return int(min(max(np.floor(r + 0.5), 1), r_max))
 
 
 def gain(x, p):
-    """k_r for the logic state stored in x."""
+    """k_r (1/s) for the logic state stored in x (n + 1,), p as in ``rhs``."""
     k = _split(p)[0]
     return k[logic_state(x[-1], len(k)) - 1]
 
 
 def output(robot, x, y, u, p):
-    """x2hat = z + k_r y  [S000 (9)]."""
+    """x2hat = z + k_r y  [S000 (9)].
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    x : (n + 1,) array
+        [z (rad/s); r].
+    y : (n,) array
+        q, rad.
+    u : (n,) array
+        tau, N m (unused).
+    p : (r_max + 3,) array
+        [k_1 .. k_{r_max} (1/s); eta; vbar; delta (rad/s)].
+
+    Returns
+    -------
+    (n,) array
+        x2hat, rad/s.
+    """
     return reduced_order.output(robot, x[:-1], y, u, [gain(x, p)])
 
 
 def rhs(robot, x, y, u, p):
-    """[z'; r'] = [FD(y, x2hat, tau) - k_r x2hat; 0]  [S000 (6)]."""
+    """[z'; r'] = [FD(y, x2hat, tau) - k_r x2hat; 0]  [S000 (6)] (n + 1,); arguments as in
+    ``output``."""
     zdot = reduced_order.rhs(robot, x[:-1], y, u, [gain(x, p)])
     return np.append(zdot, 0.0)
 
 
 def jump(robot, x, y, p):
-    """Apply the switching rule of SPEC §1.3 (up- then down-jumps, repeated) and reset z."""
+    """[z+; r+] (n + 1,): the switching rule of SPEC §1.3 (up- then down-jumps, repeated) with
+    the z reset that keeps x2hat continuous [DERIVED]; arguments as in ``output``."""
     k, eta, vbar, delta = _split(p)
     r_max = len(k)
     z = np.asarray(x[:-1], dtype=float)
@@ -77,12 +109,13 @@ def retune(robot, x, y, p_old, p_new):
 
 
 def init(robot, y0, est0, p):
-    """z(0) = x2hat(0) - k_1 y(0), r(0) = 1  [S000 §V, CODE-KUKA]."""
+    """x(0) = [x2hat(0) - k_1 y(0); 1] (n + 1,)  [S000 §V, CODE-KUKA]; y0 = q(0) (n,) rad,
+    est0 = x2hat(0) (n,) rad/s, p as in ``output``."""
     k = _split(p)[0]
     return np.append(np.asarray(est0, float) - k[0] * np.asarray(y0, float), 1.0)
 
 
 def sizes(robot):
-    """Vector sizes for this robot."""
+    """{"nx": n + 1, "ny": n, "nu": n, "nest": n}."""
     n = robot.n
     return {"nx": n + 1, "ny": n, "nu": n, "nest": n}

@@ -16,9 +16,10 @@ P_NAMES = ()
 
 
 def extra_torque(t):
-    """The time-dependent part of (19)."""
+    """The time-dependent part of (19): (cos t, -1 + sin 2t), N m, at time t (s)."""
     return np.array([np.cos(t), -1.0 + np.sin(2.0 * t)])
 
 
 def output(robot, x, y, u, p):
+    """tau of [S000 (19)] (2,), N m; x (0,), y = [q; t] (3,), u (0,), p (0,)."""
     return torque(robot, y, extra_torque)

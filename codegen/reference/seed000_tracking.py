@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._law import constant_state, parameters
+
 
 def _quintic(t, q0, q1, T):
     """(q_d, qd_d, qdd_d) of the rest-to-rest quintic at time t."""
@@ -25,23 +27,35 @@ def _quintic(t, q0, q1, T):
     return q0 + h * dq, dh * dq, ddh * dq
 
 
-def rhs(robot, x, y, u, p):
-    return np.zeros(0)
-
-
-def init(robot, y0, est0, p):
-    return np.zeros(0)
+rhs, init = constant_state(0)
 
 
 def sizes(robot):
+    """{"nx": 0, "ny": 2n + 1, "nu": 0, "nest": n}."""
     n = robot.n
     return {"nx": 0, "ny": 2 * n + 1, "nu": 0, "nest": n}
 
 
 def output(robot, x, y, u, p):
+    """The Example-3 torque [S000 eq. after Fig. 5] (module docstring).
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    x : (0,) array
+    y : (2n + 1,) array
+        [q (rad); x2hat (rad/s); t (s)].
+    u : (0,) array
+    p : (4n + 2,) array
+        [q_start; q_goal (rad); T_move (s); lambda (1/s); kp (n); kd (n)].
+
+    Returns
+    -------
+    (n,) array
+        N m.
+    """
     n = robot.n
-    if len(p) != 4 * n + 2:
-        raise ValueError(f"seed000_tracking: expected {4 * n + 2} parameters, got {len(p)}")
+    p = parameters("seed000_tracking", p, 4 * n + 2)
     q, qh, t = y[:n], y[n:2 * n], float(y[2 * n])
     q0, q1 = p[:n], p[n:2 * n]
     T, lam = float(p[2 * n]), float(p[2 * n + 1])

@@ -21,15 +21,18 @@ of x [CODE-CP]. One hyper-dual evaluation of h0 at w + e1 w' + e2 w' + e1 e2 w''
 """
 from __future__ import annotations
 
+
 import numpy as np
 
-from . import elastic as E
-from .spong_fl import init, require_exact, rhs, sizes, split_measurement, spong_y3_y4_F  # noqa: F401
+from . import hyperdual as hd
+from ._family import bound
+from .spong_fl import init, law_inputs, require_exact, rhs, sizes, spong_y3_y4_F  # noqa: F401
 
 
 def configure(robot, options):
+    """This law, after checking the robot has exact derivatives."""
     require_exact(robot, "spong_manifold")
-    return _THIS
+    return bound(__name__)
 
 
 def _h0(robot, q, v, r0, r1, r2, KP, KD):
@@ -39,18 +42,17 @@ def _h0(robot, q, v, r0, r1, r2, KP, KD):
     M = rigid.M(q)
     cg = rigid.nle(q, v) + rigid.F @ v                       # c + g, c including F q1'
     u0 = (M + J) @ (r2 + (r0 - q) * KP + (r1 - v) * KD) + cg
-    Minv = E.solve(M, np.eye(n))
+    Minv = hd.solve(M, np.eye(n))
     A = Minv + robot.Jinv                                    # -A2
-    return u0, E.solve(A, -E.solve(M, cg) - robot.Jinv @ u0)  # h0 = (-A2)^{-1}(-a2... ) (4.18)
+    return u0, hd.solve(A, -hd.solve(M, cg) - robot.Jinv @ u0)  # h0 = (-A2)^{-1}(-a2... ) (4.18)
 
 
 def output(robot, x, y, u, p):
+    """Motor torques u = sat(u_s + u_f) (n,), N m  [S004 (4.17)-(4.23)], [CODE-CP]; arguments as
+    in reference/spong_fl.py ``output`` but p = [K_P (n, 1/s^2); K_D (n, 1/s); K_f (eta, eta'
+    per joint); u_max (N m)]."""
     n = robot.n
-    require_exact(robot, "spong_manifold")
-    if len(p) != 4 * n + 1:
-        raise ValueError(f"spong_manifold: expected {4 * n + 1} parameters, got {len(p)}")
-    xs, r = split_measurement(robot, y)
-    p = np.asarray(p, dtype=float)
+    xs, r, p = law_inputs("spong_manifold", robot, y, p)
     KP, KD, Kf, umax = p[:n], p[n:2 * n], p[2 * n:4 * n].reshape(n, 2), float(p[4 * n])
     J, K = robot.J, robot.K
     x1, x2, x3, x4 = robot.split(xs)
@@ -60,8 +62,8 @@ def output(robot, x, y, u, p):
     w = [x1, x2, r[0], r[1], r[2]]
     w1 = [x2, y3, r[1], r[2], r[3]]
     w2 = [y3, y4, r[2], r[3], r[4]]
-    args = [E.HyperDual(np.array(a, dtype=float), np.array(b, dtype=float), np.array(b, dtype=float),
-                        np.array(d, dtype=float)) for a, b, d in zip(w, w1, w2)]
+    args = [hd.HyperDual(np.array(a, dtype=float), np.array(b, dtype=float), np.array(b, dtype=float),
+                         np.array(d, dtype=float)) for a, b, d in zip(w, w1, w2)]
     u0h, h = _h0(robot, *args, KP, KD)
     u0, h0, dh0, ddh0 = u0h.a, h.a, h.b, h.d
 
@@ -73,6 +75,3 @@ def output(robot, x, y, u, p):
     zeta = Kf[:, 0] * eta + Kf[:, 1] * etad
     uf = -J @ (zeta - A2 @ eta)                              # B2^{-1}(zeta - A2 eta)
     return np.clip(us + uf, -umax, umax)
-
-
-_THIS = __import__("sys").modules[__name__]

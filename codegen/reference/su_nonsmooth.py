@@ -4,8 +4,8 @@ e = qhat - q;  sg = sign (sgn_eps = 0) or tanh(e / sgn_eps)
 literal (xian = 0):  qhat' = w,  w' = -K0 sg(e) - (K1 + 1) w - K2 e,  qd_hat = w    [S002 (35)]
 Xian    (xian = 1):  qhat' = w + (K1 + 1)(q - qhat),  w' = K0 sg(q - qhat) + K2 (q - qhat),
                      qd_hat = qhat'                                                  [DERIVED]
-x = [qhat, w], y = q, u = tau (unused), est = [qd_hat, qhat],
-p = [K0 (n), K1 (n), K2 (n), xian, sgn_eps]; init from est0 = [qd_hat(0), qhat(0)],
+x = [qhat (n, rad), w (n, rad/s)], y = q (n, rad), u = tau (n, unused), est = [qd_hat, qhat],
+p = [K0 (n), K1 (n), K2 (n), xian, sgn_eps (rad)]; init from est0 = [qd_hat(0), qhat(0)],
 w(0) = qd_hat(0) (literal) or qd_hat(0) - (K1 + 1)(q(0) - qhat(0)) (Xian).
 """
 from __future__ import annotations
@@ -23,6 +23,25 @@ def _parts(robot, x, y, p):
 
 
 def output(robot, x, y, u, p):
+    """est = [qd_hat; qhat]  [S002 (35)] (literal) or [DERIVED] (Xian).
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    x : (2n,) array
+        [qhat (rad); w (rad/s)].
+    y : (n,) array
+        q, rad.
+    u : (n,) array
+        tau, N m (unused).
+    p : (3n + 2,) array
+        [K0; K1; K2 (n each); xian (0 or 1); sgn_eps (rad, 0: sign)].
+
+    Returns
+    -------
+    (2n,) array
+        [qd_hat (rad/s); qhat (rad)].
+    """
     n, qhat, w, K0, K1, K2, xian, eps = _parts(robot, x, y, p)
     if xian == 1.0:
         qd_hat = w + (K1 + 1.0) * (y - qhat)
@@ -34,6 +53,8 @@ def output(robot, x, y, u, p):
 
 
 def rhs(robot, x, y, u, p):
+    """[qhat' (rad/s); w' (rad/s^2)] (2n,) of the form ``xian`` selects  [S002 (35)],
+    [DERIVED]; arguments as in ``output``."""
     n, qhat, w, K0, K1, K2, xian, eps = _parts(robot, x, y, p)
     qd_hat = output(robot, x, y, u, p)[:n]
     if xian == 1.0:
@@ -44,6 +65,22 @@ def rhs(robot, x, y, u, p):
 
 
 def init(robot, y0, est0, p):
+    """qhat(0) = est0[n:], w(0) from qd_hat(0) = est0[:n] (module docstring).
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    y0 : (n,) array
+        q(0), rad.
+    est0 : (2n,) array
+        [qd_hat(0) (rad/s); qhat(0) (rad)].
+    p : (3n + 2,) array
+        As in ``output``.
+
+    Returns
+    -------
+    (2n,) array
+    """
     n = robot.n
     qd0, qhat0 = est0[:n], est0[n:]
     K1, xian = p[n:2 * n], p[3 * n]
@@ -52,5 +89,6 @@ def init(robot, y0, est0, p):
 
 
 def sizes(robot):
+    """{"nx": 2n, "ny": n, "nu": n, "nest": 2n}."""
     n = robot.n
     return {"nx": 2 * n, "ny": n, "nu": n, "nest": 2 * n}

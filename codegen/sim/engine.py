@@ -9,9 +9,9 @@ At each sample k (t = k dt):
 Observers are any objects with reset/estimate/step/state (CompiledObserver or the
 numpy ReferenceObserver), so the same scenario runs on the C or on the reference.
 
-Speed: compiled blocks are called through :class:`Port`, which shares preallocated y/u
-buffers between blocks and calls the C entry points without per-step allocation or
-argument checks (the C still checks finiteness and returns a status, which is checked).
+Speed: blocks are called through :class:`Port`, which shares preallocated y/u buffers
+between blocks and calls the C entry points without per-step allocation or argument checks
+(the C still checks finiteness and returns a status, which is checked); see sim/blocks.py.
 """
 from __future__ import annotations
 
@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from .blocks import bind
 
 
 @dataclass
@@ -72,30 +74,22 @@ class Port:
     """A block (observer, law or plant) wired to shared buffers ``y`` and ``u``.
 
     ``estimate()`` and ``step()`` write the block's output into ``self.est`` (reused, not
-    copied); ``state()`` returns the block state. A CompiledObserver is called through its C
-    entry points directly; anything else (the numpy reference) through its Python methods."""
+    copied); ``state()`` returns the block state. The calls are ``blocks.bind``'s: the C entry
+    points of a CompiledObserver directly, the Python methods of the numpy reference."""
 
     def __init__(self, block, y, u):
         self.block, self.y, self.u = block, y, u
         self.nest, self.nx = block.nest, block.nx
         self._est = np.zeros(max(1, self.nest))   # C may touch one slot even when nest = 0
         self.est = self._est[: self.nest]
-        self.compiled = hasattr(block, "bind")
-        if self.compiled:
-            self._c_step, self._c_estimate = block.bind(y, u, self._est)
+        self._step, self._estimate = bind(block, y, u, self._est)
 
     def step(self):
-        if self.compiled:
-            self._c_step()
-        else:
-            self.est[:] = self.block.step(self.y, self.u)
+        self._step()
         return self.est
 
     def estimate(self):
-        if self.compiled:
-            self._c_estimate()
-        else:
-            self.est[:] = self.block.estimate(self.y, self.u)
+        self._estimate()
         return self.est
 
     def state(self):

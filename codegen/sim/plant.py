@@ -12,6 +12,8 @@ import casadi as ca
 import numpy as np
 
 from ..spec import ObserverSpec
+from ..target import Discretization
+from .blocks import block
 
 
 def state_space_spec(family, robot, x_names, u_names, xdot):
@@ -41,10 +43,9 @@ class SampledPlant:
     ``state``."""
 
     def __init__(self, spec, dt, substeps, out_dir=None):
-        from .. import compile_observer
         self.dt, self.substeps, self.nx = dt, substeps, spec.nx
-        self.block = compile_observer(spec, dt=dt, method="rk4", substeps=substeps, hold="zoh",
-                                      out_dir=out_dir)
+        disc = Discretization(dt=dt, method="rk4", hold="zoh", substeps=substeps)
+        self.block = block(spec, disc, out_dir=out_dir)       # always C, also for reference runs
         self._empty = np.zeros(0)
 
     def reset_state(self, x0):

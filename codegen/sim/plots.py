@@ -1,14 +1,24 @@
 """Figures of the scenarios (matplotlib, Agg backend: files only, no display).
 
-Each helper takes arrays and a path, writes one PNG and returns the path.
+One function per kind of figure, shared by the seeds; each takes arrays and a path, writes one
+PNG and returns the path:
+
+    per_joint            truth and estimates, one axes per joint     [S000 Figs. 2, 3; S003 Figs. 2, 3]
+    error_norms          ||e(t)|| of several runs on a log axis      [S000, S003, S004 error plots]
+    panels               traces on stacked (or gridded) axes          [S002 Figs. 1-4, S003 Figs. 4, 5]
+    positions_and_bound  positions, speed norms and the bound r vbar [S000 Figs. 4, 6]
+    tracking             tracking errors and torques                  [S000 Example 3]
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from itertools import cycle
 from pathlib import Path
 
 import numpy as np
 
 STYLES = ["--", "-.", ":", (0, (5, 1)), (0, (3, 1, 1, 1))]
+LINES = ["-", *STYLES]
 
 
 def _plt():
@@ -27,16 +37,84 @@ def _save(fig, path):
     return path
 
 
-def velocities(path, t, qd, estimates, title=""):
-    """Per joint: true velocity (solid) and each estimate (dashed, dash-dotted, ...) [Figs. 2, 3, 5, 7]."""
+@dataclass
+class Panel:
+    """One axes of :func:`panels`.
+
+    Parameters
+    ----------
+    curves : dict
+        label -> samples (1-D, no longer than the x axis; a shorter one is drawn from the start).
+    ylabel, title : str
+    log : {"", "y", "xy"}
+        Logarithmic axes.
+    hlines : sequence of float
+        Horizontal reference lines (dotted gray).
+    legend : bool
+        Show the curves' labels.
+    """
+
+    curves: dict
+    ylabel: str = ""
+    title: str = ""
+    log: str = ""
+    hlines: tuple = ()
+    legend: bool = True
+
+
+def panels(path, x, rows, title="", cols=1, cell=(8.0, 2.6), xlabel="t [s]"):
+    """Panels on a grid of ``cols`` columns sharing the x axis; line styles cycle within a panel.
+
+    Parameters
+    ----------
+    path : path of the PNG
+    x : (N,) array, the common x axis (time in s unless ``xlabel`` says otherwise)
+    rows : list of Panel
+    cell : (width, height) of one panel in inches
+    """
     plt = _plt()
-    n = qd.shape[1]
+    nrows = -(-len(rows) // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(cell[0] * cols, cell[1] * nrows), squeeze=False,
+                             sharex=True)
+    for ax, p in zip(axes.flat, rows):
+        for (label, y), ls in zip(p.curves.items(), cycle(LINES)):
+            ax.plot(x[:len(y)], y, linestyle=ls, lw=1.0, label=label)
+        if "y" in p.log:
+            ax.set_yscale("log")
+        if "x" in p.log:
+            ax.set_xscale("log")
+        for level in p.hlines:
+            ax.axhline(level, color="gray", lw=0.7, ls=":")
+        ax.set_ylabel(p.ylabel)
+        ax.set_title(p.title, fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+        if p.legend:
+            ax.legend(loc="best", fontsize=8)
+    for ax in axes.flat[len(rows):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel(xlabel)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
+
+
+def per_joint(path, t, truth, estimates, ylabel="qd{} [rad/s]", truth_label="true", title=""):
+    """Per joint i: the true signal (solid) and each estimate (dashed, dash-dotted, ...).
+
+    Parameters
+    ----------
+    t : (N,) s;  truth : (N, n);  estimates : dict label -> (N, >= n) (first n columns drawn)
+    ylabel : axis label per joint, ``{}`` replaced by the joint number (1-based)
+    """
+    plt = _plt()
+    n = truth.shape[1]
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n), sharex=True, squeeze=False)
     for i, ax in enumerate(axes[:, 0]):
-        ax.plot(t, qd[:, i], "k-", lw=1.4, label="true")
+        ax.plot(t, truth[:, i], "k-", lw=1.4, label=truth_label)
         for (name, E), ls in zip(estimates.items(), STYLES):
             ax.plot(t, E[:, i], linestyle=ls, lw=1.1, label=name)
-        ax.set_ylabel(f"qd{i + 1} [rad/s]")
+        ax.set_ylabel(ylabel.format(i + 1))
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="best", fontsize=8)
     axes[0, 0].set_title(title)
@@ -44,25 +122,33 @@ def velocities(path, t, qd, estimates, title=""):
     return _save(fig, path)
 
 
-def error_norms(path, t, errors, levels=(1e-2, 1e-3), title=""):
-    """||qd - qd_hat|| on a log scale for each observer, with the settling levels."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(8, 3.4))
-    for (name, e), ls in zip(errors.items(), ["-", "--", "-.", ":"] * 3):
-        ax.semilogy(t, np.maximum(np.linalg.norm(e, axis=1), 1e-12), linestyle=ls, lw=1.0, label=name)
-    for lv in levels:
-        ax.axhline(lv, color="gray", lw=0.7, ls=":")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("||qd - qd_hat|| [rad/s]")
-    ax.set_title(title)
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(loc="best", fontsize=8)
-    return _save(fig, path)
+def error_norms(path, t, errors, levels=(1e-2, 1e-3), ylabel="||qd - qd_hat|| [rad/s]", title=""):
+    """||e(t)|| (row norms, floored at 1e-12) of each error on a log axis, with reference levels.
+
+    Parameters
+    ----------
+    t : (N,) s
+    errors : dict label -> (N_i, m) errors, or (N_i,) norms; N_i <= N (a run that stopped early
+        is drawn as far as it went)
+    levels : horizontal lines (e.g. the settling levels)
+    """
+    norms = {k: np.maximum(np.linalg.norm(np.reshape(e, (len(e), -1)), axis=1), 1e-12)
+             for k, e in errors.items()}
+    return panels(path, t, [Panel(norms, ylabel=ylabel, log="y", hlines=levels)], title=title,
+                  cell=(8, 3.4))
+
+
+def tracking(path, t, e, tau, title=""):
+    """Tracking errors q_d - q (top) and joint torques (bottom) of a closed-loop run."""
+    n = e.shape[1]
+    return panels(path, t, [Panel({f"e{i + 1}": e[:, i] for i in range(n)}, ylabel="q_d - q [rad]"),
+                            Panel({f"tau{i + 1}": tau[:, i] for i in range(n)}, ylabel="tau [N m]")],
+                  title=title)
 
 
 def positions_and_bound(path, t, q, qd, est, r, vbar, q_ref=None, title=""):
-    """Top: joint positions (and references). Bottom: ||qd||, ||qd_hat||, bound r vbar,
-    and r on a second axis [Figs. 4, 6]."""
+    """Top: joint positions (and references). Bottom: ||qd||, ||qd_hat|| and the bound r vbar
+    [Figs. 4, 6]."""
     plt = _plt()
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5.6), sharex=True)
     for i in range(q.shape[1]):
@@ -80,21 +166,4 @@ def positions_and_bound(path, t, q, qd, est, r, vbar, q_ref=None, title=""):
     a2.set_xlabel("t [s]")
     a2.grid(alpha=0.3)
     a2.legend(loc="best", fontsize=8)
-    return _save(fig, path)
-
-
-def tracking(path, t, e, tau, title=""):
-    """Tracking errors q_d - q (top) and joint torques (bottom) of a closed-loop run."""
-    plt = _plt()
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True)
-    for i in range(e.shape[1]):
-        a1.plot(t, e[:, i], lw=1.1, label=f"e{i + 1}")
-        a2.plot(t, tau[:, i], lw=1.0, label=f"tau{i + 1}")
-    a1.set_ylabel("q_d - q [rad]")
-    a2.set_ylabel("tau [N m]")
-    a2.set_xlabel("t [s]")
-    for a in (a1, a2):
-        a.grid(alpha=0.3)
-        a.legend(loc="best", fontsize=8)
-    a1.set_title(title)
     return _save(fig, path)

@@ -2,11 +2,15 @@
 
 Each module of this package defines ``SCENARIOS = {name: function}``; a function takes
 ``reference`` (bool: run observers with the numpy reference instead of the C) and ``out``
-(a folder for the CSV and PNGs), and returns a summary dict (also printed).
+(a folder for the CSV and PNGs), and its own options if it has any (the mujoco-* scenarios:
+quantization, noise, mismatch, T), and returns a summary dict (also printed). Scenarios only
+describe experiments: blocks come from sim/blocks.py, figures from sim/plots.py; the studies
+behind docs/ are in sim/studies.py and the benchmarks in codegen/bench.py.
 """
 from __future__ import annotations
 
 import importlib
+import inspect
 import json
 import pkgutil
 import re
@@ -21,18 +25,9 @@ def registry():
     return reg
 
 
-def benches():
-    """name -> bench() of every scenario module that has one (timings for `make bench`)."""
-    out = {}
-    for m in pkgutil.iter_modules(__path__):
-        if not m.name.startswith("_"):
-            fn = getattr(importlib.import_module(f"{__name__}.{m.name}"), "bench", None)
-            if fn is not None:
-                out[m.name] = fn
-    return out
-
-
-def run(name, reference=False, out="build/sim"):
+def run(name, reference=False, out="build/sim", **options):
+    """Run scenario ``name`` (or print the list for "list"); ``options`` (e.g. quantization,
+    noise, mismatch, T of the mujoco-* scenarios) go to scenarios that take them."""
     reg = registry()
     if name == "list":
         natural = lambda s: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]  # noqa: E731
@@ -40,9 +35,13 @@ def run(name, reference=False, out="build/sim"):
         return 0
     if name not in reg:
         raise SystemExit(f"unknown scenario {name!r}; known: {', '.join(sorted(reg)) or '(none)'}")
+    takes = inspect.signature(reg[name]).parameters
+    extra = sorted(set(options) - set(takes))
+    if extra:
+        raise SystemExit(f"scenario {name!r} takes no option {', '.join('--' + k for k in extra)}")
     out = Path(out) / name
     out.mkdir(parents=True, exist_ok=True)
-    summary = reg[name](reference=reference, out=out)
+    summary = reg[name](reference=reference, out=out, **options)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
     print(f"{name}:")
     for k, v in summary.items():

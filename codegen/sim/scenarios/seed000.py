@@ -6,18 +6,20 @@
     seed000-ex3   output feedback (SPEC §1.4) on the hybrid observer's estimate
 
 Plant: compiled RK4 at PLANT_STEP (1e-4 s, 10 sub-steps per 1 kHz sample), torque held over a
-sample. Observers: compiled C (``reference=False``) or the numpy reference, at 1 kHz with y
-and tau held over a step. Control laws: compiled blocks (codegen.controllers.seed000) in both
-cases. Each scenario writes <out>/run.csv, PNG figures and returns a summary dict.
+sample. Observers: compiled C (``reference=False``) or the numpy reference, at 1 kHz, RK4 with
+y and tau held over a step (zero-order hold; Example 1a adds a first-order-hold baseline).
+Control laws: compiled blocks (codegen.controllers.seed000) in both cases. Each scenario writes
+<out>/run.csv, PNG figures and returns a summary dict.
 """
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
 
+from ...target import Discretization
 from .. import plots
+from ..blocks import block
 from ..engine import Law, rms, settling_time, simulate
 from ..plant import Plant
 from ..sensors import Sensor
@@ -46,13 +48,13 @@ def robot(mass_scale=1.0):
 
 
 def observer(spec, reference, dt=DT, prefix=None, hold="zoh"):
-    """The observer of ``spec`` as compiled C, or the numpy reference (RK4, as in the figures of
-    the README; ``hold`` zero-order unless asked)."""
-    if reference:
-        from ...reference import reference_observer
-        return reference_observer(spec, dt=dt, method="rk4", hold=hold)
-    from ... import compile_observer
-    return compile_observer(spec, dt=dt, method="rk4", prefix=prefix, hold=hold)
+    """The observer of ``spec`` (RK4, one step per sample) as compiled C, or the numpy reference."""
+    return block(spec, Discretization(dt=dt, method="rk4", hold=hold), reference=reference, prefix=prefix)
+
+
+def law(spec, dt=DT):
+    """A control law (stateless, so the hold changes nothing) as a compiled block."""
+    return block(spec, Discretization(dt=dt, method="rk4", hold="zoh"))
 
 
 def plant(mass_scale=1.0, dt=DT):
@@ -62,26 +64,24 @@ def plant(mass_scale=1.0, dt=DT):
 def open_loop_law(example, dt=DT):
     """Torque (18) or (19). [ASSUMPTION] its gravity term g(q) uses the true q: the command is
     an open-loop profile, so sensor noise does not enter the plant."""
-    from ... import compile_observer
     from ...controllers.seed000 import open_loop
 
     def assemble(t, y, est, x, out):
         out[:2] = x[:2]
         out[2] = t
-    return Law(compile_observer(open_loop(robot(), example), dt=dt), assemble)
+    return Law(law(open_loop(robot(), example), dt), assemble)
 
 
 def tracking_law(feedback, dt=DT, q_start=Q0):
     """Example-3 law fed by measured q and the estimate of observer ``feedback``; reference
     quintic from ``q_start`` to qbar over [0, 8] s (q_start = qbar: a constant set-point)."""
-    from ... import compile_observer
     from ...controllers.seed000 import tracking
 
     def assemble(t, y, est, x, out):
         out[:2] = y
         out[2:4] = est[feedback]
         out[4] = t
-    return Law(compile_observer(tracking(robot(), q_start), dt=dt), assemble, feedback=(feedback,))
+    return Law(law(tracking(robot(), q_start), dt), assemble, feedback=(feedback,))
 
 
 # ----------------------------------------------------------------------------- figures of merit
@@ -129,11 +129,11 @@ def example1(reference=False, noisy=True, mass_scale=1.0, T=T_OPEN, dt=DT, seed=
 
 def _ex1_figures(res, out, tag):
     errs = {k: res.qd - E for k, E in res.est.items()}
-    plots.velocities(out / "velocities.png", res.t, res.qd, res.est, title=f"Example {tag}")
+    plots.per_joint(out / "velocities.png", res.t, res.qd, res.est, title=f"Example {tag}")
     plots.error_norms(out / "error_norms.png", res.t, errs, title=f"Example {tag}: estimation error")
     zoom = res.t <= 5.0
-    plots.velocities(out / "velocities_zoom.png", res.t[zoom], res.qd[zoom],
-                     {k: E[zoom] for k, E in res.est.items()}, title=f"Example {tag} (first 5 s)")
+    plots.per_joint(out / "velocities_zoom.png", res.t[zoom], res.qd[zoom],
+                    {k: E[zoom] for k, E in res.est.items()}, title=f"Example {tag} (first 5 s)")
 
 
 def ex1a(reference=False, out=Path("build/sim/seed000-ex1a"), T=T_OPEN):
@@ -203,7 +203,7 @@ def ex2(reference=False, out=Path("build/sim/seed000-ex2"), T=T_OPEN):
     shown = {"switching gain": res.est["hybrid"]}
     if s["fixed_compared"]:
         shown[f"fixed gain {s['fixed_compared'][6:]}"] = res.est[s["fixed_compared"]]
-    plots.velocities(out / "velocities.png", res.t, res.qd, shown, title="Example 2")
+    plots.per_joint(out / "velocities.png", res.t, res.qd, shown, title="Example 2")
     plots.error_norms(out / "error_norms.png", res.t, {k: res.qd - E for k, E in shown.items()},
                       title="Example 2: estimation error")
     s["setup"] = {"dt": DT, "plant_step": PLANT_STEP, **NOISE_HIGH, "eta": ETA, "vbar": VBAR,
@@ -243,8 +243,8 @@ def _ex3_figures(res, out, tag):
     r, q_d = res.extra["r"], res.extra["q_d"]
     plots.positions_and_bound(out / f"positions_bound{tag}.png", res.t, res.q, res.qd, res.est["hybrid"], r,
                               VBAR, q_ref=q_d, title="Example 3: positions; velocity norms and scheduled bound")
-    plots.velocities(out / f"velocities{tag}.png", res.t, res.qd, {"hybrid observer": res.est["hybrid"]},
-                     title="Example 3")
+    plots.per_joint(out / f"velocities{tag}.png", res.t, res.qd, {"hybrid observer": res.est["hybrid"]},
+                    title="Example 3")
     plots.tracking(out / f"tracking{tag}.png", res.t, q_d - res.q, res.u, title="Example 3: tracking error, torque")
     plots.error_norms(out / f"error_norms{tag}.png", res.t, {"hybrid": res.qd - res.est["hybrid"]},
                       title="Example 3: estimation error")
@@ -266,22 +266,3 @@ def ex3(reference=False, out=Path("build/sim/seed000-ex3"), T=T_CLOSED):
 
 
 SCENARIOS = {"seed000-ex1a": ex1a, "seed000-ex1b": ex1b, "seed000-ex2": ex2, "seed000-ex3": ex3}
-
-
-# ----------------------------------------------------------------------------- benchmark
-def bench(T=T_OPEN):
-    """Wall time of Example 1a's loop (plant at 1e-4 s + reduced-order + Nicosia–Tomei at 1 kHz,
-    noisy sensor, compiled law (18)) over T seconds, observers as C and as the numpy reference.
-    Setup (design, generation, compilation; cached after the first call) is timed separately."""
-    from ...observers import build
-    out = {"T_s": T, "samples": int(round(T / DT)) + 1}
-    for key, ref in (("c", False), ("reference", True)):
-        t0 = time.perf_counter()
-        specs = [build(f, robot(), eta=ETA, v_max=VMAX, design=PAPER) for f in ("reduced_order", "nicosia_tomei")]
-        obs = {sp.family: observer(sp, ref) for sp in specs}
-        pl, law = plant(), open_loop_law(1)
-        t1 = time.perf_counter()
-        simulate(pl, Q0, QD0, T, DT, law, obs, sensor=Sensor(**NOISE_1A, seed=1))
-        t2 = time.perf_counter()
-        out[f"{key}_setup_s"], out[f"{key}_run_s"] = round(t1 - t0, 3), round(t2 - t1, 3)
-    return out

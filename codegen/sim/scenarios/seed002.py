@@ -27,6 +27,12 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from ...target import Discretization
+from ...trajectory import inverse_dynamics_function
+from .. import plots
+from ..blocks import block
+from ..plant import Plant
+
 KP, KD = 400.0, 40.0                     # computed-torque gains, SPEC §12.2
 SU_INIT = np.array([2.0, 2.0, -1.0, -1.0])   # est0 = [qd_hat(0), qhat(0)], [S002 §V-B]
 
@@ -54,19 +60,11 @@ def sinusoid_reference(robot, amplitude=0.6, omega=1.5, seed=3):
     return ref
 
 
-def computed_torque_function(robot):
-    """Function (q, qd, a) -> M(q) a + C(q, qd) qd + F qd + g(q)."""
-    q, v, a = ca.SX.sym("q", robot.n), ca.SX.sym("v", robot.n), ca.SX.sym("a", robot.n)
-    tau = ca.mtimes(robot.mass_matrix(q), a) + robot.nle(q, v) + ca.mtimes(ca.DM(robot.F), v)
-    return ca.Function("ct", [q, v, a], [tau])
-
-
 def track(robot, reference, T, dt, substeps=1):
     """Closed-loop tracking with the true state; returns t, Q, QD, TAU (N rows)."""
-    from ..plant import Plant
     N = int(round(T / dt)) + 1
     plant = Plant(robot, dt, substeps=substeps)
-    ct = computed_torque_function(robot)
+    ct = inverse_dynamics_function(robot)          # computed torque: M a + C qd + F qd + g
     qd0, vd0, _ = reference(0.0)
     plant.reset(qd0, vd0)
     n = robot.n
@@ -94,17 +92,10 @@ def noisy(Q, std, dt, rate=1e3, seed=0):
 
 
 # ---------------------------------------------------------------------------- observers
-def _runner(spec, dt, reference):
-    if reference:
-        from ...reference import reference_observer
-        return reference_observer(spec, dt=dt, method="rk4", hold="zoh")
-    from ... import compile_observer
-    return compile_observer(spec, dt=dt, method="rk4", hold="zoh")
-
-
 def run_observer(spec, Y, U, dt, reference=False, est0=None):
-    """EST (N, nest) of ``spec`` over the samples (C, or the numpy reference)."""
-    obs = _runner(spec, dt, reference)
+    """EST (N, nest) of ``spec`` over the samples (C, or the numpy reference), RK4 with y held
+    over each step (zero-order hold: the sign of (35) integrated literally, SPEC §3.3)."""
+    obs = block(spec, Discretization(dt=dt, method="rk4", hold="zoh"), reference=reference)
     obs.reset(Y[0], est0=est0)
     return obs.run(Y, U)
 
@@ -128,7 +119,7 @@ def experiment(robot_name="seed002_2r", T=5.0, dt=1e-4, noise=0.0, reference=Fal
     from models import load_robot
 
     from ...observers import build
-    from ...observers._nonminimal import nonminimal
+    from ...observers.lotfi_namvar import nonminimal
     robot = load_robot(robot_name)
     ref = reference_traj or (seed002_reference if robot_name == "seed002_2r" else sinusoid_reference(robot))
     key = (robot_name, T, dt, substeps) if reference_traj is None else None
@@ -193,62 +184,26 @@ def summarize(d):
 
 def plot(d, out, tag):
     """Figures in the spirit of [S002 Figs. 1–4]."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     out = Path(out)
-    t, J = d["t"], d["joints"]
+    t, J, names = d["t"], d["joints"], d["row_names"]
     e_nu = d["nu_hat"] - d["nu"]
     r = e_nu.shape[1]
-    cols = min(r, 4)
-    rows_ = (r + cols - 1) // cols
-    fig, ax = plt.subplots(rows_, cols, figsize=(3.2 * cols, 2.4 * rows_), squeeze=False, sharex=True)
-    for j in range(r):
-        a = ax[j // cols][j % cols]
-        a.plot(t, e_nu[:, j], lw=0.8)
-        a.set_title(f"nu~ {d['row_names'][j]}", fontsize=8)
-        a.grid(alpha=0.3)
-    fig.suptitle(f"{tag}: link velocity estimation error (cf. Fig. 1)")
-    fig.tight_layout()
-    fig.savefig(out / "fig1_nu_error.png", dpi=110)
-    plt.close(fig)
-
-    fig, a = plt.subplots(figsize=(6, 3.5))
-    for j in range(r):
-        a.plot(t, d["theta_hat"][:, j], lw=0.9, label=f"thetahat {d['row_names'][j]}" if r <= 6 else None)
-    for th in np.unique(np.round(d["theta"], 12)):
-        a.axhline(th, color="k", ls=":", lw=0.8)
-    a.set_xlabel("t [s]")
-    a.set_title(f"{tag}: parameter estimates (cf. Fig. 2)")
-    if r <= 6:
-        a.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "fig2_thetahat.png", dpi=110)
-    plt.close(fig)
-
+    plots.panels(out / "fig1_nu_error.png", t,
+                 [plots.Panel({"": e_nu[:, j]}, title=f"nu~ {names[j]}", legend=False) for j in range(r)],
+                 title=f"{tag}: link velocity estimation error (cf. Fig. 1)", cols=min(r, 4), cell=(3.2, 2.4))
+    theta = plots.Panel({f"thetahat {names[j]}": d["theta_hat"][:, j] for j in range(r)}, legend=r <= 6,
+                        hlines=np.unique(np.round(d["theta"], 12)))
+    plots.panels(out / "fig2_thetahat.png", t, [theta], title=f"{tag}: parameter estimates (cf. Fig. 2)",
+                 cell=(6, 3.5))
+    errors = [("adaptive observer (13)", d["qd_hat"] - d["qd"][:, J], J)]
+    if "qd_hat_su" in d:
+        errors.append(("non-smooth observer (35)", d["qd_hat_su"] - d["qd"], range(d["qd"].shape[1])))
     ss = _window(t, d["T_ss"])
     for name, sel, title in (("fig3_qd_error.png", slice(None), "joint velocity error (cf. Fig. 3)"),
                              ("fig4_qd_error_steady.png", ss, "steady state (cf. Fig. 4)")):
-        n_panels = 2 if "qd_hat_su" in d else 1
-        fig, ax = plt.subplots(n_panels, 1, figsize=(7, 2.6 * n_panels), squeeze=False, sharex=True)
-        e = d["qd_hat"] - d["qd"][:, J]
-        for k, j in enumerate(J):
-            ax[0][0].plot(t[sel], e[sel, k], lw=0.7, ls="-" if k == 0 else "--", label=f"qd~_{j + 1}")
-        ax[0][0].set_title("adaptive observer (13)", fontsize=9)
-        if n_panels == 2:
-            e = d["qd_hat_su"] - d["qd"]
-            for k in range(e.shape[1]):
-                ax[1][0].plot(t[sel], e[sel, k], lw=0.7, ls="-" if k == 0 else "--", label=f"qd~_{k + 1}")
-            ax[1][0].set_title("non-smooth observer (35)", fontsize=9)
-        for a in ax[:, 0]:
-            a.grid(alpha=0.3)
-            a.legend(fontsize=7, loc="upper right")
-        ax[-1][0].set_xlabel("t [s]")
-        fig.suptitle(f"{tag}: {title}", fontsize=10)
-        fig.tight_layout()
-        fig.savefig(out / name, dpi=110)
-        plt.close(fig)
+        rows = [plots.Panel({f"qd~_{j + 1}": e[sel, k] for k, j in enumerate(joints)}, title=which)
+                for which, e, joints in errors]
+        plots.panels(out / name, t[sel], rows, title=f"{tag}: {title}", cell=(7, 2.6))
 
 
 def _scenario(tag, **kw):

@@ -30,6 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from ...target import Discretization
+from .. import plots
+from ..blocks import bind, block
+from ..elastic_plant import ElasticPlant
 
 DT = 1e-4
 PLANT_SUBSTEPS = 2
@@ -45,21 +48,14 @@ def _robot(name):
     return load_elastic(name)
 
 
-def _compile(spec, dt=DT, method="rk4", substeps=1, hold="zoh", inline="auto"):
-    from ... import compile_observer
-    return compile_observer(spec, dt=dt, method=method, substeps=substeps, hold=hold, inline=inline)
-
-
 def observer(robot, kind, eigenvalues=None, reference=False, dt=DT, hold=OBSERVER_HOLD, substeps=None):
     """A stepped observer: kind 'tomei' or 'O1'..'O4' (C, or the numpy reference)."""
     from ...observers import ciccarella_germani, tomei
     spec = tomei.build(robot) if kind == "tomei" else \
         ciccarella_germani.build(robot, kind, eigenvalues=eigenvalues)
     substeps = OBSERVER_SUBSTEPS.get(robot.n, 4) if substeps is None else substeps
-    if reference:
-        from ...reference import reference_observer
-        return spec, reference_observer(spec, dt=dt, method="rk4", substeps=substeps, hold=hold)
-    return spec, _compile(spec, dt, substeps=substeps, hold=hold, inline=robot.n < 3)
+    disc = Discretization(dt=dt, method="rk4", hold=hold, substeps=substeps)
+    return spec, block(spec, disc, reference=reference, inline=robot.n < 3)
 
 
 def measurement(spec, X):
@@ -81,10 +77,12 @@ def measurement(spec, X):
     return np.hstack([x3, (x1 - x3) * K])
 
 
-def controller(robot, kind):
+def controller(robot, kind, dt=DT):
+    """Spong's controller, kind 'fl' (feedback linearisation) or 'manifold', compiled; evaluated
+    once per sample (u held)."""
     from ...controllers import spong
     spec = spong.feedback_linearization(robot) if kind == "fl" else spong.integral_manifold(robot)
-    return _compile(spec)
+    return block(spec, Discretization(dt=dt, method="rk4", hold="zoh"))
 
 
 def reference_table(t, q0, qf, T=T_TRAJ):
@@ -99,24 +97,10 @@ def reference_table(t, q0, qf, T=T_TRAJ):
                       0 * dq + 0 * s])
 
 
-def _bound(block, y, u, est):
-    """(step, estimate) on the buffers: CompiledObserver.bind, or the same for the reference."""
-    if hasattr(block, "bind"):
-        return block.bind(y, u, est)
-
-    def step():
-        est[:] = block.step(y[:block.ny], u[:block.nu])
-
-    def estimate():
-        est[:] = block.estimate(y[:block.ny], u[:block.nu])
-    return step, estimate
-
-
 def closed_loop(robot, ctrl, x0, qf, T=T_SIM, dt=DT, est_observer=None, est0=None):
     """Plant + controller (+ observer feeding the controller). Returns t, X, U (and EST).
     The loop runs in Python over bound C calls (no per-call checks; a non-zero C status
     still raises)."""
-    from ..elastic_plant import ElasticPlant
     plant = ElasticPlant(robot, dt, substeps=PLANT_SUBSTEPS)
     x0 = np.asarray(x0, dtype=float)
     plant.reset(x0)
@@ -127,13 +111,13 @@ def closed_loop(robot, ctrl, x0, qf, T=T_SIM, dt=DT, est_observer=None, est0=Non
     X, U = np.empty((N, nx)), np.empty((N, n))
     EST = np.empty((N, nx)) if est_observer else None
     cin, u, x, none = np.zeros(9 * n), np.zeros(n), np.zeros(nx), np.zeros(1)
-    _, ctrl_u = ctrl.bind(cin, none, u)
-    plant_step, plant_x = plant.block.bind(none, u, x)
+    _, ctrl_u = bind(ctrl, cin, none, u)
+    plant_step, plant_x = bind(plant.block, none, u, x)
     if est_observer:
         spec, obs = est_observer
         y_of = lambda xx: measurement(spec, xx[None])[0]  # noqa: E731
         y, est = np.zeros(max(1, len(spec.y_names))), np.zeros(nx)
-        obs_step, obs_est = _bound(obs, y, u, est)
+        obs_step, obs_est = bind(obs, y, u, est)
         obs.reset(y_of(x0), est0)
     for k in range(N):
         plant_x()                      # x = x_k (output of the plant block, no advance)
@@ -202,24 +186,9 @@ def sign_changes(t, E, t_end, floor=1e-3):
     return total
 
 
-def _plot(out, name, t, curves, ylabel, log=True, title=None):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for label, y in curves.items():
-        (ax.semilogy if log else ax.plot)(t[:len(y)], y, label=label)
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel(ylabel)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    path = Path(out) / f"{name}.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return str(path)
+def _error_plot(out, name, t, curves, ylabel, title):
+    """<out>/<name>.png: the norms ``curves`` on a log axis; returns the path as a string."""
+    return str(plots.error_norms(Path(out) / f"{name}.png", t, curves, levels=(), ylabel=ylabel, title=title))
 
 
 # ---------------------------------------------------------------------------- Sim 1
@@ -246,22 +215,16 @@ def sim1(reference=False, out="build/sim/seed004-sim1", T=T_SIM, dt=DT, dt_check
             summary["O1_final_error"] = float(curves[kind][-1])
     if dt_check:   # the same O1 run at half the sample time: the figure must not move
         spec, obs = observer(robot, "O1", -100.0 * np.arange(3, 11), reference=reference, dt=dt / 2)
-        th, Xh, Uh = closed_loop(robot, controller_at(robot, "fl", dt / 2), SIM1_X0, [np.pi / 2, 0],
+        th, Xh, Uh = closed_loop(robot, controller(robot, "fl", dt / 2), SIM1_X0, [np.pi / 2, 0],
                                  T=0.2, dt=dt / 2)
         Eh = Xh - run_observer(spec, obs, Xh, Uh, SIM1_XHAT0)
         summary["O1_t_2pct_s_half_dt_0.2s"] = convergence_time(th, Eh)
     summary["max_|u|"] = float(np.abs(U).max())
     summary["tracking_rms_rad"] = float(np.sqrt(np.mean((X[:, :2] - _ref_path(t, SIM1_X0[:2], [np.pi / 2, 0])) ** 2)))
-    summary["plot"] = _plot(out, "sim1_error_norm", t, curves, "||x - xhat||",
-                            title="Sim 1 (2R): Tomei vs Ciccarella-Germani O1")
+    summary["plot"] = _error_plot(out, "sim1_error_norm", t, curves, "||x - xhat||",
+                                 title="Sim 1 (2R): Tomei vs Ciccarella-Germani O1")
     summary["wall_s"] = time.perf_counter() - t0
     return summary
-
-
-def controller_at(robot, kind, dt):
-    from ...controllers import spong
-    spec = spong.feedback_linearization(robot) if kind == "fl" else spong.integral_manifold(robot)
-    return _compile(spec, dt)
 
 
 def _ref_path(t, q0, qf):
@@ -294,8 +257,8 @@ def sim2(reference=False, out="build/sim/seed004-sim2", T=T_SIM, dt=DT):
     for state in ("true", "estimated"):   # SPEC §12.4: the manifold controller tracks better
         fl, mf = summary[f"fl_{state}_rms_rad"], summary[f"manifold_{state}_rms_rad"]
         summary[f"fl_over_manifold_rms_{state}"] = fl / mf if mf > 0 else float("inf")
-    summary["plot"] = _plot(out, "sim2_tracking", t, curves, "||q1 - q_d|| (rad)",
-                            title="Sim 2 (2R): FL vs integral manifold")
+    summary["plot"] = _error_plot(out, "sim2_tracking", t, curves, "||q1 - q_d|| (rad)",
+                                 title="Sim 2 (2R): FL vs integral manifold")
     summary["wall_s"] = time.perf_counter() - t0
     return summary
 
@@ -357,8 +320,8 @@ def study_3r(k, reference=False, out=None, T=T_SIM, dt=DT):
         summary[f"{kind}_sign_changes_to_2pct"] = sign_changes(t, E, tc)
         summary[f"{kind}_final_error"] = float(nrm[-1])
     if curves and out is not None:
-        summary["plot"] = _plot(out, f"sim{k}_error_norm", t, curves, "||x - xhat||",
-                                title=f"Sim {k} (3R)")
+        summary["plot"] = _error_plot(out, f"sim{k}_error_norm", t, curves, "||x - xhat||",
+                                     title=f"Sim {k} (3R)")
     summary["wall_s"] = time.perf_counter() - t0
     return summary
 
@@ -369,77 +332,3 @@ def _study(k):
 
 SCENARIOS = {"seed004-sim1": sim1, "seed004-sim2": sim2,
              **{f"seed004-sim{k}": _study(k) for k in STUDIES}}
-
-
-# ---------------------------------------------------------------------------- scale / bench
-BENCH_GATES_NS = {"seed004_3r": 5000.0, "ur5": 50000.0}   # CG O1 rhs, ns per call
-
-
-def _time_rhs(fn, args, repeat=20):
-    """Median ns per call of fn(*args) over ``repeat`` calls (warm-up excluded)."""
-    fn(*args)
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn(*args)
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts) * 1e9)
-
-
-def bench(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
-    """CG O1 on elastic robots: spec and C generation time, C size, compile time, a cross-check
-    of the C rhs against the reference (exact hyper-duals for DH robots; for URDF robots
-    pinocchio's first-order ABA derivatives with central differences for the y4 rows of Q),
-    ns per C rhs call from the C timing program (``harness.time_target``: medians of blocks,
-    no Python in the loop), and ns per rhs of the reference path (numpy/pinocchio). Gates:
-    BENCH_GATES_NS. Returns a list of dicts (one per robot)."""
-    from ...build import build, repo_root
-    from ...emit import emit
-    from ...harness import time_target
-    from ...observers import ciccarella_germani
-    from ...reference import reference_observer
-    from ...runtime import load
-    import tempfile
-    rows = []
-    for name in robots:
-        robot = _robot(name)
-        t0 = time.perf_counter()
-        # The gains are runtime parameters (the C is the same for any eigenvalues). The timing
-        # program drives the step with synthetic sinusoids (~250 rad/s at dt = 1e-4) that make
-        # the default high-gain observer overflow in its warm-up, so the defaults here are slow.
-        spec = ciccarella_germani.build(robot, "O1", eigenvalues=np.linspace(-1.0, -2.0, robot.nx))
-        t_spec = time.perf_counter() - t0
-        disc = Discretization(dt=dt, method=method, hold="zoh")
-        target = emit(spec.target(disc), repo_root() / "build" / "bench", spec=spec)
-        t_gen = time.perf_counter() - t0
-        c_bytes = sum(p.stat().st_size for p in Path(target).glob("*.c"))
-        with tempfile.TemporaryDirectory() as tmp:   # a fresh cache: the real compile time
-            t1 = time.perf_counter()
-            build(target, cache=tmp)
-            t_cc = time.perf_counter() - t1
-        obs = load(target, build(target))
-        ref = reference_observer(spec, disc)
-        rng = np.random.default_rng(0)
-        worst = 0.0
-        X = robot.sample_states(checks, seed=1)
-        for x in X:
-            y, u = x[:robot.n] + 0.01 * rng.normal(size=robot.n), 10 * rng.normal(size=robot.n)
-            want = ref.rhs(x, y, u)
-            worst = max(worst, float(np.linalg.norm(obs.rhs(x, y, u) - want) / np.linalg.norm(want)))
-        t2 = time.perf_counter()
-        timing = time_target(target, blocks=21, block_ms=10.0)
-        t_time = time.perf_counter() - t2
-        args = (X[0], X[0][:robot.n] + 0.01, np.ones(robot.n))
-        gate = BENCH_GATES_NS.get(name)
-        ns = float(timing["ns_per_rhs"])
-        rows.append({"robot": robot.name, "observer": "ciccarella_germani O1", "nx": robot.nx,
-                     "instructions_rhs": spec.rhs.n_instructions(),
-                     "spec_s": round(t_spec, 3), "generate_s": round(t_gen, 3), "c_bytes": c_bytes,
-                     "compile_s": round(t_cc, 2), "timing_program_s": round(t_time, 2),
-                     "rhs_rel_err_vs_reference": worst,
-                     "reference_exact": bool(getattr(ref.robot, "exact", True)),
-                     "ns_rhs_c": ns, "ns_step_c": float(timing["ns_per_step"]),
-                     "ns_rhs_c_ctypes": _time_rhs(obs.rhs, args, repeat=2000),
-                     "ns_rhs_reference": _time_rhs(ref.rhs, args, repeat=20),
-                     "gate_ns_rhs": gate, "gate_ok": None if gate is None else ns <= gate})
-    return rows

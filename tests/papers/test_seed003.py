@@ -8,7 +8,6 @@ import pytest
 from codegen import compile_observer, observers
 from codegen.design import ii_speed_bounds
 from codegen.reference import reference_observer
-from codegen.reference import ii_aov as ref_aov
 from codegen.reference import ii_speed as ref_ii
 from codegen.check import relative_error
 from models import load_robot
@@ -208,20 +207,11 @@ def test_wrap_option_resolution():
 def test_wrap_removes_the_drift_at_large_angles():
     """At y2 = 9.3 rad (where the seed-003 arm is at t = 2 s) the reduced quadrature keeps
     dbeta/ds_y, dbeta/ds_x at the adaptive value; N-node Gauss-Legendre on [0, 9.3] does not."""
-    from scipy.integrate import quad_vec
-
     from codegen.reference import reference_robot
+    from codegen.sim.studies import adaptive_beta
     robot = reference_robot(load_robot("seed003_2r_abs").source)
     y, s_y, s_x, k1 = np.array([1.2, 9.3]), np.array([1.25, 9.3 - 2 * np.pi]), np.array([-2.0, 4.0]), 40.0
-
-    def integrand(sig, i):
-        z = s_y.copy()
-        z[i] = sig
-        Hi, dq, dx = ref_ii.h_column_derivatives(robot, z, s_x, k1, i)
-        dq[:, i] = 0.0
-        return np.concatenate([Hi, dq.ravel(), dx.ravel()])
-    exact = sum(quad_vec(lambda s, i=i: integrand(s, i), 0.0, y[i], epsabs=1e-13, epsrel=1e-12,
-                         limit=1000)[0] for i in range(2))
+    exact = adaptive_beta(robot, y, s_y, s_x, k1, epsabs=1e-13, epsrel=1e-12)
 
     def err(periodic, N_period=None):
         b, _, dsy, dsx = ref_ii.beta_and_derivatives(robot, y, s_y, s_x, k1, 16, True, periodic, N_period)
@@ -235,7 +225,7 @@ def test_quadrature_converges():
     """beta and its derivatives (reduced intervals) converge with N to the adaptive value on
     the whole [0, y_i], |y_i| up to 3 pi; small at the default N on the 2-DoF arm."""
     from codegen.observers._ii_common import DEFAULT_N
-    from codegen.sim.scenarios.seed003 import quadrature_study
+    from codegen.sim.studies import quadrature_study
     t = quadrature_study(robots=("seed003_2r_abs",), Ns=(4, 8, 16, 24), samples=2)["seed003_2r_abs"]
     for k in range(3):
         assert t[4][k] > t[8][k] > t[16][k] > t[24][k]

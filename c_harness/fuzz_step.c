@@ -1,0 +1,222 @@
+/*
+ * fuzz_step - libFuzzer harness: a generated target's step (and run, estimate, rhs,
+ * set_state, set_params) on hostile numbers, asserting the contract its header documents.
+ *
+ * Build (codegen/check/sanitize.py does this; clang with libFuzzer, e.g. Debian's clang and
+ * libclang-rt-14-dev):
+ *   clang -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
+ *     -DOBS=<prefix> -DOBS_UPPER=<PREFIX> -DOBS_HEADER='"<prefix>.h"' -I <target dir> -I . \
+ *     fuzz_step.c <target dir>/<prefix>.c <target dir>/<prefix>_kernels.c -lm -o fuzz_step
+ *   ./fuzz_step -runs=100000 -seed=1
+ *
+ * An input is a small program over one state: init from the first numbers, then up to 64
+ * operations, each one byte and the numbers it takes. A number is one selector byte: a
+ * special value (0, -0, +-1, +-1e300, +-DBL_MAX, NaN, +-Inf, denormals, 1e-300, 0.5), a small
+ * value in [-8, 7], or the next 8 bytes as a raw double. Checked on every call (a violation
+ * prints what and aborts; libFuzzer keeps the input):
+ *   - the status is one the header documents;
+ *   - a non-finite argument gives ERR_NONFINITE_INPUT, a finite one never does;
+ *   - a non-zero status leaves the state (x, p, y_prev, u_prev, primed) byte-identical;
+ *     run() failing at sample k sets *n_done = k and rolls the state back to its entry;
+ *   - OK: outputs and the new state are finite; run() equals as many step() calls and
+ *     estimate() equals the estimate step() returns, bit for bit.
+ */
+#include <float.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "obs_bind.h"
+
+#define ST(name) OBS_SIZE(name)
+#define MAX_RUN 4
+#define MAX_OPS 64
+
+typedef struct {
+    const uint8_t *d;
+    size_t n;
+} source;
+
+static int next_byte(source *in)
+{
+    if (in->n == 0) return -1;
+    --in->n;
+    return *in->d++;
+}
+
+static double number(source *in)
+{
+    static const double special[16] = {0.0, -0.0, 1.0, -1.0, 1e300, -1e300, DBL_MAX, -DBL_MAX,
+                                       NAN, INFINITY, -INFINITY, 4.9e-324, -4.9e-324,
+                                       2.2250738585072014e-308, 1e-300, 0.5};
+    int b = next_byte(in), i;
+    uint8_t raw[8] = {0};
+    double v;
+    if (b < 0) return 0.0;
+    if (b < 16) return special[b];
+    if (b < 240) return (b - 128) / 16.0;
+    for (i = 0; i < 8; ++i) {
+        int c = next_byte(in);
+        raw[i] = (uint8_t)(c < 0 ? 0 : c);
+    }
+    memcpy(&v, raw, sizeof v);
+    return v;
+}
+
+static void numbers(source *in, double *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) v[i] = number(in);
+}
+
+static int finite(const double *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i)
+        if (!isfinite(v[i])) return 0;
+    return 1;
+}
+
+static void fail(const char *what, int status)
+{
+    fprintf(stderr, "fuzz_step(%s): %s (status %d: %s)\n", OBS_NAME, what, status,
+            obs_status_name(status));
+    abort();
+}
+
+/* The persistent part of the state (what "left unchanged" means). */
+static int same_state(const OBS_STATE *a, const OBS_STATE *b)
+{
+    return memcmp(a->x, b->x, sizeof a->x) == 0 && memcmp(a->p, b->p, sizeof a->p) == 0
+        && memcmp(a->y_prev, b->y_prev, sizeof a->y_prev) == 0
+        && memcmp(a->u_prev, b->u_prev, sizeof a->u_prev) == 0 && a->primed == b->primed;
+}
+
+/* A call given inputs that are all finite (or not): the documented statuses. */
+static void check_status(int status, int inputs_finite, int may_fail_result, const char *call)
+{
+    if (!inputs_finite && status != ST(ERR_NONFINITE_INPUT)) fail(call, status);
+    if (inputs_finite && status != ST(OK) && !(may_fail_result && status == ST(ERR_NONFINITE_RESULT)))
+        fail(call, status);
+}
+
+static void step_op(OBS_STATE *s, source *in)
+{
+    double y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], est[OBS_LEN(OBS_NEST)];
+    OBS_STATE before = *s;
+    int st;
+    numbers(in, y, OBS_NY);
+    numbers(in, u, OBS_NU);
+    st = OBS_FN(step)(s, y, u, est);
+    check_status(st, finite(y, OBS_NY) && finite(u, OBS_NU), 1, "step: status");
+    if (st != ST(OK) && !same_state(s, &before)) fail("step: state changed on error", st);
+    if (st == ST(OK) && !(finite(est, OBS_NEST) && finite(s->x, OBS_NX)))
+        fail("step: OK with a non-finite estimate or state", st);
+}
+
+static void estimate_op(OBS_STATE *s, source *in)
+{
+    double y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], est[OBS_LEN(OBS_NEST)], est2[OBS_LEN(OBS_NEST)];
+    OBS_STATE before = *s, t;
+    int st, st2;
+    numbers(in, y, OBS_NY);
+    numbers(in, u, OBS_NU);
+    st = OBS_FN(estimate)(s, y, u, est);
+    check_status(st, finite(y, OBS_NY) && finite(u, OBS_NU), 1, "estimate: status");
+    if (!same_state(s, &before)) fail("estimate: state changed", st);
+    if (st != ST(OK)) return;
+    if (!finite(est, OBS_NEST)) fail("estimate: OK with a non-finite estimate", st);
+    t = *s;
+    st2 = OBS_FN(step)(&t, y, u, est2);
+    if (st2 == ST(OK) && memcmp(est, est2, sizeof est) != 0)
+        fail("estimate: differs from the estimate step() returns", st2);
+}
+
+static void run_op(OBS_STATE *s, source *in)
+{
+    double Y[MAX_RUN * OBS_LEN(OBS_NY)], U[MAX_RUN * OBS_LEN(OBS_NU)];
+    double EST[MAX_RUN * OBS_LEN(OBS_NEST)], est[OBS_LEN(OBS_NEST)];
+    OBS_STATE before = *s, t = *s;
+    long n = 1 + (long)(next_byte(in) & 3), done = -1, k;
+    int st, st_k = ST(OK);
+    numbers(in, Y, (int)(n * OBS_NY));
+    numbers(in, U, (int)(n * OBS_NU));
+    st = OBS_FN(run)(s, n, Y, U, EST, &done);
+    /* the same samples one step() at a time, from a copy of the state */
+    for (k = 0; k < n; ++k) {
+        st_k = OBS_FN(step)(&t, Y + k * OBS_NY, U + k * OBS_NU, est);
+        if (st_k != ST(OK)) break;
+        if (memcmp(est, EST + k * OBS_NEST, sizeof(double) * OBS_NEST) != 0)
+            fail("run: estimate differs from step()'s", st);
+    }
+    if (st != st_k || done != k) fail("run: status or n_done differs from step() one by one", st);
+    if (st != ST(OK) && !same_state(s, &before)) fail("run: state not rolled back on error", st);
+    if (st == ST(OK) && !same_state(s, &t)) fail("run: state differs from step() one by one", st);
+}
+
+static void rhs_op(OBS_STATE *s, source *in)
+{
+    double x[OBS_LEN(OBS_NX)], y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], xdot[OBS_LEN(OBS_NX)];
+    OBS_STATE before = *s;
+    int st;
+    numbers(in, x, OBS_NX);
+    numbers(in, y, OBS_NY);
+    numbers(in, u, OBS_NU);
+    st = OBS_FN(rhs)(s, x, y, u, xdot);
+    check_status(st, finite(x, OBS_NX) && finite(y, OBS_NY) && finite(u, OBS_NU), 1, "rhs: status");
+    if (!same_state(s, &before)) fail("rhs: state changed", st);
+    if (st == ST(OK) && !finite(xdot, OBS_NX)) fail("rhs: OK with a non-finite xdot", st);
+}
+
+static void set_op(OBS_STATE *s, source *in, int params)
+{
+    double v[OBS_LEN(OBS_NX) + OBS_LEN(OBS_NP)];
+    int n = params ? OBS_NP : OBS_NX, st;
+    OBS_STATE before = *s;
+    numbers(in, v, n);
+    st = params ? OBS_FN(set_params)(s, v) : OBS_FN(set_state)(s, v);
+    check_status(st, finite(v, n), 0, params ? "set_params: status" : "set_state: status");
+    if (st != ST(OK) && !same_state(s, &before)) fail("set: state changed on error", st);
+    if (st == ST(OK) && memcmp(params ? s->p : s->x, v, sizeof(double) * (size_t)n) != 0)
+        fail("set: value not stored", st);
+}
+
+static void null_op(OBS_STATE *s)
+{
+    double y[OBS_LEN(OBS_NY)] = {0}, u[OBS_LEN(OBS_NU)] = {0}, est[OBS_LEN(OBS_NEST)];
+    long done;
+    OBS_STATE before = *s;
+    if (OBS_FN(step)(NULL, y, u, est) != ST(ERR_BAD_ARG) || OBS_FN(step)(s, NULL, u, est) != ST(ERR_BAD_ARG)
+        || OBS_FN(step)(s, y, u, NULL) != ST(ERR_BAD_ARG) || OBS_FN(run)(s, -1, y, u, est, &done) != ST(ERR_BAD_ARG)
+        || OBS_FN(run)(s, 1, NULL, u, est, &done) != ST(ERR_BAD_ARG) || OBS_FN(set_state)(s, NULL) != ST(ERR_BAD_ARG))
+        fail("a NULL or negative argument is not ERR_BAD_ARG", -1);
+    if (!same_state(s, &before)) fail("state changed by a bad argument", ST(ERR_BAD_ARG));
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    source in = {data, size};
+    double y0[OBS_LEN(OBS_NY)], est0[OBS_LEN(OBS_NEST)];
+    OBS_STATE s;
+    int st, ops;
+    memset(&s, 0, sizeof s);
+    numbers(&in, y0, OBS_NY);
+    numbers(&in, est0, OBS_NEST);
+    st = OBS_FN(init)(&s, NULL, y0, est0);
+    check_status(st, finite(y0, OBS_NY) && finite(est0, OBS_NEST), 1, "init: status");
+    if (st != ST(OK)) return 0;
+    for (ops = 0; ops < MAX_OPS && in.n > 0; ++ops) {
+        switch (next_byte(&in) % 7) {
+        case 0: step_op(&s, &in); break;
+        case 1: run_op(&s, &in); break;
+        case 2: estimate_op(&s, &in); break;
+        case 3: rhs_op(&s, &in); break;
+        case 4: set_op(&s, &in, 0); break;
+        case 5: set_op(&s, &in, 1); break;
+        default: null_op(&s); break;
+        }
+    }
+    return 0;
+}

@@ -1,0 +1,77 @@
+"""The sanitizer and fuzz run (codegen.check.sanitize, `python -m codegen sanitize` in make test)
+can fail: faults put back into a generated target are found. The clean run over the sample of
+targets is `make test`'s own step; here one small target, with its C edited."""
+import os
+import re
+import shutil
+import subprocess
+
+import pytest
+
+from codegen.build import BuildError, compiler
+from codegen.check import sanitize
+from codegen.emit import emit
+
+
+def _libfuzzer(tmp_path):
+    """clang with libFuzzer, or skip outside CI (make test installs it: c_harness/install-tools.sh)."""
+    probe = tmp_path / "probe.c"
+    probe.write_text("int LLVMFuzzerTestOneInput(const unsigned char *d, unsigned long n)"
+                     " { (void)d; (void)n; return 0; }\n")
+    try:
+        tool = compiler(None, env="FUZZ_CC", default="clang")
+        r = subprocess.run([tool.path, "-fsanitize=fuzzer,address,undefined", str(probe), "-o",
+                            str(tmp_path / "probe")], capture_output=True, text=True)
+        why = r.stderr if r.returncode else None
+    except BuildError as e:
+        tool, why = None, str(e)
+    if why is None:
+        return tool
+    if os.environ.get("CI") == "true":
+        pytest.fail(f"clang with libFuzzer is required in CI: {why}")
+    pytest.skip(f"clang with libFuzzer not available (run make c-tools): {why}")
+
+
+@pytest.fixture
+def target(spec_of, tmp_path):
+    return emit(spec_of("seed000_2r"), tmp_path / "t")
+
+
+def _put_back(folder, pattern, replacement):
+    """Edit the target's wrapper C: ``pattern`` (a regex that must match) -> ``replacement``."""
+    c = folder / f"{folder.name}.c"
+    text, n = re.subn(pattern, replacement, c.read_text())
+    assert n == 1, pattern
+    c.write_text(text)
+
+
+@pytest.mark.parametrize("fault, pattern, replacement", [
+    ("run() not rolled back (item 5)", r"if \(status != \w+_OK\) \{(\n    \w+_copy\(s->x, x0)", r"if (0) {\1"),
+    ("rhs() on NaN input (item 6)",
+     r"  if \(!\w+_finite\(x, \w+_NX\).*\n +return \w+_ERR_NONFINITE_INPUT;\n", ""),
+    ("step() writes the state before checking the result",
+     r"(  if \(\w+_k_step\(arg, res, s->iw, s->w, 0\)\))", r"  s->x[0] = s->x_next[0];\n\1"),
+], ids=["run-not-rolled-back", "rhs-nan", "step-writes-early"])
+def test_fuzzer_finds_a_fault_put_back(target, tmp_path, fault, pattern, replacement):
+    tool = _libfuzzer(tmp_path)
+    _put_back(target, pattern, replacement)
+    exe = sanitize.sanitized(target, "fuzz_step", tool, ["-fsanitize=fuzzer", *sanitize.SAN_FLAGS],
+                             tmp_path / "cache")
+    runs, _, finding, _ = sanitize.fuzz(exe, 200000, 120, tmp_path)
+    assert finding is not None and runs < 200000, fault
+    assert re.search(r"fuzz_step\(seed000_2r_reduced_order\): .*(state|status)", finding), finding
+
+
+def test_edge_cases_as_documented_and_sanitizers_report_a_fault(target, tmp_path):
+    """The clean target passes every edge case; an out-of-bounds write put into its copy loop
+    is reported by AddressSanitizer (exit 99), a NaN let through is an undocumented exit."""
+    cases = sanitize.edge_cases(2, 2, 2, 1e-3)
+    exe = sanitize.sanitized(target, "run_csv", compiler(), sanitize.SAN_FLAGS, tmp_path / "cache")
+    assert [c.name for c in cases if sanitize.run_case(exe, c, tmp_path)] == []
+    bad = tmp_path / "bad"
+    shutil.copytree(target, bad / target.name)
+    _put_back(bad / target.name, r"for \(i = 0; i < n; \+\+i\) dst\[i\] = src\[i\];",
+              "for (i = 0; i <= n; ++i) dst[i] = src[i];")
+    exe = sanitize.sanitized(bad / target.name, "run_csv", compiler(), sanitize.SAN_FLAGS, tmp_path / "cache")
+    why = sanitize.run_case(exe, cases[0], tmp_path)
+    assert why is not None and why.startswith(f"exit {sanitize.SAN_EXIT}") and "AddressSanitizer" in why
