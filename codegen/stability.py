@@ -103,7 +103,8 @@ class StabilityReport:
             fixes.append(f"or use substeps >= {self.substeps_needed * self.substeps}")
         if self.dt_max:
             fixes.append(f"or dt <= {self.dt_max:.3g}")
-        fixes.append('or substeps="auto" to choose them')
+        if not self.negative:                 # sub-steps cannot make a negative gain stable
+            fixes.append('or substeps="auto" to choose them')
         return f"{gains} {where}: {why}; " + ", ".join(fixes)
 
 
