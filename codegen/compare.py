@@ -229,10 +229,12 @@ def robot_by_name(name):
 
 def design_inputs(quantization=0.0, noise=0.0, uncertainty=0.0):
     """Keyword arguments of ``observers.build`` describing the sensor (rad) and the relative
-    model uncertainty (the noise-aware design of codegen.design.noise; 0 and 0: a noise-free
-    sensor, the guarantee gains)."""
-    return {"quantization": float(quantization or 0.0), "noise": float(noise or 0.0),
-            "uncertainty": float(uncertainty or 0.0)}
+    model uncertainty (the noise-aware design of codegen.design.noise). quantization and noise
+    both None: the sensor is not stated, the design assumes its default encoder; 0 and 0: a
+    noise-free sensor, the guarantee gains."""
+    sensor = ({} if quantization is None and noise is None else
+              {"quantization": float(quantization or 0.0), "noise": float(noise or 0.0)})
+    return {**sensor, "uncertainty": float(uncertainty or 0.0)}
 
 
 def _design_for(family, design):

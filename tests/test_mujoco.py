@@ -181,7 +181,8 @@ def test_simulate_mujoco_scenario_with_options(tmp_path, capsys):
     rec = read_csv(folder / "run.csv", load_robot("ur5").joint_names)
     assert np.allclose(rec.q / 1e-4, np.round(rec.q / 1e-4), atol=1e-6)    # quantised
     capsys.readouterr()
-    assert main(["compare", str(folder / "run.csv"), "--robot", "ur5", "--out", str(tmp_path / "c")]) == 0
+    assert main(["compare", str(folder / "run.csv"), "--robot", "ur5", "--quantization", "1e-4",
+                 "--out", str(tmp_path / "c")]) == 0
     table = capsys.readouterr().out
     rows = json.loads((tmp_path / "c" / "compare.json").read_text())["rows"]
     assert [r["rms"] for r in rows] == pytest.approx([summary["methods"][r["name"]]["rms"] for r in rows],
@@ -189,3 +190,13 @@ def test_simulate_mujoco_scenario_with_options(tmp_path, capsys):
     assert "kalman" in table and (tmp_path / "c" / "errors.png").is_file()
     with pytest.raises(SystemExit, match="takes no option --quantization"):
         main(["simulate", "seed000-ex1a", "--quantization", "1e-4", "--out", str(tmp_path)])
+
+
+def test_design_inputs_describe_the_sensor():
+    """compare passes the sensor and the uncertainty to the families that design for them; an
+    unstated sensor leaves the design its default encoder."""
+    from codegen.compare import _design_for, design_inputs
+    assert design_inputs(None, None, 0.1) == {"uncertainty": 0.1}
+    assert design_inputs(1e-4, None) == {"quantization": 1e-4, "noise": 0.0, "uncertainty": 0.0}
+    assert set(_design_for("nicosia_tomei", design_inputs(1e-4))) == {"quantization", "noise", "uncertainty"}
+    assert _design_for("ii_speed", design_inputs(1e-4)) == {}
