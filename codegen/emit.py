@@ -229,7 +229,10 @@ def template_values(meta):
 
 
 def _stability_macros(P, report):
-    """``#define <P>_<GAIN>_MAX_STABLE <value>`` per declared gain, and the spectral radius."""
+    """``#define <P>_<GAIN>_MAX_STABLE <value>`` per declared gain, and the spectral radius
+    (nothing for a spec the check does not cover: a plant)."""
+    if not report.get("checked", True):
+        return ["/* not checked: no measurement (a plant, not an observer) */"]
     out = [f"#define {P}_SPECTRAL_RADIUS {_num(report['spectral_radius'])}  "
            "/* of the linearised step at the default parameters */"]
     for g, v in report["gains"].items():

@@ -84,6 +84,7 @@ class StabilityReport:
     dt_max: float | None = None
     substeps_needed: int | None = None
     points: int = 0
+    checked: bool = True
 
     def as_dict(self):
         return asdict(self)
@@ -275,6 +276,12 @@ def check(spec, disc, p=None, cache=True, bounds=True):
     StabilityReport
     """
     p = np.asarray(spec.p_default if p is None else p, dtype=float).reshape(spec.np)
+    if spec.nx == 0 or spec.ny == 0:
+        # a stateless law has nothing to diverge; a plant (no measurement) is no observer: its
+        # step is the simulation's business (codegen.sim), not checked here
+        return StabilityReport(stable=True, spectral_radius=0.0, flow_radius=1.0, step_error=0.0, dt=disc.dt,
+                               method=disc.method, hold=disc.hold, substeps=disc.substeps,
+                               checked=spec.nx == 0)
     if not np.all(np.isfinite(p)):
         raise ValueError(f"{spec.family}: non-finite parameter(s) "
                          f"{[n for n, v in zip(spec.p_names, p) if not np.isfinite(v)]}")
