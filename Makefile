@@ -3,7 +3,11 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 
-.PHONY: generate test sanitize c-tools bench clean check
+# the Cortex-M flow (`make embedded`): Debian's cross compiler, its C library and QEMU
+ARM_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
+SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
+
+.PHONY: generate test sanitize c-tools bench clean check embedded arm-toolchain
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -31,6 +35,21 @@ c-tools:
 
 check: $(VENV)/.installed
 	$(PY) -m codegen check
+
+embedded: $(VENV)/.installed arm-toolchain
+	$(PY) -m codegen embedded
+
+# apt-get installs what is missing of $(ARM_PACKAGES)
+arm-toolchain:
+	@missing=""; \
+	command -v arm-none-eabi-gcc >/dev/null || missing="$$missing gcc-arm-none-eabi"; \
+	test -f "$$(arm-none-eabi-gcc -print-file-name=libc.a 2>/dev/null)" || missing="$$missing libnewlib-arm-none-eabi"; \
+	command -v qemu-system-arm >/dev/null || missing="$$missing qemu-system-arm"; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing$$missing"; \
+	  $(SUDO) apt-get update -qq && \
+	  $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
 
 bench: $(VENV)/.installed-bench
 	$(PY) -m codegen bench

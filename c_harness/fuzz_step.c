@@ -11,9 +11,10 @@
  *
  * An input is a small program over one state: init from the first numbers, then up to 64
  * operations, each one byte and the numbers it takes. A number is one selector byte: a
- * special value (0, -0, +-1, +-1e300, +-DBL_MAX, NaN, +-Inf, denormals, 1e-300, 0.5), a small
- * value in [-8, 7], or the next 8 bytes as a raw double. Checked on every call (a violation
- * prints what and aborts; libFuzzer keeps the input):
+ * special value (0, -0, +-1, +-1e300, +-DBL_MAX, NaN, +-Inf, denormals, 1e-300, 0.5; for a float
+ * target the float ones: +-1e30, +-FLT_MAX, float denormals, 1e-30), a small value in [-8, 7],
+ * or the next sizeof(<prefix>_real) bytes as a raw number of the target's real type. Checked on
+ * every call (a violation prints what and aborts; libFuzzer keeps the input):
  *   - the status is one the header documents;
  *   - a non-finite argument gives ERR_NONFINITE_INPUT, a finite one never does;
  *   - a non-zero status leaves the state (x, p, y_prev, u_prev, primed) byte-identical;
@@ -46,18 +47,24 @@ static int next_byte(source *in)
     return *in->d++;
 }
 
-static double number(source *in)
+/* The target's real type (double, or float for a single-precision target). */
+typedef OBS_REAL real;
+
+static real number(source *in)
 {
-    static const double special[16] = {0.0, -0.0, 1.0, -1.0, 1e300, -1e300, DBL_MAX, -DBL_MAX,
-                                       NAN, INFINITY, -INFINITY, 4.9e-324, -4.9e-324,
-                                       2.2250738585072014e-308, 1e-300, 0.5};
+    static const double special_d[16] = {0.0, -0.0, 1.0, -1.0, 1e300, -1e300, DBL_MAX, -DBL_MAX,
+                                         NAN, INFINITY, -INFINITY, 4.9e-324, -4.9e-324,
+                                         2.2250738585072014e-308, 1e-300, 0.5};
+    static const float special_f[16] = {0.0f, -0.0f, 1.0f, -1.0f, 1e30f, -1e30f, FLT_MAX, -FLT_MAX,
+                                        NAN, INFINITY, -INFINITY, 1.4e-45f, -1.4e-45f,
+                                        1.17549435e-38f, 1e-30f, 0.5f};
     int b = next_byte(in), i;
-    uint8_t raw[8] = {0};
-    double v;
-    if (b < 0) return 0.0;
-    if (b < 16) return special[b];
-    if (b < 240) return (b - 128) / 16.0;
-    for (i = 0; i < 8; ++i) {
+    uint8_t raw[sizeof(real)] = {0};
+    real v;
+    if (b < 0) return 0;
+    if (b < 16) return sizeof(real) == sizeof(float) ? (real)special_f[b] : (real)special_d[b];
+    if (b < 240) return (real)(b - 128) / 16;
+    for (i = 0; i < (int)sizeof(real); ++i) {
         int c = next_byte(in);
         raw[i] = (uint8_t)(c < 0 ? 0 : c);
     }
@@ -65,13 +72,13 @@ static double number(source *in)
     return v;
 }
 
-static void numbers(source *in, double *v, int n)
+static void numbers(source *in, real *v, int n)
 {
     int i;
     for (i = 0; i < n; ++i) v[i] = number(in);
 }
 
-static int finite(const double *v, int n)
+static int finite(const real *v, int n)
 {
     int i;
     for (i = 0; i < n; ++i)
@@ -104,7 +111,7 @@ static void check_status(int status, int inputs_finite, int may_fail_result, con
 
 static void step_op(OBS_STATE *s, source *in)
 {
-    double y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], est[OBS_LEN(OBS_NEST)];
+    real y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], est[OBS_LEN(OBS_NEST)];
     OBS_STATE before = *s;
     int st;
     numbers(in, y, OBS_NY);
@@ -118,7 +125,7 @@ static void step_op(OBS_STATE *s, source *in)
 
 static void estimate_op(OBS_STATE *s, source *in)
 {
-    double y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], est[OBS_LEN(OBS_NEST)], est2[OBS_LEN(OBS_NEST)];
+    real y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], est[OBS_LEN(OBS_NEST)], est2[OBS_LEN(OBS_NEST)];
     OBS_STATE before = *s, t;
     int st, st2;
     numbers(in, y, OBS_NY);
@@ -136,8 +143,8 @@ static void estimate_op(OBS_STATE *s, source *in)
 
 static void run_op(OBS_STATE *s, source *in)
 {
-    double Y[MAX_RUN * OBS_LEN(OBS_NY)], U[MAX_RUN * OBS_LEN(OBS_NU)];
-    double EST[MAX_RUN * OBS_LEN(OBS_NEST)], est[OBS_LEN(OBS_NEST)];
+    real Y[MAX_RUN * OBS_LEN(OBS_NY)], U[MAX_RUN * OBS_LEN(OBS_NU)];
+    real EST[MAX_RUN * OBS_LEN(OBS_NEST)], est[OBS_LEN(OBS_NEST)];
     OBS_STATE before = *s, t = *s;
     long n = 1 + (long)(next_byte(in) & 3), done = -1, k;
     int st, st_k = ST(OK);
@@ -148,7 +155,7 @@ static void run_op(OBS_STATE *s, source *in)
     for (k = 0; k < n; ++k) {
         st_k = OBS_FN(step)(&t, Y + k * OBS_NY, U + k * OBS_NU, est);
         if (st_k != ST(OK)) break;
-        if (memcmp(est, EST + k * OBS_NEST, sizeof(double) * OBS_NEST) != 0)
+        if (memcmp(est, EST + k * OBS_NEST, sizeof(real) * OBS_NEST) != 0)
             fail("run: estimate differs from step()'s", st);
     }
     if (st != st_k || done != k) fail("run: status or n_done differs from step() one by one", st);
@@ -158,7 +165,7 @@ static void run_op(OBS_STATE *s, source *in)
 
 static void rhs_op(OBS_STATE *s, source *in)
 {
-    double x[OBS_LEN(OBS_NX)], y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], xdot[OBS_LEN(OBS_NX)];
+    real x[OBS_LEN(OBS_NX)], y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], xdot[OBS_LEN(OBS_NX)];
     OBS_STATE before = *s;
     int st;
     numbers(in, x, OBS_NX);
@@ -172,7 +179,7 @@ static void rhs_op(OBS_STATE *s, source *in)
 
 static void set_op(OBS_STATE *s, source *in, int params)
 {
-    double v[OBS_LEN(OBS_NX) + OBS_LEN(OBS_NP)];
+    real v[OBS_LEN(OBS_NX) + OBS_LEN(OBS_NP)];
     int n = params ? OBS_NP : OBS_NX, st;
     OBS_STATE before = *s;
     numbers(in, v, n);
@@ -180,14 +187,14 @@ static void set_op(OBS_STATE *s, source *in, int params)
     /* set_params retunes the state (bumpless): finite but huge values may overflow it */
     check_status(st, finite(v, n), params, params ? "set_params: status" : "set_state: status");
     if (st != ST(OK) && !same_state(s, &before)) fail("set: state changed on error", st);
-    if (st == ST(OK) && memcmp(params ? s->p : s->x, v, sizeof(double) * (size_t)n) != 0)
+    if (st == ST(OK) && memcmp(params ? s->p : s->x, v, sizeof(real) * (size_t)n) != 0)
         fail("set: value not stored", st);
     if (st == ST(OK) && params && !finite(s->x, OBS_NX)) fail("set_params: OK with a non-finite state", st);
 }
 
 static void null_op(OBS_STATE *s)
 {
-    double y[OBS_LEN(OBS_NY)] = {0}, u[OBS_LEN(OBS_NU)] = {0}, est[OBS_LEN(OBS_NEST)];
+    real y[OBS_LEN(OBS_NY)] = {0}, u[OBS_LEN(OBS_NU)] = {0}, est[OBS_LEN(OBS_NEST)];
     long done;
     OBS_STATE before = *s;
     if (OBS_FN(step)(NULL, y, u, est) != ST(ERR_BAD_ARG) || OBS_FN(step)(s, NULL, u, est) != ST(ERR_BAD_ARG)
@@ -200,7 +207,7 @@ static void null_op(OBS_STATE *s)
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     source in = {data, size};
-    double y0[OBS_LEN(OBS_NY)], est0[OBS_LEN(OBS_NEST)];
+    real y0[OBS_LEN(OBS_NY)], est0[OBS_LEN(OBS_NEST)];
     OBS_STATE s;
     int st, ops;
     memset(&s, 0, sizeof s);

@@ -6,6 +6,7 @@
  * and the names below expand to that target's API:
  *   OBS_FN(step)  -> <prefix>_step        OBS_SIZE(NX) -> <PREFIX>_NX
  *   OBS_STATE     -> <prefix>_state       OBS_NAME     -> "<prefix>"
+ *   OBS_REAL      -> <prefix>_real (the target's real type: double or float)
  */
 #ifndef OBS_BIND_H
 #define OBS_BIND_H
@@ -24,6 +25,7 @@
 #define OBS_FN(name) OBS_CAT(OBS, OBS_CAT(_, name))
 #define OBS_SIZE(name) OBS_CAT(OBS_UPPER, OBS_CAT(_, name))
 #define OBS_STATE OBS_CAT(OBS, _state)
+#define OBS_REAL OBS_CAT(OBS, _real)
 #define OBS_NAME OBS_STR(OBS)
 
 #define OBS_NX OBS_SIZE(NX)

@@ -136,10 +136,12 @@ int main(int argc, char **argv)
     size_t cap = 0, len = 0;
     long line_no = 0, row = 0;
     int rc = EXIT_INPUT, r, warned_dt = 0;
-    double est0[OBS_LEN(OBS_NEST)];
+    double est0_in[OBS_LEN(OBS_NEST)];
+    OBS_REAL est0[OBS_LEN(OBS_NEST)];
     int have_est0 = 0;
     double vals[N_COLS];
-    double est[OBS_LEN(OBS_NEST)];
+    OBS_REAL yu[N_COLS - 1]; /* y, u of a row in the target's real type */
+    OBS_REAL est[OBS_LEN(OBS_NEST)];
     double t_prev = 0.0;
     OBS_STATE state;
     char bad[64];
@@ -158,10 +160,14 @@ int main(int argc, char **argv)
                     prog, (int)OBS_NEST, OBS_NAME, (unsigned long)n);
             return EXIT_USAGE;
         }
-        if (!parse_numbers(argv[3], est0, (size_t)OBS_NEST, &bad_col, bad, sizeof bad)) {
+        if (!parse_numbers(argv[3], est0_in, (size_t)OBS_NEST, &bad_col, bad, sizeof bad)) {
             fprintf(stderr, "%s: est0 entry %lu ('%s') is not a number\n", prog,
                     (unsigned long)bad_col, bad);
             return EXIT_USAGE;
+        }
+        {
+            int k;
+            for (k = 0; k < (int)OBS_NEST; ++k) est0[k] = (OBS_REAL)est0_in[k];
         }
         have_est0 = 1;
     }
@@ -234,8 +240,9 @@ int main(int argc, char **argv)
             goto done;
         }
         ++row;
+        for (i = 0; i < N_COLS - 1; ++i) yu[i] = (OBS_REAL)vals[i + 1];
         if (row == 1) {
-            st = OBS_FN(init)(&state, NULL, vals + 1, have_est0 ? est0 : NULL);
+            st = OBS_FN(init)(&state, NULL, yu, have_est0 ? est0 : NULL);
             if (st != 0) {
                 fprintf(stderr, "%s: %s:%ld: data row 1 (t=%.17g): %s_init returned %d: %s\n", prog,
                         in_path, line_no, vals[0], OBS_NAME, st, obs_status_name(st));
@@ -254,7 +261,7 @@ int main(int argc, char **argv)
             }
         }
         t_prev = vals[0];
-        st = OBS_FN(step)(&state, vals + 1, vals + 1 + OBS_NY, est);
+        st = OBS_FN(step)(&state, yu, yu + OBS_NY, est);
         if (st != 0) {
             fprintf(stderr, "%s: %s:%ld: data row %ld (t=%.17g): %s_step returned %d: %s\n", prog,
                     in_path, line_no, row, vals[0], OBS_NAME, st, obs_status_name(st));
@@ -262,7 +269,7 @@ int main(int argc, char **argv)
             goto done;
         }
         fprintf(out, "%.17g", vals[0]);
-        for (i = 0; i < (int)OBS_NEST; ++i) fprintf(out, ",%.17g", est[i]);
+        for (i = 0; i < (int)OBS_NEST; ++i) fprintf(out, ",%.17g", (double)est[i]);
         if (fprintf(out, "\n") < 0) {
             fprintf(stderr, "%s: write error on '%s': %s\n", prog, tmp_path, strerror(errno));
             goto done;

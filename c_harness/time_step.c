@@ -38,11 +38,11 @@
 
 #define K_TABLE 256 /* samples in the input table (power of two) */
 
-static double Y_tab[K_TABLE][OBS_LEN(OBS_NY)];
-static double U_tab[K_TABLE][OBS_LEN(OBS_NU)];
+static OBS_REAL Y_tab[K_TABLE][OBS_LEN(OBS_NY)];
+static OBS_REAL U_tab[K_TABLE][OBS_LEN(OBS_NU)];
 static OBS_STATE state0;        /* state every step block starts from */
 static OBS_STATE state;         /* working state */
-static double x_rhs[OBS_LEN(OBS_NX)];
+static OBS_REAL x_rhs[OBS_LEN(OBS_NX)];
 static long n_errors = 0;
 static volatile double sink = 0.0;
 
@@ -63,20 +63,20 @@ static double uniform01(void)
     return (double)((rng_state * 2685821657736338717ULL) >> 11) * (1.0 / 9007199254740992.0);
 }
 
-static void fill_table(double *tab, int width, int n)
+static void fill_table(OBS_REAL *tab, int width, int n)
 {
     const double two_pi = 6.283185307179586;
     int i, k;
     for (i = 0; i < n; ++i) {
         double a = 0.25 + 0.75 * uniform01();
         double phi = two_pi * uniform01();
-        for (k = 0; k < K_TABLE; ++k) tab[k * width + i] = a * sin(two_pi * k / K_TABLE + phi);
+        for (k = 0; k < K_TABLE; ++k) tab[k * width + i] = (OBS_REAL)(a * sin(two_pi * k / K_TABLE + phi));
     }
 }
 
 static void step_block(long n)
 {
-    double est[OBS_LEN(OBS_NEST)] = {0.0};
+    OBS_REAL est[OBS_LEN(OBS_NEST)] = {0};
     double acc = 0.0;
     long i;
     for (i = 0; i < n; ++i) {
@@ -86,20 +86,20 @@ static void step_block(long n)
             ++n_errors;
             state = state0;
         }
-        acc += est[0];
+        acc += (double)est[0];
     }
     sink = sink + acc;
 }
 
 static void rhs_block(long n)
 {
-    double xdot[OBS_LEN(OBS_NX)];
+    OBS_REAL xdot[OBS_LEN(OBS_NX)];
     double acc = 0.0;
     long i;
     for (i = 0; i < n; ++i) {
         int j = (int)(i & (K_TABLE - 1));
         OBS_FN(rhs)(&state, x_rhs, Y_tab[j], U_tab[j], xdot);
-        acc += xdot[0];
+        acc += (double)xdot[0];
     }
     sink = sink + acc;
 }
@@ -161,7 +161,7 @@ int main(int argc, char **argv)
     int blocks = 51, i, st;
     double block_ms = 15.0, ns_step, ns_rhs;
     long calls_step, calls_rhs, warm_errors;
-    double est[OBS_LEN(OBS_NEST)];
+    OBS_REAL est[OBS_LEN(OBS_NEST)];
 
     for (i = 1; i < argc; ++i) {
         if (strncmp(argv[i], "--blocks=", 9) == 0)
@@ -201,7 +201,7 @@ int main(int argc, char **argv)
     state0 = state;
     memcpy(x_rhs, state.x, sizeof state.x);
     {
-        double xdot[OBS_LEN(OBS_NX)];
+        OBS_REAL xdot[OBS_LEN(OBS_NX)];
         st = OBS_FN(rhs)(&state, x_rhs, Y_tab[0], U_tab[0], xdot);
         if (st != 0) {
             fprintf(stderr, "time_step: %s_rhs returned %d: %s\n", OBS_NAME, st, obs_status_name(st));

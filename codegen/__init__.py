@@ -17,7 +17,7 @@ def build_spec(target):
 
 
 def compile_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,
-                     out_dir=None, prefix=None, native=False, inline="auto", cflags=()):
+                     out_dir=None, prefix=None, native=False, inline="auto", precision=None, cflags=()):
     """Emit, build and load an observer as C.
 
     Parameters
@@ -36,6 +36,8 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         Add -march=native.
     inline : "auto" or bool
         Code shape of the step (see codegen.discretize).
+    precision : {"double", "float"}, optional
+        Real type of the C (default "double", or the Target's own).
     cflags : sequence of str
         Extra compiler flags (e.g. ("-O1",) to compile a very large kernel quickly).
 
@@ -62,12 +64,13 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     auto = substeps == "auto"
     over = dict(dt=dt, method=method, substeps=None if auto else substeps, hold=hold)
     if isinstance(spec, Target):
-        target = spec.with_discretization(discretization, **over)
-        target = target if prefix is None else replace(target, name=prefix)
-        target = target if inline == "auto" else replace(target, inline=inline)
+        changes = {k: v for k, v in (("name", prefix), ("precision", precision)) if v is not None}
+        changes.update({} if inline == "auto" else {"inline": inline})
+        target = replace(spec.with_discretization(discretization, **over), **changes)
         spec = build_spec(target)
     else:
-        target = spec.target(discretization, name=prefix, inline=inline, **over)
+        target = spec.target(discretization, name=prefix, inline=inline, precision=precision or "double",
+                             **over)
     if auto:
         checked = with_params(spec, target.params) if target.params else spec
         target = replace(target, discretization=auto_substeps(checked, target.discretization))

@@ -93,10 +93,12 @@ class Baseline:
 
     @property
     def state(self):
+        """A copy of the state (nx,)."""
         return self._x.copy()
 
     @state.setter
     def state(self, x):
+        """Set the state to ``x`` (nx,) (ValueError on a wrong size or a non-finite entry)."""
         self._x[:] = as_vector("x", x, self.nx)
 
     def __repr__(self):

@@ -20,7 +20,7 @@ from pathlib import Path
 from .atomic import replace_dir
 from .cache import cache_dir, repo_root  # noqa: F401  (re-exported: one place for the paths)
 
-C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic"]
+C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Wdouble-promotion"]
 # -fno-semantic-interposition: let gcc inline CasADi's non-static helpers (casadi_sq) under -fPIC
 SHARED_FLAGS = ["-fPIC", "-shared", "-fno-semantic-interposition"]
 NATIVE_FLAGS = ["-march=native"]

@@ -1,4 +1,4 @@
-"""`python -m codegen list | generate | build | check | simulate | compare | bench | sanitize`."""
+"""`python -m codegen list | generate | build | check | simulate | compare | sweep | bench | sanitize | embedded`."""
 from __future__ import annotations
 
 import argparse
@@ -122,6 +122,35 @@ def cmd_bench(args):
     return main(args.bench_robots, native=args.native, json_path=args.json, scenarios=not args.no_scenarios)
 
 
+def cmd_embedded(args):
+    """Every target in double on an emulated Cortex-M7 and in float on a Cortex-M4F: flash, static
+    RAM, peak stack, instructions per step and the difference from the host build, recorded in
+    each target's JSON and printed as a table."""
+    from . import embedded
+    missing = embedded.missing_packages()
+    if missing:
+        print(f"error: ARM toolchain missing; install it with: apt-get install {' '.join(missing)} "
+              "(`make embedded` does)", file=sys.stderr)
+        return 2
+    print(f"{'target':34s} {'cpu':10s} {'flash KB':>8s} {'RAM B':>7s} {'stack B':>7s} {'insn/step':>9s} "
+          f"{'max':>7s} {'vs host':>8s} {'identical':>9s} {'vs double':>9s}")
+    rows = []
+    items, say = _progress(args.robots, "embedded")
+    for name in items:
+        spec = default_spec(name, args.family)
+        for prefix, rec in embedded.verify_target(spec, spec.target(_discretization(args)), args.out,
+                                                  steps=args.steps):
+            rows.append(rec)
+            say(f"{prefix:34s} {rec['cpu']:10s} {rec['flash_bytes'] / 1024:8.1f} {rec['static_ram_bytes']:7d} "
+                f"{rec['stack_peak_bytes']:7d} {rec['instructions_per_step']:9d} "
+                f"{rec['instructions_per_step_max']:7d} {rec['rel_diff_host']:8.1e} "
+                f"{'yes' if rec['bit_identical'] else 'no':>9s} {rec.get('rel_diff_double', 0):9.1e}  "
+                f"{'ok' if rec['ok'] else 'FAIL'}")
+    print(f"{len(rows)} runs of {args.steps} steps on QEMU (-icount shift=0); records in {Path(args.out).resolve()}"
+          "/<target>/<target>.json under \"embedded\"")
+    return 0 if rows and all(rec["ok"] for rec in rows) else 1
+
+
 def cmd_simulate(args):
     from .sim import scenarios
     options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T")
@@ -175,6 +204,24 @@ def cmd_compare(args):
     return 0
 
 
+def cmd_sweep(args):
+    """A Monte-Carlo sweep on Dask (codegen.sweep): results, map and best-gain table in --out."""
+    from . import sweep
+    from .sweep import maps, plan
+    try:
+        spec = plan.load(args.file)
+        res = sweep.run(args.file, workers=args.workers, scheduler=args.scheduler, out=args.out)
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(f"{res.cells} cells: {res.computed} computed in {res.seconds:.1f} s "
+          f"({res.computed / max(res.seconds, 1e-9):.1f} cells/s), {res.skipped} already done, "
+          f"{res.failed} failed; results in {res.out / 'results'}")
+    for p in maps.write(res.out, spec):
+        print(f"wrote {p}")
+    return 0 if res.failed == 0 else 1
+
+
 def cmd_sanitize(args):
     from .check import sanitize
     return sanitize.run(args.runs, args.seconds)
@@ -214,6 +261,10 @@ def main(argv=None):
     be.add_argument("--native", action="store_true")
     be.add_argument("--json", help="also write the figures to this file")
     be.add_argument("--no-scenarios", action="store_true", help="only the observer RHS table")
+    e = sub.add_parser("embedded", help="run the targets on emulated Cortex-M4F (float) and M7 (double)")
+    common(e)
+    e.add_argument("--out", default=str(repo_root() / "generated"), help="parent folder of the targets")
+    e.add_argument("--steps", type=int, default=300, help="samples of the run on each CPU (default 300)")
     s = sub.add_parser("simulate", help="run a scenario of the seed papers")
     s.add_argument("name")
     s.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
@@ -238,6 +289,13 @@ def main(argv=None):
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     cp.add_argument("--out", default=str(repo_root() / "build" / "compare"))
+    sw = sub.add_parser("sweep", help="Monte-Carlo sweep of observers and baselines on Dask (resumable)")
+    sw.add_argument("file", help="the sweep file (TOML; see codegen.sweep.plan)")
+    where = sw.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="local cluster of N worker processes (default: one "
+                       "per CPU; 0: in this process, no Dask)")
+    where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:8786)")
+    sw.add_argument("--out", help="output folder (default build/sweeps/<name>)")
     sa = sub.add_parser("sanitize", help="C harness and sample targets under ASan/UBSan on edge-case "
                         "CSVs, and a libFuzzer campaign of their step")
     sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
@@ -246,7 +304,7 @@ def main(argv=None):
     try:
         return {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
                 "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare,
-                "sanitize": cmd_sanitize}[args.cmd](args)
+                "sweep": cmd_sweep, "sanitize": cmd_sanitize, "embedded": cmd_embedded}[args.cmd](args)
     except (BuildError, UnstableDiscretization) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

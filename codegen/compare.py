@@ -201,7 +201,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     for item in families:
         fam, given = parse_observer(item)
         try:
-            spec = observers.build(fam, robot, **{**_design_for(fam, design), **given})
+            spec = observers.build(fam, robot, **{**design_for(fam, design), **given})
         except TypeError as e:
             raise ValueError(f"observers: {item!r}: {e}") from None
         if spec.nest != robot.n or spec.ny != robot.n:
@@ -237,7 +237,7 @@ def design_inputs(quantization=0.0, noise=0.0, uncertainty=0.0):
     return {**sensor, "uncertainty": float(uncertainty or 0.0)}
 
 
-def _design_for(family, design):
+def design_for(family, design):
     """The keywords of ``design`` that ``family``'s build takes (families without a noise-aware
     design ignore the sensor description)."""
     import importlib

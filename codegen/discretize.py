@@ -45,7 +45,7 @@ from .target import HOLDS, METHODS, Discretization  # noqa: F401  (re-exported)
 # shared RHS routine in the C instead: a big observer (I&I on a 6-DoF arm, an elastic 3R) stays
 # small and quick to compile. Below it, inlining lets common subexpressions (sin/cos of a held y)
 # be shared across stages.
-INLINE_LIMIT = 40000
+INLINE_LIMIT = 15000
 
 _SERIES_TERMS = 17     # phi_k by its Taylor series for |z| < 1: remainder < 1/20! relative
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import re
 import shutil
@@ -20,13 +21,14 @@ from importlib import resources
 from pathlib import Path
 
 import casadi as ca
+import numpy as np
 
 from .atomic import replace_dir
 from .version import __version__
 from .discretize import discretize, estimate
 from .spec import ObserverSpec, real_number
 from .stability import require_stable
-from .target import sanitize
+from .target import REAL_TYPES, sanitize
 
 HOLD_TEXT = {
     "zoh": "zero-order hold: y and u are held over [t_k, t_k+1];\n * step() returns the estimate at t_k, then advances the state to t_k+1.",
@@ -43,12 +45,52 @@ STATUS = {"OK": 0, "ERR_BAD_ARG": 1, "ERR_NONFINITE_INPUT": 2, "ERR_NONFINITE_RE
           "ERR_KERNEL": 4}
 
 
-def _num(x):
-    """A C double literal that round-trips exactly."""
-    s = repr(float(x))
-    if s in ("inf", "-inf", "nan"):
-        raise ValueError(f"non-finite default value {s}")
-    return s if ("e" in s or "." in s) else s + ".0"
+def _num(x, precision="double"):
+    """A C literal of ``precision`` that round-trips exactly: the shortest repr of the double,
+    or of the nearest float with an ``f`` suffix (so no double constant enters float code)."""
+    x = float(x)
+    single = precision == "float"
+    if not math.isfinite(x) or (single and abs(x) > float(np.finfo(np.float32).max)):
+        raise ValueError(f"non-finite default value {x!r} in {precision} precision")
+    s = str(np.float32(x)) if single else repr(x)
+    s = s if ("e" in s or "." in s) else s + ".0"
+    return s + "f" if single else s
+
+
+def _bind_real(code, prefix, precision):
+    """Make CasADi's kernel file (or header) take its real type from ``<prefix>.h`` (one real type,
+    set in one place); in single precision also the float math functions (``sin(`` -> ``sinf(``)
+    and float constants (``2.*x`` -> ``2.f*x``): no double promotion anywhere."""
+    block = f"#ifndef casadi_real\n#define casadi_real {REAL_TYPES[precision]}\n#endif\n"
+    if block not in code:
+        raise RuntimeError(f"CasADi {ca.__version__}: no casadi_real definition block in the kernels")
+    code = code.replace(block, f'#include "{prefix}.h"\n#undef casadi_real\n'
+                               f"#define casadi_real {prefix}_real  /* the target's real type ({prefix}.h) */\n")
+    if precision == "float":
+        code = _MATH_CALL.sub(r"\1f(", _FLOATING_LITERAL.sub(_float_literal, code))
+    return code
+
+
+def _float_literal(match):
+    """A double constant as a float one; a constant float cannot hold (a guard such as 1e-300,
+    a bound such as 1e300) becomes the nearest float of the same role: FLT_MIN or FLT_MAX."""
+    text, x = match.group(1), float(match.group(1))
+    with np.errstate(over="ignore"):
+        f = np.float32(x)
+    if x != 0 and f == 0:
+        return str(np.finfo(np.float32).tiny) + "f"
+    if not np.isfinite(f):
+        return str(np.finfo(np.float32).max) + "f"
+    return text + "f"
+
+
+# a C floating constant without suffix (1., .5, 2.5e-03, 1e3), not part of a name or a version
+_FLOATING_LITERAL = re.compile(r"(?<![\w.])((?:\d+\.\d*|\.\d+)(?:[eE][+-]?\d+)?|\d+[eE][+-]?\d+)(?![\w.])")
+# the C99 <math.h> functions with a float variant (name + "f"); a call of one (not casadi_sin()
+MATH_FUNCTIONS = (r"a?(?:sin|cos|tan)h?|atan2|exp2?|expm1|log(?:10|1p|2|b)?|cbrt|fabs|hypot|pow|sqrt"
+                  r"|erfc?|[lt]gamma|ceil|floor|nearbyint|rint|round|trunc|fmod|remainder|copysign|fdim"
+                  r"|fmax|fmin|fma")
+_MATH_CALL = re.compile(rf"(?<![\w.])({MATH_FUNCTIONS})\(")
 
 
 def _void_unused(code):
@@ -92,6 +134,7 @@ def metadata(spec, target, kernels, stability=None):
         "stability": stability,
         "kernels": kernels,
         "status": STATUS,
+        "precision": target.precision,
         "generator": {"codegen": __version__, "casadi": ca.__version__},
         "design": spec.design,
     }
@@ -132,7 +175,8 @@ def emit(target, out_dir, spec=None):
     tmp = Path(tempfile.mkdtemp(prefix=f".{prefix}.", dir=out_dir))
     try:
         cg = ca.CodeGenerator(f"{prefix}_kernels.c", {"with_header": True, "casadi_int": "int",
-                                                      "casadi_real": "double", "verbose": False})
+                                                      "casadi_real": REAL_TYPES[target.precision],
+                                                      "verbose": False})
         for key, f in fns.items():
             ins = f.mx_in() if f.is_a("MXFunction") else f.sx_in()
             named = ca.Function(f"{prefix}_k_{key}", ins, f.call(ins))
@@ -141,8 +185,9 @@ def emit(target, out_dir, spec=None):
                             "sz_arg": int(named.sz_arg()), "sz_res": int(named.sz_res()),
                             "sz_iw": int(named.sz_iw()), "sz_w": int(named.sz_w())}
         cg.generate(str(tmp) + os.sep)       # a directory prefix: no chdir (thread-safe)
-        kfile = tmp / f"{prefix}_kernels.c"
-        kfile.write_text(_void_unused(kfile.read_text()))
+        for kfile in (tmp / f"{prefix}_kernels.c", tmp / f"{prefix}_kernels.h"):
+            code = _bind_real(kfile.read_text(), prefix, target.precision)
+            kfile.write_text(_void_unused(code) if kfile.suffix == ".c" else code)
         meta = metadata(spec, target, kernels, stability)
         values = template_values(meta)
         for template, name in TEMPLATES.items():
@@ -209,13 +254,15 @@ def template_values(meta):
     """The placeholders of the templates, from the metadata alone (dict name -> value); the blocks
     repeated per slot (slot macros, status codes) are made here, the templates only substitute."""
     prefix, s, d, k = meta["prefix"], meta["sizes"], meta["discretization"], meta["kernels"]
-    P = prefix.upper()
+    P, precision = prefix.upper(), meta.get("precision", "double")
     status = "\n".join(f"  {P}_{name} = {code}," for name, code in meta["status"].items())
     return {
         "prefix": prefix, "PREFIX": P, "family": _comment(meta["family"]),
         "robot": _comment(sanitize(meta["robot"]["name"])),
         "codegen_version": meta["generator"]["codegen"], "casadi_version": meta["generator"]["casadi"],
-        "method": d["method"], "dt": _num(d["dt"]), "substeps": d["substeps"],
+        "real": REAL_TYPES[precision], "precision": precision,
+        "method": d["method"], "dt": _num(d["dt"], precision), "dt_text": _num(d["dt"]),
+        "substeps": d["substeps"],
         "hold_text": HOLD_TEXT[d["hold"]], "hold_foh": int(d["hold"] == "foh"),
         "hybrid_text": HYBRID_TEXT if d["hybrid"] else "",
         **{n: s[n] for n in ("nx", "ny", "nu", "np", "nest")},
@@ -224,7 +271,7 @@ def template_values(meta):
         **{key: max(1, max(v[key] for v in k.values())) for key in ("sz_iw", "sz_w")},
         "slot_macros": "\n".join(_slot_macros(P, meta["names"])), "status_enum": status,
         "stability_macros": "\n".join(_stability_macros(P, meta["stability"])),
-        "p_default": ", ".join(_num(v) for v in meta["p_default"]) or "0.0",
+        "p_default": ", ".join(_num(v, precision) for v in meta["p_default"]) or "0",
     }
 
 

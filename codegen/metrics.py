@@ -23,7 +23,7 @@ def _rows(a):
 
 
 def error_norm(err):
-    """||err_k|| per sample (N,) of an (N, n) or (N,) error."""
+    """||err_k|| per sample (N,) of an (N, n) or (N,) error ``err``."""
     return np.linalg.norm(_rows(err), axis=1)
 
 
@@ -36,19 +36,21 @@ def _after(t, t0):
 
 
 def rms_after(t, err, t0=0.0):
-    """sqrt(mean_k ||err_k||^2) over the samples with t_k >= t0 (rad/s)."""
+    """sqrt(mean_k ||err_k||^2) over the samples with t_k >= t0 (rad/s); ``t`` (N,) sample times
+    (s), ``err`` (N, n) or (N,) error."""
     e = _rows(err)[_after(t, t0)]
     return float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
 
 
 def max_error(t, err, t0=0.0):
-    """max_k ||err_k|| over the samples with t_k >= t0 (rad/s)."""
+    """max_k ||err_k|| over the samples with t_k >= t0 (rad/s); ``t`` (N,) sample times (s),
+    ``err`` (N, n) or (N,) error."""
     return float(np.max(error_norm(_rows(err)[_after(t, t0)])))
 
 
 def convergence_time(t, err, level):
-    """First t_k after which ||err|| stays below ``level`` to the end (s); t_0 if always
-    below, inf if the last sample is not."""
+    """First t_k after which ||err|| stays below ``level`` to the end (s); t_0 if always below,
+    inf if the last sample is not. ``t`` (N,) sample times (s), ``err`` (N, n) or (N,) error."""
     t = np.asarray(t, dtype=float)
     above = np.nonzero(~(error_norm(err) < level))[0]          # NaN counts as above
     if len(above) == 0:
@@ -57,8 +59,9 @@ def convergence_time(t, err, level):
 
 
 def diverged(est, truth):
-    """True when the estimate is non-finite somewhere, or its error exceeds
-    ``BLOWUP`` x (1 + max ||qd||): it has left the scale of the motion."""
+    """True when the estimate ``est`` is non-finite somewhere, or its error to ``truth`` (both
+    (N, n) or (N,), rad/s) exceeds ``BLOWUP`` x (1 + max ||qd||): it has left the scale of the
+    motion."""
     est, truth = _rows(est), _rows(truth)
     if not np.all(np.isfinite(est)):
         return True

@@ -76,7 +76,9 @@ KINDS = {cls.__name__: cls for cls in (Options, HybridOptions, QuadratureOptions
 
 
 def options_from_dict(d):
-    """The typed options recorded by ``Options.to_dict`` (ValueError on an unknown kind)."""
+    """The typed options recorded by ``Options.to_dict``: the dict ``d`` (None: plain ``Options``)
+    holds "kind" (a name in ``KINDS``, default "Options") and exactly that class's fields
+    (ValueError on an unknown kind or other fields)."""
     d = dict(d or {"kind": "Options"})
     kind = d.pop("kind", "Options")
     if kind not in KINDS:

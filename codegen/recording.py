@@ -56,7 +56,8 @@ class Recording:
         return ["t"] + [f"{g}_{j}" for g in groups for j in self.joint_names]
 
     def write_csv(self, path):
-        """Write the CSV of the module docstring (atomically: a temp file, then rename)."""
+        """Write the CSV of the module docstring to ``path`` (atomically: a temp file, then rename;
+        parent folders created); returns the path."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         data = np.column_stack([self.t] + [a for a in (self.q, self.tau, self.qd) if a is not None])

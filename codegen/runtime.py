@@ -2,7 +2,9 @@
 
 Buffers are preallocated once; ``step`` copies y and u into them and calls the C step.
 Bad input (shape, NaN/Inf) raises before reaching C; a non-zero C status raises
-ObserverError naming the status.
+ObserverError naming the status. A single-precision target (metadata "precision": "float")
+gets float32 buffers: inputs are rounded to float32 at the boundary (a value beyond float32's
+range is refused), results come back as float64 arrays.
 """
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ import numpy as np
 
 from .build import verify
 
-_D = ct.POINTER(ct.c_double)
+REALS = {"double": (np.float64, ct.c_double), "float": (np.float32, ct.c_float)}  # precision -> types
 
 
 class ObserverError(RuntimeError):
@@ -43,19 +45,30 @@ def _floats(name, value, expected):
                          f"{str(value)[:60]!r}") from None
 
 
-def as_vector(name, value, size):
-    """value as a finite float64 vector of length size, or ValueError naming ``name``."""
+def _as_real(name, a, dtype):
+    """Finite float64 ``a`` as ``dtype``, or ValueError naming ``name`` if it overflows there."""
+    if dtype == np.float64:
+        return a
+    with np.errstate(over="ignore"):
+        r = a.astype(dtype)
+    if not np.all(np.isfinite(r)):
+        raise ValueError(f"{name}: value {a[~np.isfinite(r)][0]:g} outside the {np.dtype(dtype).name} range")
+    return r
+
+
+def as_vector(name, value, size, dtype=np.float64):
+    """value as a finite vector of length size and type ``dtype``, or ValueError naming ``name``."""
     a = _floats(name, value, f"{size} real numbers")
     if a.shape not in ((size,), (size, 1), (1, size)):
         raise ValueError(f"{name}: expected shape ({size},), got {np.shape(value)}")
     a = a.reshape(size)
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{name}: contains NaN or Inf: {a}")
-    return a
+    return _as_real(name, a, dtype)
 
 
-def as_matrix(name, value, cols, rows=None):
-    """value as a finite C-contiguous float64 (rows, cols) array, or ValueError naming ``name``."""
+def as_matrix(name, value, cols, rows=None, dtype=np.float64):
+    """value as a finite C-contiguous (rows, cols) matrix of type ``dtype``, or ValueError naming ``name``."""
     a = _floats(name, value, f"an (N, {cols}) array of real numbers")
     if a.ndim != 2 or a.shape[1] != cols or (rows is not None and a.shape[0] != rows):
         want = f"({rows if rows is not None else 'N'}, {cols})"
@@ -63,7 +76,7 @@ def as_matrix(name, value, cols, rows=None):
     if not np.all(np.isfinite(a)):
         bad = np.argwhere(~np.isfinite(a))[0]
         raise ValueError(f"{name}: NaN or Inf at row {bad[0]}, column {bad[1]}")
-    return np.ascontiguousarray(a)
+    return np.ascontiguousarray(_as_real(name, a, dtype))
 
 
 class CompiledObserver:
@@ -77,6 +90,7 @@ class CompiledObserver:
     (codegen.stability), otherwise against the bounds recorded in the metadata (each gain
     >= 0 and below its largest stable value, the others at their defaults). Setting them is
     bumpless: the C transforms the state so that the estimate at the last measurement is kept.
+    Results are float64 arrays whatever the target's precision (``obs.dtype`` is the C's).
     """
 
     spec = None
@@ -89,6 +103,10 @@ class CompiledObserver:
         self.nx, self.ny, self.nu, self.np, self.nest = s["nx"], s["ny"], s["nu"], s["np"], s["nest"]
         self.dt = self.meta["discretization"]["dt"]
         self.status_names = {v: k for k, v in self.meta["status"].items()}
+        self.precision = self.meta.get("precision", "double")
+        self.dtype, ctype = REALS[self.precision]
+        R = ct.POINTER(ctype)
+        self._R = R
         lib = ct.CDLL(str(verify(self.lib_path)))  # absolute path: never LD_LIBRARY_PATH
         f = lambda name: getattr(lib, f"{self.prefix}_{name}")  # noqa: E731
         self._lib = lib
@@ -96,26 +114,26 @@ class CompiledObserver:
         self._state_size.restype = ct.c_long
         self._init, self._step, self._run, self._rhs = f("init"), f("step"), f("run"), f("rhs")
         self._estimate = f("estimate")
-        self._estimate.argtypes = [ct.c_void_p, _D, _D, _D]
+        self._estimate.argtypes = [ct.c_void_p, R, R, R]
         self._set_params, self._get_state, self._set_state = f("set_params"), f("get_state"), f("set_state")
         self._get_params = f("get_params")
-        self._init.argtypes = [ct.c_void_p, _D, _D, _D]
-        self._step.argtypes = [ct.c_void_p, _D, _D, _D]
-        self._run.argtypes = [ct.c_void_p, ct.c_long, _D, _D, _D, ct.POINTER(ct.c_long)]
-        self._rhs.argtypes = [ct.c_void_p, _D, _D, _D, _D]
+        self._init.argtypes = [ct.c_void_p, R, R, R]
+        self._step.argtypes = [ct.c_void_p, R, R, R]
+        self._run.argtypes = [ct.c_void_p, ct.c_long, R, R, R, ct.POINTER(ct.c_long)]
+        self._rhs.argtypes = [ct.c_void_p, R, R, R, R]
         for g in (self._set_params, self._get_params, self._get_state, self._set_state):
-            g.argtypes = [ct.c_void_p, _D]
+            g.argtypes = [ct.c_void_p, R]
         self._default_params = f("default_params")
-        self._default_params.argtypes = [_D]
+        self._default_params.argtypes = [R]
         self._default_params.restype = None
         # preallocated buffers
         self._s = ct.create_string_buffer(self._state_size())
-        self._buf = {k: np.zeros(max(1, m)) for k, m in
+        self._buf = {k: np.zeros(max(1, m), self.dtype) for k, m in
                      (("y", self.ny), ("u", self.nu), ("est", self.nest), ("x", self.nx),
                       ("xdot", self.nx), ("p", self.np))}
-        self._ptr = {k: v.ctypes.data_as(_D) for k, v in self._buf.items()}
+        self._ptr = {k: v.ctypes.data_as(R) for k, v in self._buf.items()}
         self._default_params(self._ptr["p"])
-        self.p_default = self._buf["p"][: self.np].copy()
+        self.p_default = self._out("p", self.np)
         self.reset(np.zeros(self.ny))
 
     # -------------------------------------------------------------- helpers
@@ -125,43 +143,48 @@ class CompiledObserver:
                                 f"({self.status_names.get(status, 'unknown')}); state unchanged")
 
     def _load(self, key, name, value, size):
-        self._buf[key][:size] = as_vector(name, value, size)
+        self._buf[key][:size] = as_vector(name, value, size, self.dtype)
         return self._ptr[key]
+
+    def _out(self, key, size):
+        """A float64 copy of the first ``size`` entries of buffer ``key``."""
+        return self._buf[key][:size].astype(np.float64)
 
     # -------------------------------------------------------------- API
     def reset(self, y0, est0=None, p=None):
         """Initialise from the first measurement y0 and an initial estimate est0 (zeros)."""
-        y0 = as_vector("y0", y0, self.ny)
-        est0 = np.zeros(self.nest) if est0 is None else as_vector("est0", est0, self.nest)
-        p = self.p_default if p is None else self.check_params(p)
+        y0 = as_vector("y0", y0, self.ny, self.dtype)
+        est0 = as_vector("est0", np.zeros(self.nest) if est0 is None else est0, self.nest, self.dtype)
+        p = as_vector("p", self.p_default if p is None else self.check_params(p), self.np, self.dtype)
         arr = [np.ascontiguousarray(a) for a in (p, y0, est0)]
-        self._check(self._init(self._s, *(a.ctypes.data_as(_D) for a in arr)), "init")
+        self._check(self._init(self._s, *(a.ctypes.data_as(self._R) for a in arr)), "init")
 
     def step(self, y, u):
         """Estimate at this sample from measurement y and input u; the state advances by dt."""
         yp = self._load("y", "y", y, self.ny)
         up = self._load("u", "u", u, self.nu)
         self._check(self._step(self._s, yp, up, self._ptr["est"]), "step")
-        return self._buf["est"][: self.nest].copy()
+        return self._out("est", self.nest)
 
     def estimate(self, y, u):
         """The estimate step(y, u) would return, without advancing the state."""
         yp = self._load("y", "y", y, self.ny)
         up = self._load("u", "u", u, self.nu)
         self._check(self._estimate(self._s, yp, up, self._ptr["est"]), "estimate")
-        return self._buf["est"][: self.nest].copy()
+        return self._out("est", self.nest)
 
     def bind(self, y, u, est):
-        """Zero-copy calls on caller-owned C-contiguous float64 buffers (for simulation loops).
+        """Zero-copy calls on caller-owned C-contiguous buffers of ``obs.dtype`` (simulation loops).
 
         Returns (step, estimate): functions of no argument that run the C on the buffers' current
         contents, write into ``est`` and raise ObserverError on a non-zero status. Python checks
         nothing (the C still rejects non-finite input); keep the buffers alive while bound."""
         for name, a, size in (("y", y, self.ny), ("u", u, self.nu), ("est", est, self.nest)):
-            if not (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous
+            if not (isinstance(a, np.ndarray) and a.dtype == self.dtype and a.flags.c_contiguous
                     and a.size >= max(1, size)):
-                raise ValueError(f"{name}: need a C-contiguous float64 array of at least {max(1, size)} entries")
-        args = (self._s, y.ctypes.data_as(_D), u.ctypes.data_as(_D), est.ctypes.data_as(_D))
+                raise ValueError(f"{name}: need a C-contiguous {np.dtype(self.dtype).name} array of at "
+                                 f"least {max(1, size)} entries")
+        args = (self._s, *(a.ctypes.data_as(self._R) for a in (y, u, est)))
         c_step, c_est, check = self._step, self._estimate, self._check
 
         def step():
@@ -180,24 +203,23 @@ class CompiledObserver:
         self._buf["y"][: self.ny] = np.asarray(y, float).reshape(-1)[: self.ny]
         self._buf["u"][: self.nu] = np.asarray(u, float).reshape(-1)[: self.nu]
         st = self._step(self._s, self._ptr["y"], self._ptr["u"], self._ptr["est"])
-        return st, self._buf["est"][: self.nest].copy()
+        return st, self._out("est", self.nest)
 
     def run(self, Y, U):
         """Many samples at once (rows of Y, U); the loop runs in C. Returns EST (N, nest).
 
         On a non-zero status at sample k, ObserverError names k, and the C has rolled the
         state back to what it was before the call."""
-        Y = as_matrix("Y", Y, self.ny)
-        U = as_matrix("U", U, self.nu, rows=len(Y))
-        EST = np.empty((len(Y), self.nest))
+        Y = as_matrix("Y", Y, self.ny, dtype=self.dtype)
+        U = as_matrix("U", U, self.nu, rows=len(Y), dtype=self.dtype)
+        EST = np.empty((len(Y), self.nest), self.dtype)
         done = ct.c_long(0)
-        st = self._run(self._s, len(Y), Y.ctypes.data_as(_D), U.ctypes.data_as(_D),
-                       EST.ctypes.data_as(_D), ct.byref(done))
+        st = self._run(self._s, len(Y), *(a.ctypes.data_as(self._R) for a in (Y, U, EST)), ct.byref(done))
         if st != 0:
             raise ObserverError(f"{self.prefix}_run stopped at sample {done.value} with status {st} "
                                 f"({self.status_names.get(st, 'unknown')}); state rolled back to "
                                 f"before the run")
-        return EST
+        return EST.astype(np.float64, copy=False)
 
     def rhs(self, x, y, u):
         """Continuous-time right-hand side with the current parameters."""
@@ -205,12 +227,12 @@ class CompiledObserver:
         yp = self._load("y", "y", y, self.ny)
         up = self._load("u", "u", u, self.nu)
         self._check(self._rhs(self._s, xp, yp, up, self._ptr["xdot"]), "rhs")
-        return self._buf["xdot"][: self.nx].copy()
+        return self._out("xdot", self.nx)
 
     @property
     def state(self):
         self._check(self._get_state(self._s, self._ptr["x"]), "get_state")
-        return self._buf["x"][: self.nx].copy()
+        return self._out("x", self.nx)
 
     @state.setter
     def state(self, x):
@@ -219,7 +241,7 @@ class CompiledObserver:
     @property
     def params(self):
         self._check(self._get_params(self._s, self._ptr["p"]), "get_params")
-        return self._buf["p"][: self.np].copy()
+        return self._out("p", self.np)
 
     @params.setter
     def params(self, p):
@@ -249,7 +271,7 @@ class CompiledObserver:
         return p
 
     def __repr__(self):
-        return f"<CompiledObserver {self.prefix} nx={self.nx} dt={self.dt}>"
+        return f"<CompiledObserver {self.prefix} nx={self.nx} dt={self.dt} {self.precision}>"
 
 
 def load(target_dir, lib_path):

@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 
 from .options import DEFAULT_INPUTS, InputRanges, Options
-from .target import Target, discretization, sanitize  # noqa: F401  (sanitize re-exported)
+from .target import Target, default_name, discretization, sanitize  # noqa: F401  (sanitize re-exported)
 
 
 @dataclass
@@ -118,11 +118,12 @@ class ObserverSpec:
     def target(self, value=None, *, precision="double", name=None, inline="auto", **overrides):
         """The Target that builds this spec with discretisation ``value`` (None: the default;
         keyword overrides dt, method, hold, substeps), ``precision``, ``name`` (default
-        ``<robot>_<family>[_<variant>]``) and ``inline``."""
+        ``<robot>_<family>[_<variant>][_float]``) and ``inline``."""
         build = {k: v for k, v in self.build_args.items() if k != "variant"}
         return Target(robot=self.robot_source, family=self.family, variant=self.variant, build=build,
                       discretization=discretization(value, **overrides), precision=precision,
-                      name=name or _default_name(self), inline=inline)
+                      name=name or default_name(self.robot.name, self.family, self.variant, precision),
+                      inline=inline)
 
     def describe(self):
         """Plain data (JSON-able) the reference rebuilds this observer from: family, variant,
@@ -181,7 +182,3 @@ def plain(value):
         return value.tolist()
     return value
 
-
-def _default_name(spec):
-    parts = [spec.robot.name, spec.family] + ([spec.variant] if spec.variant else [])
-    return sanitize("_".join(parts))

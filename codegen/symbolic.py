@@ -12,6 +12,30 @@ import casadi as ca
 import numpy as np
 
 
+# ============================================================================ shared routines
+def routine(name, inputs, outputs):
+    """A Function that stays one routine in generated C (common subexpressions eliminated).
+
+    Calling it on SX makes a call node instead of inlining its body (``never_inline``), so
+    CasADi's code generator emits the body once however often it is called, and forward AD
+    through the calls emits one forward-derivative routine.
+
+    Parameters
+    ----------
+    name : str
+        Name of the routine (C comment and CasADi name).
+    inputs : list of SX or MX
+        Pure symbols.
+    outputs : list of SX or MX
+        Expressions of ``inputs``.
+
+    Returns
+    -------
+    casadi.Function
+    """
+    return ca.Function(name, inputs, [ca.cse(o) for o in outputs], {"never_inline": True})
+
+
 # ============================================================================ quadrature
 @lru_cache(maxsize=64)
 def gauss_legendre(N):
@@ -26,30 +50,41 @@ def gauss_legendre(N):
     return t, w
 
 
-def quadrature_points(b, N, a=0.0):
-    """Nodes sigma_k and weights h_k of the N-point Gauss-Legendre rule on [a, b] (b may be SX):
+def _node_sum(f, i, x, shared, sigma, weights):
+    """sum_k weights_k f(x with x_i = sigma_k, *shared) (MX): one serial map over the nodes."""
+    K = sigma.numel()
+    X = ca.repmat(x, 1, K)
+    X[i, :] = ca.reshape(sigma, 1, K)
+    body = f.map(f"{f.name()}_map{K}", "serial", K, list(range(1, f.n_in())), [])
+    return ca.mtimes(body(X, *shared), weights)
 
-        int_a^b f(sigma) d sigma  ~=  sum_k h_k f(sigma_k),
-        sigma_k = (a + b)/2 + (b - a)/2 t_k,   h_k = (b - a)/2 w_k.
-    """
+
+def _line_symbols(f):
+    return ca.MX.sym("x", f.sparsity_in(0)), [ca.MX.sym(f"s{j}", f.sparsity_in(j)) for j in range(1, f.n_in())]
+
+
+@lru_cache(maxsize=256)
+def gauss_legendre_routine(f, i, N):
+    """Routine (b, x, *shared) -> int_0^b f(x with x_i = sigma, *shared) d sigma by the N-node
+    Gauss-Legendre rule, one loop over the nodes in C (CasADi map, serial): the C holds it once
+    whatever N, and forward AD through it one loop over f's forward derivative.
+
+        int_0^b g(sigma) d sigma  ~=  sum_k h_k g(sigma_k),  sigma_k = b/2 (1 + t_k),  h_k = b/2 w_k
+
+    with (t_k, w_k) = ``gauss_legendre(N)``. f: a routine whose first input x is a column vector;
+    b may be symbolic."""
+    b = ca.MX.sym("b")
+    x, shared = _line_symbols(f)
     t, w = gauss_legendre(N)
-    mid, half = 0.5 * (a + b), 0.5 * (b - a)
-    return [mid + half * float(tk) for tk in t], [half * float(wk) for wk in w]
+    total = _node_sum(f, i, x, shared, 0.5 * b * (1 + ca.DM(t)), 0.5 * b * ca.DM(w))
+    return routine(f"{f.name()}_gauss{N}_{i}", [b, x, *shared], [total])
 
 
-def integrate(f, b, N, a=0.0):
-    """Gauss-Legendre approximation of int_a^b f(sigma) d sigma with N nodes.
-
-    f maps a scalar (SX) to an SX expression (any shape); b (and a) may be symbolic."""
-    sig, h = quadrature_points(b, N, a)
-    total = 0
-    for s, hk in zip(sig, h):
-        total = total + hk * f(s)
-    return total
-
-
-def periodic_integrate(f, N, period=2 * np.pi, start=-np.pi):
-    """Trapezoidal rule with N equispaced nodes over one period [start, start + period]:
+@lru_cache(maxsize=256)
+def trapezoid_routine(f, i, N, period=2 * np.pi, start=-np.pi):
+    """Routine (x, *shared) -> int over [start, start + period] of f(x with x_i = sigma, *shared)
+    d sigma by the trapezoidal rule with N equispaced nodes, one loop in C (as
+    ``gauss_legendre_routine``):
 
         int f d sigma  ~=  (period / N) sum_k f(start + k period / N),   k = 0 .. N-1.
 
@@ -58,11 +93,10 @@ def periodic_integrate(f, N, period=2 * np.pi, start=-np.pi):
     same interval (docs/quadrature.md)."""
     if int(N) != N or N < 1:
         raise ValueError(f"N (trapezoid nodes) must be a positive integer, got {N!r}")
-    h = float(period) / int(N)
-    total = 0
-    for k in range(int(N)):
-        total = total + h * f(start + k * h)
-    return total
+    N, h = int(N), float(period) / int(N)
+    x, shared = _line_symbols(f)
+    total = _node_sum(f, i, x, shared, ca.DM([start + k * h for k in range(N)]), ca.DM.ones(N, 1) * h)
+    return routine(f"{f.name()}_trapezoid{N}_{i}", [x, *shared], [total])
 
 
 def wrap_angle(y, period=2 * np.pi):

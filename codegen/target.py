@@ -14,7 +14,9 @@ from dataclasses import asdict, dataclass, field, replace
 
 METHODS = ("euler", "rk4", "etdrk4")
 HOLDS = ("zoh", "foh")
-PRECISIONS = ("double",)
+PRECISIONS = ("double", "float")
+# C type of each precision (the typedef <prefix>_real of the generated header)
+REAL_TYPES = {"double": "double", "float": "float"}
 
 
 def _positive_int(name, value):
@@ -107,6 +109,12 @@ def sanitize(text):
     return s if not s[0].isdigit() else "t_" + s
 
 
+def default_name(robot, family, variant=None, precision="double"):
+    """``<robot>_<family>[_<variant>][_float]``, sanitized (the default prefix of a Target)."""
+    parts = [robot, family] + ([variant] if variant else []) + ([precision] if precision != "double" else [])
+    return sanitize("_".join(parts))
+
+
 @dataclass(frozen=True)
 class Target:
     """One generated observer: what to build and how.
@@ -127,10 +135,11 @@ class Target:
         Runtime parameters overriding the designed defaults, name -> value.
     discretization : Discretization
         How the continuous-time observer is stepped (default ``DEFAULT_DISCRETIZATION``).
-    precision : {"double"}
-        Real type of the generated C.
+    precision : {"double", "float"}
+        Real type of the generated C (one type for state, API and kernels; "float" also uses the
+        single-precision math functions, for FPUs such as the Cortex-M4F's).
     name : str or None
-        Symbol prefix and folder name; default ``<robot>_<family>[_<variant>]``.
+        Symbol prefix and folder name; default ``<robot>_<family>[_<variant>][_float]``.
     inline : "auto", bool
         Code shape of the step: one flat expression (True), calls to one RHS routine (False),
         or by size ("auto", see codegen.discretize).
@@ -174,8 +183,7 @@ class Target:
         """The C symbol prefix and folder name."""
         if self.name:
             return self.name
-        parts = [self.robot_name, self.family] + ([self.variant] if self.variant else [])
-        return sanitize("_".join(parts))
+        return default_name(self.robot_name, self.family, self.variant, self.precision)
 
     def with_discretization(self, value=None, **overrides):
         """A copy with another discretisation (see ``discretization``)."""

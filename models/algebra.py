@@ -16,7 +16,7 @@ __all__ = ["is_zero", "add", "sub", "mul", "dot", "cross", "vadd", "vsub", "cmv"
 
 
 def is_zero(x):
-    """True for the float 0.0 and for a structurally zero SX."""
+    """True when the scalar ``x`` is exactly zero: the float 0.0 or a structurally zero SX."""
     if isinstance(x, float):
         return x == 0.0
     return x.is_zero()
@@ -58,7 +58,8 @@ def mul(a, b):
 
 
 def dot(a, b):
-    """sum_k a_k b_k, skipping zeros and folding unit coefficients into +/-."""
+    """sum_k a_k b_k of two equal-length sequences ``a``, ``b`` of scalars, skipping zeros and
+    folding unit coefficients into +/-."""
     acc = 0.0
     for x, y in zip(a, b):
         if is_zero(x) or is_zero(y):
@@ -100,7 +101,10 @@ def cmtv(E, u):
 
 
 def sym3(m00, m01, m02, m11, m12, m22):
-    """Symmetric 3x3 as nested lists sharing the mirrored entries."""
+    """Symmetric 3x3 as nested lists sharing the mirrored entries.
+
+    The upper triangle is given row by row: ``m00``, ``m01``, ``m02`` (row 0), ``m11``,
+    ``m12`` (row 1) and ``m22``; the lower triangle mirrors it."""
     return [[m00, m01, m02], [m01, m11, m12], [m02, m12, m22]]
 
 

@@ -44,16 +44,25 @@ class Planar2R(RobotModel):
         return a1, p["m2"] * p["l1"] * p["lc2"], p["I2"] + p["m2"] * p["lc2"] ** 2
 
     def mass_matrix(self, q):
+        """M(q) = [[a1 + 2 a2 cos q2, a3 + a2 cos q2], [a3 + a2 cos q2, a3]]  (SPEC §11.1).
+
+        ``q`` is the (2, 1) SX joint angle (rad); returns the (2, 2) SX inertia matrix (kg m^2)."""
         a1, a2, a3 = self._a()
         c2 = ca.cos(q[1])
         return ca.blockcat([[a1 + 2 * a2 * c2, a3 + a2 * c2], [a3 + a2 * c2, a3]])
 
     def coriolis(self, q, v):
-        """C = -a2 sin q2 [[q2', q1' + q2'], [-q1', 0]]  (SPEC §11.1)."""
+        """C = -a2 sin q2 [[q2', q1' + q2'], [-q1', 0]]  (SPEC §11.1).
+
+        ``q`` (rad) and ``v`` (rad/s) are (2, 1) SX; returns the (2, 2) SX Christoffel matrix."""
         h = -self._a()[1] * ca.sin(q[1])
         return ca.blockcat([[h * v[1], h * (v[0] + v[1])], [-h * v[0], 0]])
 
     def gravity(self, q):
+        """g(q) = [(m1 lc1 + m2 l1) g0 cos q1 + m2 lc2 g0 cos(q1+q2);  m2 lc2 g0 cos(q1+q2)]
+        (SPEC §11.1).
+
+        ``q`` is the (2, 1) SX joint angle (rad); returns the (2, 1) SX gravity torque (N m)."""
         p = self.p
         c12 = ca.cos(q[0] + q[1])
         return ca.vertcat((p["m1"] * p["lc1"] + p["m2"] * p["l1"]) * p["g0"] * ca.cos(q[0])
@@ -61,7 +70,10 @@ class Planar2R(RobotModel):
                           p["m2"] * p["lc2"] * p["g0"] * c12)
 
     def com_positions(self, q):
-        """p = [lc1 c1, lc1 s1, l1 c1 + lc2 c12, l1 s1 + lc2 s12]  [S002 §V, SPEC §3.1]."""
+        """p = [lc1 c1, lc1 s1, l1 c1 + lc2 c12, l1 s1 + lc2 s12]  [S002 §V, SPEC §3.1].
+
+        ``q`` is the (2, 1) SX joint angle (rad); returns the (4, 1) SX of planar CoM
+        positions (m)."""
         p = self.p
         c1, s1 = ca.cos(q[0]), ca.sin(q[0])
         c12, s12 = ca.cos(q[0] + q[1]), ca.sin(q[0] + q[1])
@@ -94,19 +106,30 @@ class Absolute2R(RobotModel):
                        "params": {k: float(v) for k, v in self.p.items()}}
 
     def mass_matrix(self, q):
+        """M(y) = [[c1, c3 cos phi], [c3 cos phi, c2]], phi = y1 - y2  [S003 (56)].
+
+        ``q`` is the (2, 1) SX of absolute angles (rad); returns a (2, 2) SX."""
         p = self.p
         c = ca.cos(q[0] - q[1])
         return ca.blockcat([[p["c1"], p["c3"] * c], [p["c3"] * c, p["c2"]]])
 
     def coriolis(self, q, v):
+        """Christoffel C = [[0, c3 sin phi x2], [-c3 sin phi x1, 0]], phi = y1 - y2
+        (A3-1, not (56b) as printed).
+
+        ``q`` (absolute angles, rad) and ``v`` (rad/s) are (2, 1) SX; returns a (2, 2) SX."""
         s = self.p["c3"] * ca.sin(q[0] - q[1])
         return ca.blockcat([[0, s * v[1]], [-s * v[0], 0]])
 
     def gravity(self, q):
+        """G(y) = s [c4 cos y1; c5 cos y2], s = ``gravity_scale``  [S003 (56c), A3-2].
+
+        ``q`` is the (2, 1) SX of absolute angles (rad); returns a (2, 1) SX."""
         p = self.p
         return p["gravity_scale"] * ca.vertcat(p["c4"] * ca.cos(q[0]), p["c5"] * ca.cos(q[1]))
 
     def com_positions(self, q):
+        """Not available: the seed gives no link lengths, so any ``q`` raises ModelError."""
         raise ModelError(f"robot {self.name!r}: the seed gives no link lengths, so no CoM positions")
 
 
@@ -127,5 +150,7 @@ def seed002_2r():
 
 
 def seed003_2r_abs(gravity_scale=1.0):
-    """[S003 Table II]: c1..c5 = 0.9698, 0.1575, 0.264, 1.74, 0.44."""
+    """[S003 Table II]: c1..c5 = 0.9698, 0.1575, 0.264, 1.74, 0.44.
+
+    ``gravity_scale`` multiplies G (1: g absorbed in c4, c5; 9.81: the printed (56c), A3-2)."""
     return Absolute2R("seed003_2r_abs", 0.9698, 0.1575, 0.264, 1.74, 0.44, gravity_scale)

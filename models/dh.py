@@ -59,7 +59,8 @@ class DHRobot(RobotModel):
 
     # ------------------------------------------------------------ kinematics
     def frames(self, q):
-        """[(R_i, o_i)] for i = 0..n: rotation and origin of DH frame i in frame 0 (SX)."""
+        """[(R_i, o_i)] for i = 0..n: rotation (3, 3) and origin (3, 1) of DH frame i in
+        frame 0 (SX), at the (n, 1) joint angle ``q`` (rad)."""
         R, o = ca.SX.eye(3), ca.SX.zeros(3, 1)
         out = [(R, o)]
         for i, (alpha, d, a, theta) in enumerate(self.dh):
@@ -88,12 +89,13 @@ class DHRobot(RobotModel):
         return res
 
     def com_positions(self, q):
-        """[p_c1; ...; p_cn] in frame 0: (3n, 1) SX."""
+        """[p_c1; ...; p_cn] in frame 0 at the (n, 1) SX joint angle ``q`` (rad): (3n, 1) SX (m)."""
         return ca.vertcat(*[pc for pc, *_ in self._com_jacobians(q)])
 
     # ------------------------------------------------------------ dynamics
     def mass_matrix(self, q):
-        """M = sum m Jv^T Jv + Jw^T R I R^T Jw  (Siciliano (7.20))."""
+        """M = sum m Jv^T Jv + Jw^T R I R^T Jw  (Siciliano (7.20)) at the (n, 1) SX ``q`` (rad):
+        (n, n) SX."""
         M = ca.SX.zeros(self.n, self.n)
         for i, (_, Jv, Jw, R) in enumerate(self._com_jacobians(q)):
             Iw = ca.mtimes([R, ca.DM(self.inertias[i]), R.T])
@@ -101,7 +103,8 @@ class DHRobot(RobotModel):
         return ca.simplify(0.5 * (M + M.T))
 
     def gravity(self, q):
-        """g = -sum m Jv^T g0 = dU/dq with U = -sum m g0^T p_c."""
+        """g = -sum m Jv^T g0 = dU/dq with U = -sum m g0^T p_c, at the (n, 1) SX ``q`` (rad):
+        (n, 1) SX (N m)."""
         g0 = ca.DM(self.gravity_vector)
         g = ca.SX.zeros(self.n, 1)
         for i, (_, Jv, _, _) in enumerate(self._com_jacobians(q)):

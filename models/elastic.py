@@ -70,12 +70,12 @@ class ElasticRobot:
 
     # ------------------------------------------------------------ symbolic blocks
     def split(self, x):
-        """(x1, x2, x3, x4) = (q1, q1', q2, q2') of a 4n state."""
+        """(x1, x2, x3, x4) = (q1, q1', q2, q2') of a (4n, 1) state ``x``, each (n, 1)."""
         n = self.n
         return x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n:]
 
     def elastic_torque(self, x):
-        """tau_el = K (q1 - q2)."""
+        """tau_el = K (q1 - q2) of the (4n, 1) state ``x``: (n, 1) (N m)."""
         x1, _, x3, _ = self.split(x)
         return ca.mtimes(ca.DM(self.K), x1 - x3)
 
@@ -87,7 +87,8 @@ class ElasticRobot:
                           x4, ca.mtimes(ca.DM(np.linalg.inv(self.J)), tau))
 
     def input_matrix(self, x=None):
-        """G = [0; 0; 0; J^-1] (constant), (4n, n)."""
+        """G = [0; 0; 0; J^-1] (constant), (4n, n)  [S004 (2.8)]; ``x`` is accepted for the
+        x' = f(x) + G(x) u signature and ignored."""
         n = self.n
         return ca.vertcat(ca.DM.zeros(3 * n, n), ca.DM(np.linalg.inv(self.J)))
 
@@ -96,26 +97,45 @@ class ElasticRobot:
         return self.drift(x) + ca.mtimes(self.input_matrix(x), u)
 
     def link_positions(self, x):
+        """The link positions q1 = x1 of the (4n, 1) state ``x``: (n, 1) (rad)."""
         return self.split(x)[0]
 
     def motor_positions(self, x):
+        """The motor positions q2 = x3 of the (4n, 1) state ``x``: (n, 1) (rad, after the gear)."""
         return self.split(x)[2]
 
     # ------------------------------------------------------------ functions
     @cached_property
     def f(self):
+        """The drift f(x) as a casadi.Function x (4n) -> f (4n)  [S004 (2.8)-(2.11)]."""
         x = ca.SX.sym("x", self.nx)
         return ca.Function("f", [x], [self.drift(x)], ["x"], ["f"])
 
     @cached_property
     def xdot(self):
+        """The dynamics x' = f(x) + G u as a casadi.Function (x (4n), u (n, N m)) -> xdot (4n)."""
         x, u = ca.SX.sym("x", self.nx), ca.SX.sym("u", self.n)
         return ca.Function("xdot", [x, u], [self.dynamics(x, u)], ["x", "u"], ["xdot"])
 
     # ------------------------------------------------------------ numeric helpers
     def sample_states(self, count, seed=0, speed=1.0, deflection=0.05):
-        """Random states (count, 4n): q1 in the joint ranges, q2 = q1 + deflection noise,
-        velocities ~ N(0, speed^2)."""
+        """Random states for checks, q1 in the joint ranges and q2 = q1 + deflection noise.
+
+        Parameters
+        ----------
+        count : int
+            Number of states.
+        seed : int
+            Seed of ``numpy.random.default_rng``.
+        speed : float
+            Standard deviation of the link and motor velocities (rad/s).
+        deflection : float
+            Standard deviation of q2 - q1 (rad).
+
+        Returns
+        -------
+        numpy.ndarray, shape (count, 4n)
+        """
         rng = np.random.default_rng(seed)
         q1 = rng.uniform(self.q_lower, self.q_upper, size=(count, self.n))
         q2 = q1 + deflection * rng.normal(size=q1.shape)

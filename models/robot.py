@@ -70,7 +70,9 @@ class RobotModel:
         raise NotImplementedError
 
     def com_positions(self, q):
-        """Link centre-of-mass positions [p_1; ...; p_n]: (dim*n, 1) SX  [S002 (8)]."""
+        """Link centre-of-mass positions [p_1; ...; p_n]: (dim*n, 1) SX (m)  [S002 (8)].
+
+        ``q`` is the (n, 1) SX joint position."""
         raise NotImplementedError
 
     def coriolis(self, q, v):
@@ -113,26 +115,32 @@ class RobotModel:
 
     @cached_property
     def M(self):
+        """M as a casadi.Function q (n) -> M (n, n)  [S000 (1)]."""
         q, _ = self._sym()
         return ca.Function("M", [q], [self.mass_matrix(q)], ["q"], ["M"])
 
     @cached_property
     def C(self):
+        """The Christoffel Coriolis matrix as a casadi.Function (q (n), v (n)) -> C (n, n)
+        [S000 (1), (3)]."""
         q, v = self._sym()
         return ca.Function("C", [q, v], [self.coriolis(q, v)], ["q", "v"], ["C"])
 
     @cached_property
     def g(self):
+        """The gravity torque as a casadi.Function q (n) -> g (n)  [S000 (1)]."""
         q, _ = self._sym()
         return ca.Function("g", [q], [self.gravity(q)], ["q"], ["g"])
 
     @cached_property
     def com(self):
+        """CoM positions as a casadi.Function q (n) -> p (dim*n)  [S002 (8)]."""
         q, _ = self._sym()
         return ca.Function("com", [q], [self.com_positions(q)], ["q"], ["p"])
 
     @cached_property
     def Jcom(self):
+        """CoM Jacobian as a casadi.Function q (n) -> Jp (dim*n, n)  [S002 (8)]."""
         q, _ = self._sym()
         return ca.Function("Jcom", [q], [self.com_jacobian(q)], ["q"], ["Jp"])
 
@@ -146,12 +154,14 @@ class RobotModel:
 
     # ------------------------------------------------------------ numeric helpers
     def sample_configurations(self, count, seed=0):
-        """`count` configurations drawn uniformly in [q_lower, q_upper], shape (count, n)."""
+        """`count` configurations drawn uniformly in [q_lower, q_upper], shape (count, n); ``seed``
+        seeds ``numpy.random.default_rng``."""
         rng = np.random.default_rng(seed)
         return rng.uniform(self.q_lower, self.q_upper, size=(count, self.n))
 
     def check_mass_matrix(self, count=64, seed=0):
-        """Raise ModelError if M(q) is not symmetric positive definite at sampled q."""
+        """Raise ModelError if M(q) is not symmetric positive definite at one of ``count``
+        configurations sampled with ``seed`` (:meth:`sample_configurations`)."""
         for q in self.sample_configurations(count, seed):
             Mq = np.array(self.M(q))
             try:

@@ -46,18 +46,22 @@ class Rz:
 
     @cached_property
     def ss(self):
+        """s^2 = sin^2 q."""
         return self.s * self.s
 
     @cached_property
     def cs(self):
+        """c s = cos q sin q."""
         return self.c * self.s
 
     @cached_property
     def c2(self):
+        """cos 2q = (c - s)(c + s)."""
         return (self.c - self.s) * (self.c + self.s)
 
     @cached_property
     def s2(self):
+        """sin 2q = 2 c s."""
         return self.cs + self.cs
 
     def apply(self, u):
@@ -140,7 +144,8 @@ class Inertia6:
 
     @classmethod
     def rigid(cls, b):
-        """Rigid body: A = m 1, B = -[h]x, C = I_o  (Featherstone 2.63)."""
+        """Rigid body: A = m 1, B = -[h]x, C = I_o  (Featherstone 2.63), from the
+        ``models.tree.Body`` ``b`` (its mass, first moment h and inertia I_o about its origin)."""
         m, h = b.mass, b.h
         A = sym3(m, 0.0, 0.0, m, 0.0, m)
         B = [[0.0, h[2], -h[1]], [-h[2], 0.0, h[0]], [h[1], -h[0], 0.0]]
@@ -162,7 +167,7 @@ class Inertia6:
         return (tuple(self.B[i][k] for i in range(3)), tuple(self.C[i][k] for i in range(3)))
 
     def add(self, other):
-        """Sum of two inertias in the same frame."""
+        """Sum of this inertia and ``other`` (an :class:`Inertia6` in the same frame)."""
         A = symmap(self.A, other.A, add)
         C = symmap(self.C, other.C, add)
         B = [[add(self.B[i][j], other.B[i][j]) for j in range(3)] for i in range(3)]
@@ -215,11 +220,11 @@ class RigidInertia:
         self.m, self.h, self.Io = m, h, Io
 
     def add(self, o):
-        """Sum of two rigid inertias in the same frame (the composite body)."""
+        """Sum of this rigid inertia and ``o`` in the same frame (the composite body)."""
         return RigidInertia(self.m + o.m, vadd(self.h, o.h), symmap(self.Io, o.Io, add))
 
     def rotate_z(self, rz):
-        """h' = R_z h, I_o' = R_z I_o R_z^T."""
+        """h' = R_z h, I_o' = R_z I_o R_z^T (``rz`` an :class:`Rz`)."""
         return RigidInertia(self.m, rz.apply(self.h), rz.sym(self.Io))
 
     def rotate_const(self, E):
@@ -316,19 +321,21 @@ class JointX:
 
 # ------------------------------------------------------------------ motion subspace, rigid bodies
 def s_transpose(b, f, n):
-    """S^T f: the joint component of a force (n_z for revolute, f_z for prismatic)."""
+    """S^T f: the joint component of a force (f, n) on body ``b`` (n_z for revolute, f_z for
+    prismatic)."""
     return n[2] if b.kind == "R" else f[2]
 
 
 def add_s(b, v, w, x):
-    """(v, w) + S x."""
+    """(v, w) + S x for the joint of body ``b`` (x a scalar joint rate or acceleration)."""
     if b.kind == "R":
         return v, (w[0], w[1], add(w[2], x))
     return (v[0], v[1], add(v[2], x)), w
 
 
 def bias_acceleration(b, v, w, qd):
-    """Velocity-product acceleration c = (v, w) x S qd  (Featherstone 7.1, c_J = 0)."""
+    """Velocity-product acceleration c = (v, w) x S qd  (Featherstone 7.1, c_J = 0) of the joint of
+    body ``b`` at body velocity (v, w) and joint rate qd."""
     if b.kind == "R":        # (v x qd e_z, w x qd e_z)
         return (mul(v[1], qd), mul(-1.0, mul(v[0], qd)), 0.0), \
                (mul(w[1], qd), mul(-1.0, mul(w[0], qd)), 0.0)
@@ -336,7 +343,7 @@ def bias_acceleration(b, v, w, qd):
 
 
 def rigid_force(b, v, w):
-    """I (v, w) for the rigid body: f = m v - h x w, n = h x v + I_o w."""
+    """I (v, w) for the rigid body ``b``: f = m v - h x w, n = h x v + I_o w."""
     f = vsub(tuple(mul(b.mass, x) for x in v), cross(b.h, w))
     n = vadd(cross(b.h, v), cmv(b.Io, w))
     return f, n

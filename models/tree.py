@@ -210,7 +210,8 @@ def joint_kind(model, i):
 
 
 def link_names(model):
-    """Joint index -> name of the first body frame (the URDF child link) it moves."""
+    """Joint index -> name of the first body frame (the URDF child link) it moves, for the
+    pin.Model ``model``: a dict."""
     names = {}
     for f in model.frames:
         if f.type == pin.FrameType.BODY and f.parentJoint not in names and f.parentJoint > 0:

@@ -295,10 +295,11 @@ class UrdfRobot(RobotModel):
         return self._sx_or_call("M", crba, q)
 
     def aba(self, q, v, tau):
-        """qdd = M^{-1}(tau - C v - g)  (ABA, Featherstone Table 7.1)."""
+        """qdd = M^{-1}(tau - C v - g)  (ABA, Featherstone Table 7.1) at q, v, tau ((n, 1) each)."""
         return self._sx_or_call("_aba_fun", aba, q, v, tau)
 
     def mass_matrix(self, q):
+        """M(q) by :meth:`crba`; ``q`` is an (n, 1) SX (or numeric, evaluated through ``M``)."""
         return self.crba(q)
 
     def gravity(self, q):
@@ -324,7 +325,8 @@ class UrdfRobot(RobotModel):
         return aba(self.tree, q, vs, t)
 
     def com_positions(self, q):
-        """World CoM position of the body moved by each joint, stacked (3n, 1)."""
+        """World CoM position of the body moved by each joint, stacked (3n, 1) (m), at joint
+        position ``q`` ((n, 1) SX, or numeric: evaluated through ``com``)."""
         if isinstance(q, ca.SX):
             return com_positions(self.tree, q)
         return self.com(q)

@@ -23,6 +23,7 @@ FAKE_H = """\
 #define FAKEOBS_DT 0.001
 enum { FAKEOBS_OK = 0, FAKEOBS_ERR_BAD_ARG = 1, FAKEOBS_ERR_NONFINITE_INPUT = 2,
        FAKEOBS_ERR_NONFINITE_RESULT = 3, FAKEOBS_ERR_KERNEL = 4 };
+typedef double fakeobs_real;
 typedef struct { double x[FAKEOBS_NX]; double p[FAKEOBS_NP]; double w[4]; } fakeobs_state;
 void fakeobs_default_params(double *p);
 int fakeobs_init(fakeobs_state *s, const double *p, const double *y0, const double *est0);

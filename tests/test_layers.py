@@ -9,7 +9,7 @@ each import must point down the layers, with no cycle anywhere:
          default gains are kept inside the stable region of the default discretisation)
       -> pipeline (discretize, emit, build, runtime, harness, trajectory, codegen itself)
       -> check  <-  reference (which imports only the values)
-      -> sim, bench, compare, cli on top.
+      -> sim, bench, compare, sweep, embedded (Cortex-M runs checked against the host), cli on top.
 """
 import ast
 from pathlib import Path
@@ -30,7 +30,8 @@ LAYERS = [
     ("codegen", 5),                     # the pipeline: discretize, emit, build, runtime, harness, ...
     ("codegen.reference", 5),
     ("codegen.check", 6),
-    ("codegen.sim", 7), ("codegen.bench", 7), ("codegen.compare", 7), ("codegen.cli", 7),
+    ("codegen.sim", 7), ("codegen.bench", 7), ("codegen.compare", 7), ("codegen.embedded", 7),
+    ("codegen.sweep", 7), ("codegen.cli", 7),
     ("codegen.__main__", 7),
 ]
 REFERENCE_MAY_IMPORT = ("codegen.target", "codegen.options", "codegen.reference")

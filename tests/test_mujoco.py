@@ -195,8 +195,8 @@ def test_simulate_mujoco_scenario_with_options(tmp_path, capsys):
 def test_design_inputs_describe_the_sensor():
     """compare passes the sensor and the uncertainty to the families that design for them; an
     unstated sensor leaves the design its default encoder."""
-    from codegen.compare import _design_for, design_inputs
+    from codegen.compare import design_for, design_inputs
     assert design_inputs(None, None, 0.1) == {"uncertainty": 0.1}
     assert design_inputs(1e-4, None) == {"quantization": 1e-4, "noise": 0.0, "uncertainty": 0.0}
-    assert set(_design_for("nicosia_tomei", design_inputs(1e-4))) == {"quantization", "noise", "uncertainty"}
-    assert _design_for("ii_speed", design_inputs(1e-4)) == {}
+    assert set(design_for("nicosia_tomei", design_inputs(1e-4))) == {"quantization", "noise", "uncertainty"}
+    assert design_for("ii_speed", design_inputs(1e-4)) == {}

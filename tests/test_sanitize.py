@@ -37,6 +37,12 @@ def target(spec_of, tmp_path):
     return emit(spec_of("seed000_2r"), tmp_path / "t")
 
 
+@pytest.fixture
+def float_target(spec_of, tmp_path):
+    spec = spec_of("seed000_2r")
+    return emit(spec.target(precision="float"), tmp_path / "t", spec=spec)
+
+
 def _put_back(folder, pattern, replacement):
     """Edit the target's wrapper C: ``pattern`` (a regex that must match) -> ``replacement``."""
     c = folder / f"{folder.name}.c"
@@ -75,3 +81,19 @@ def test_edge_cases_as_documented_and_sanitizers_report_a_fault(target, tmp_path
     exe = sanitize.sanitized(bad / target.name, "run_csv", compiler(), sanitize.SAN_FLAGS, tmp_path / "cache")
     why = sanitize.run_case(exe, cases[0], tmp_path)
     assert why is not None and why.startswith(f"exit {sanitize.SAN_EXIT}") and "AddressSanitizer" in why
+
+
+def test_float_target_edge_cases_and_fuzzer(float_target, tmp_path):
+    """A single-precision twin passes the edge cases (1e300 is Inf once read as a float: a
+    documented ERR_NONFINITE_INPUT), and the fuzzer, drawing float specials and raw floats,
+    finds run() not rolled back there too."""
+    cases = sanitize.edge_cases(2, 2, 2, 1e-3, "float")
+    exe = sanitize.sanitized(float_target, "run_csv", compiler(), sanitize.SAN_FLAGS, tmp_path / "cache")
+    assert [c.name for c in cases if sanitize.run_case(exe, c, tmp_path)] == []
+    tool = _libfuzzer(tmp_path)
+    _put_back(float_target, r"if \(status != \w+_OK\) \{(\n    \w+_copy\(s->x, x0)", r"if (0) {\1")
+    exe = sanitize.sanitized(float_target, "fuzz_step", tool, ["-fsanitize=fuzzer", *sanitize.SAN_FLAGS],
+                             tmp_path / "cache")
+    runs, _, finding, _ = sanitize.fuzz(exe, 200000, 120, tmp_path)
+    assert finding is not None and runs < 200000
+    assert re.search(r"fuzz_step\(seed000_2r_reduced_order_float\): .*run", finding), finding

@@ -5,7 +5,7 @@ C-vs-reference cross-check (DESIGN §3). The CLI and the tests call it from here
     worst = cross_check(spec, count=1000)       # dict of worst relative errors
 """
 from .cross import cross_check
-from .inputs import random_inputs
+from .inputs import random_inputs, run_inputs
 from .measure import relative_error
 
-__all__ = ["cross_check", "random_inputs", "relative_error"]
+__all__ = ["cross_check", "random_inputs", "relative_error", "run_inputs"]

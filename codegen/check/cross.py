@@ -10,8 +10,7 @@ import numpy as np
 from .. import compile_observer
 from ..reference import reference_observer
 from ..target import discretization as as_discretization
-from ..trajectory import demo_trajectory
-from .inputs import random_inputs
+from .inputs import random_inputs, run_inputs
 from .measure import relative_error
 
 
@@ -56,13 +55,7 @@ def cross_check(spec, discretization=None, count=1000, seed=0, **overrides):
             errs["step_state"].append(relative_error(obs.state, ref.state))
         errs["rhs"].append(relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)))
     worst = {k: float(np.max(v)) for k, v in errs.items()}  # np.max keeps a NaN: it must fail
-    rng = np.random.default_rng(seed + 1)
-    if spec.ny == spec.nu == spec.robot.n:   # y = q, u = tau: a smooth motion with noise
-        t, Q, QD, TAU = demo_trajectory(spec.robot, T=(count - 1) * dt, dt=dt, seed=seed)
-        Yn = Q + 1e-3 * rng.normal(size=Q.shape)
-        Un = TAU + 1e-2 * rng.normal(size=TAU.shape)
-    else:                                    # other measurements: the family's random inputs
-        _, Yn, Un = random_inputs(spec, count, seed + 2)
+    Yn, Un = run_inputs(spec, count, dt, seed)
     obs.reset(Yn[0]), ref.reset(Yn[0])
     worst["run"] = relative_error(obs.run(Yn, Un), ref.run(Yn, Un))
     worst["samples"] = count

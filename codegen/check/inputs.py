@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..sampling import declared_slots, measurements, slot_index
+from ..trajectory import demo_trajectory
 
 
 def random_inputs(spec, count, seed=0):
@@ -53,3 +54,31 @@ def _states(spec, ir, Y, rng):
     for i, values in declared_slots(spec, Y, rng, spread).items():
         X[:, i] = values
     return X
+
+
+def run_inputs(spec, count, dt, seed=0):
+    """Inputs of a run of ``count`` samples, ``dt`` apart.
+
+    When y = q and u = tau: the built-in smooth motion (codegen.trajectory) with sensor noise
+    (1e-3 rad, 1e-2 N m); otherwise the family's random inputs (``random_inputs``).
+
+    Parameters
+    ----------
+    spec : codegen.spec.ObserverSpec
+    count : int
+        Number of samples N.
+    dt : float
+        Sample time (s).
+    seed : int
+
+    Returns
+    -------
+    Y : (N, ny) array
+    U : (N, nu) array
+    """
+    rng = np.random.default_rng(seed + 1)
+    if spec.ny == spec.nu == spec.robot.n:
+        _, Q, _, TAU = demo_trajectory(spec.robot, T=(count - 1) * dt, dt=dt, seed=seed)
+        return Q + 1e-3 * rng.normal(size=Q.shape), TAU + 1e-2 * rng.normal(size=TAU.shape)
+    _, Y, U = random_inputs(spec, count, seed + 2)
+    return Y, U

@@ -30,10 +30,15 @@ SAN_FLAGS = ["-g", "-O1", "-fno-omit-frame-pointer", "-fsanitize=address,undefin
 SAN_EXIT = 99            # exit code of a sanitizer report (ASan and UBSan)
 SAN_ENV = {"ASAN_OPTIONS": f"exitcode={SAN_EXIT}:detect_leaks=1",
            "UBSAN_OPTIONS": f"exitcode={SAN_EXIT}:print_stacktrace=1"}
-# (robot, family, build arguments): small and large, URDF, hybrid, non-smooth, elastic
-SAMPLE = [("seed000_2r", "reduced_order", {}), ("ur5", "reduced_order", {}),
-          ("seed000_2r", "reduced_order_hybrid", {}), ("seed002_2r", "su_nonsmooth", {}),
-          ("seed002_2r", "lotfi_namvar", {}), ("seed004_2r", "ciccarella_germani", {"variant": "O2"})]
+# (robot, family, build arguments, precision): small and large, URDF, hybrid, non-smooth,
+# elastic, and single-precision twins (one real type, float math)
+SAMPLE = [("seed000_2r", "reduced_order", {}, "double"), ("ur5", "reduced_order", {}, "double"),
+          ("seed000_2r", "reduced_order_hybrid", {}, "double"), ("seed002_2r", "su_nonsmooth", {}, "double"),
+          ("seed002_2r", "lotfi_namvar", {}, "double"),
+          ("seed004_2r", "ciccarella_germani", {"variant": "O2"}, "double"),
+          ("ur5", "reduced_order", {}, "float"), ("seed002_2r", "su_nonsmooth", {}, "float")]
+# a huge finite input per precision (1e300 is Inf once a float target reads it)
+HUGE = {"double": "1e300", "float": "1e38"}
 
 
 @dataclass
@@ -47,8 +52,10 @@ class Case:
     est0: str | None = None
 
 
-def edge_cases(ny, nu, nest, dt):
-    """The edge-case CSVs of a target with ``ny`` measurements and ``nu`` inputs."""
+def edge_cases(ny, nu, nest, dt, precision="double"):
+    """The edge-case CSVs of a target with ``ny`` measurements, ``nu`` inputs and ``nest``
+    estimates (for the est0 case), rows ``dt`` (s) apart: a list of :class:`Case`. run_csv
+    parses doubles and hands the target its own real type, ``precision``."""
     header = ",".join(["t"] + [f"y{i}" for i in range(ny)] + [f"u{i}" for i in range(nu)])
 
     def rows(n=8, y="0.1", u="0.5", at=None, where="y"):
@@ -64,16 +71,17 @@ def edge_cases(ny, nu, nest, dt):
         return end.join([header] + lines) + end
     ok, res = (0,), r"ERR_NONFINITE_RESULT"
     bad_in = r"ERR_NONFINITE_INPUT"
-    return [
+    big = HUGE[precision]
+    cases = [
         Case("plain", csv(rows()), ok),
         Case("nan in y", csv(rows(at=(3, "nan"))), (3,), bad_in),
         Case("-nan in y", csv(rows(at=(0, "-nan"))), (3,), bad_in),
         Case("+inf in u", csv(rows(at=(2, "+inf"), where="u")), (3,), bad_in),
         Case("-inf in y", csv(rows(at=(5, "-inf"))), (3,), bad_in),
         Case("1e999 (overflows to inf)", csv(rows(at=(1, "1e999"))), (3,), bad_in),
-        Case("1e300 everywhere", csv(rows(y="1e300", u="1e300")), (0, 3), res),
-        Case("1e300 in one row", csv(rows(at=(4, "1e300"))), (0, 3), res),
-        Case("-1e300 inputs", csv(rows(at=(4, "-1e300"), where="u")), (0, 3), res),
+        Case(f"{big} everywhere", csv(rows(y=big, u=big)), (0, 3), res),
+        Case(f"{big} in one row", csv(rows(at=(4, big))), (0, 3), res),
+        Case(f"-{big} inputs", csv(rows(at=(4, "-" + big), where="u")), (0, 3), res),
         Case("denormals", csv(rows(y="4.9e-324", u="-2.2250738585072014e-308")), ok),
         Case("-0 and hex floats", csv(rows(y="-0.0", u="0x1p-3")), ok),
         Case("blank rows, CRLF", csv(rows()[:3] + ["", "  "] + rows()[3:], end="\r\n"), ok),
@@ -89,6 +97,9 @@ def edge_cases(ny, nu, nest, dt):
         Case("NUL byte", csv(rows()[:2] + ["0.1\0" + rows()[2]]), (1,), r"columns|not a number"),
         Case("est0 with nan", csv(rows()), (3,), bad_in, est0=",".join(["nan"] + ["0"] * (nest - 1))),
     ]
+    if precision == "float":
+        cases.append(Case("1e300 (Inf as a float)", csv(rows(at=(4, "1e300"))), (3,), bad_in))
+    return cases
 
 
 def _sample_targets(out):
@@ -98,15 +109,34 @@ def _sample_targets(out):
     from .. import observers
     from ..emit import emit
     folders = []
-    for robot, family, kwargs in SAMPLE:
+    for robot, family, kwargs, precision in SAMPLE:
         model = load_elastic(robot) if family == "ciccarella_germani" else load_robot(robot)
-        folders.append(emit(observers.build(family, model, **kwargs), out))
+        spec = observers.build(family, model, **kwargs)
+        folders.append(emit(spec.target(precision=precision), out, spec=spec))
     return folders
 
 
 def sanitized(target_dir, program, tool, flags, cache):
-    """``c_harness/<program>.c`` and the target's C compiled and linked in one command with
-    ``flags`` (cached by content); returns the executable."""
+    """``c_harness/<program>.c`` and the target's C compiled and linked in one command.
+
+    Parameters
+    ----------
+    target_dir : pathlib.Path
+        Folder of an emitted target.
+    program : str
+        Harness stem: "run_csv" or "fuzz_step".
+    tool : codegen.build.Compiler
+        The C compiler (``codegen.build.compiler``).
+    flags : list of str
+        Compiler flags (sanitizers, libFuzzer).
+    cache : pathlib.Path
+        Cache folder; the build is cached by content (``codegen.build.cached_build``).
+
+    Returns
+    -------
+    pathlib.Path
+        The executable.
+    """
     files = read_target(target_dir)
     prefix = target_dir.name
     sources = sorted(n for n in files if n.endswith(".c") and n.startswith(prefix))
@@ -125,7 +155,8 @@ def _env():
 
 
 def run_case(exe, case, work):
-    """Run run_csv on one Case; returns None if it behaved as documented, else why not."""
+    """Run the run_csv executable ``exe`` on one Case ``case`` in the scratch folder ``work``;
+    returns None if it behaved as documented, else why not (str)."""
     src, dst = work / "in.csv", work / "out.csv"
     src.write_bytes(case.text.encode())
     dst.unlink(missing_ok=True)
@@ -145,9 +176,27 @@ def run_case(exe, case, work):
 
 
 def fuzz(exe, runs, seconds, work, seed=1):
-    """A libFuzzer campaign of ``runs`` inputs (at most ``seconds``); returns (runs done,
-    seconds taken, None or the finding: what fuzz_step or a sanitizer reported and the input,
-    code coverage reached: libFuzzer's "cov")."""
+    """A libFuzzer campaign of the fuzzer executable ``exe``.
+
+    Parameters
+    ----------
+    exe : pathlib.Path
+        The fuzz_step executable (``sanitized``).
+    runs : int
+        Number of inputs to run.
+    seconds : float
+        Time limit, s.
+    work : pathlib.Path
+        Folder for libFuzzer's artifacts (a crashing input).
+    seed : int
+        libFuzzer's ``-seed``.
+
+    Returns
+    -------
+    tuple
+        (runs done, seconds taken, None or the finding: what fuzz_step or a sanitizer reported
+        and the input, code coverage reached: libFuzzer's "cov").
+    """
     t0 = time.perf_counter()
     p = subprocess.run([str(exe), f"-runs={runs}", f"-max_total_time={seconds}", f"-seed={seed}",
                         "-max_len=2048", f"-artifact_prefix={work}/", "-print_final_stats=1"],
@@ -174,7 +223,8 @@ def run(runs=100000, seconds=60):
         for folder in _sample_targets(work / "targets"):
             meta = json.loads(read_target(folder)[f"{folder.name}.json"])
             s = meta["sizes"]
-            cases = edge_cases(s["ny"], s["nu"], s["nest"], meta["discretization"]["dt"])
+            cases = edge_cases(s["ny"], s["nu"], s["nest"], meta["discretization"]["dt"],
+                               meta.get("precision", "double"))
             run_csv = sanitized(folder, "run_csv", cc, SAN_FLAGS, cache)
             bad = [(c.name, why) for c in cases if (why := run_case(run_csv, c, work))]
             exe = sanitized(folder, "fuzz_step", fuzz_cc, ["-fsanitize=fuzzer", *SAN_FLAGS], cache)

@@ -36,7 +36,8 @@ def quintic_profile(s, T):
 
 
 def quintic(t, q_start, q_goal, T=T_MOVE):
-    """Numeric reference (q_d, qd_d, qdd_d), each (len(t), n), for times t (s)  [ASSUMPTION §12.1]."""
+    """Numeric reference (q_d, qd_d, qdd_d), each (len(t), n), for times ``t`` (s), rest-to-rest
+    from ``q_start`` to ``q_goal`` (n,) (rad) over [0, T] (s), held outside  [ASSUMPTION §12.1]."""
     t = np.atleast_1d(np.asarray(t, dtype=float))
     s = np.clip(t / T, 0.0, 1.0)[:, None]
     h, hd, hdd = quintic_profile(s, T)
@@ -58,9 +59,22 @@ def _law(robot, family, y_names, y, p_names, p, p_default, tau):
 
 
 def open_loop(robot, example=1):
-    """Gravity-compensated open-loop torque of Example 1 (18) or Example 2 (19).
+    """Gravity-compensated open-loop torque of Example 1 (18) or Example 2 (19) as a stateless spec.
 
-    Measurement slots y = [q_1 .. q_n, t]; the output is tau (2R robots only)."""
+    Measurement slots y = [q_1 .. q_n, t]; the output is tau (2R robots only).
+
+    Parameters
+    ----------
+    robot : models.RobotModel
+        A 2-joint robot (ValueError otherwise).
+    example : {1, 2}
+        tau = g(q) + (cos(t/2), -cos t)  [S000 (18)] or g(q) + (cos t, -1 + sin 2t)  [S000 (19)].
+
+    Returns
+    -------
+    codegen.spec.ObserverSpec
+        Family ``seed000_torque_ex<example>``, nx = 0, y (3,), no input, est = tau (2,), N m.
+    """
     if robot.n != 2 or example not in (1, 2):
         raise ValueError(f"open_loop: needs a 2-joint robot and example 1 or 2, got n={robot.n}, {example!r}")
     q, t = ca.SX.sym("q", 2), ca.SX.sym("t")
@@ -75,10 +89,33 @@ def open_loop(robot, example=1):
 
 
 def tracking(robot, q_start, q_goal=Q_GOAL, T=T_MOVE, lam=LAMBDA, kp=KP, kd=KD):
-    """Example-3 output-feedback law fed by the observer's velocity estimate x2hat.
+    """Example-3 output-feedback law fed by the observer's velocity estimate x2hat
+    [S000 eq. after Fig. 5], as a stateless spec.
 
     Measurement slots y = [q (n), x2hat (n), t]; parameters p = [q_start (n), q_goal (n),
-    T_move, lambda, kp (n), kd (n)] (diagonal gains); output tau."""
+    T_move, lambda, kp (n), kd (n)] (diagonal gains); output tau.
+
+    Parameters
+    ----------
+    robot : models.RobotModel
+        n joints.
+    q_start : (n,) array_like or float
+        Start of the quintic reference, rad (the robot's q(0) in the scenario).
+    q_goal : (n,) array_like or float
+        Goal qbar, rad; default (pi/4, -pi/3)  [S000].
+    T : float
+        Duration of the rest-to-rest motion T_move, s; default 8.
+    lam : float
+        Lambda = lam I, 1/s; default 0.5  [S000].
+    kp, kd : (n,) array_like or float
+        Diagonals of K_P (N m/rad) and K_D (N m s/rad); defaults diag(40, 60), diag(60, 90)  [S000].
+
+    Returns
+    -------
+    codegen.spec.ObserverSpec
+        Family ``seed000_tracking``, nx = 0, y (2n + 1,), no input, est = tau (n,), N m; the
+        arguments are the defaults of its runtime parameters p.
+    """
     n, joints = robot.n, robot.joint_names
     q, x2hat, t = ca.SX.sym("q", n), ca.SX.sym("x2hat", n), ca.SX.sym("t")
     q0, q1 = ca.SX.sym("q_start", n), ca.SX.sym("q_goal", n)

@@ -64,7 +64,23 @@ def _saturate(u, umax):
 
 
 def feedback_linearization(robot, poles=None, u_max=200.0):
-    """Spong FL controller (SPEC §9); ``poles`` 4n (default -5{1..4n}), four per joint in order."""
+    """Spong FL controller (SPEC §9)  [S004 (4.5), (4.7)], as a static spec.
+
+    Parameters
+    ----------
+    robot : models.ElasticRobot
+        n joints.
+    poles : (4n,) array_like, optional
+        Closed-loop poles (1/s), four per joint in order; default -5{1..4n}.
+    u_max : float
+        Saturation of each motor torque, N m (default 200, SPEC §12.4).
+
+    Returns
+    -------
+    codegen.spec.ObserverSpec
+        Family ``spong_fl``: 1 dummy state, y (9n,) = [x; q_d .. q_d''''], est = u (n,), N m;
+        p = [Kc (4 per joint); u_max].
+    """
     n = robot.n
     poles = -5.0 * np.arange(1, 4 * n + 1) if poles is None else np.asarray(poles, float)
     y, x, qd, y_names = _io(robot)
@@ -83,8 +99,27 @@ def feedback_linearization(robot, poles=None, u_max=200.0):
 
 
 def integral_manifold(robot, KP=7000.0, KD=7000.0, fast_poles=None, u_max=200.0):
-    """Spong integral-manifold controller (SPEC §10); fast poles default -70{1.1, 1.2, ...}
-    (the seed's set, A4-5), two per joint in order."""
+    """Spong integral-manifold controller (SPEC §10)  [S004 (4.17)-(4.23)], as a static spec.
+
+    Parameters
+    ----------
+    robot : models.ElasticRobot
+        n joints.
+    KP, KD : float
+        Gains of the rigid (slow) law u0 on q_d - q1 (1/s^2) and q_d' - q1' (1/s); default
+        7000 each (SPEC §10).
+    fast_poles : (2n,) array_like, optional
+        Eigenvalues of the fast (boundary-layer) loop, 1/s, two per joint in order; default
+        -70{1.1, 1.2, ...} (the seed's set, A4-5).
+    u_max : float
+        Saturation of each motor torque, N m (default 200, SPEC §12.4).
+
+    Returns
+    -------
+    codegen.spec.ObserverSpec
+        Family ``spong_manifold``: 1 dummy state, y (9n,) = [x; q_d .. q_d''''], est = u (n,),
+        N m; p = [K_P (n); K_D (n); K_f (eta, eta' per joint); u_max].
+    """
     n = robot.n
     if fast_poles is None:
         fast_poles = -70.0 * (1.0 + 0.1 * np.arange(1, 2 * n + 1))
@@ -128,7 +163,8 @@ def integral_manifold(robot, KP=7000.0, KD=7000.0, fast_poles=None, u_max=200.0)
 
 
 def cubic_reference(t, q0, qf, T):
-    """Rest-to-rest cubic q_d(t) and derivatives up to 4 (SPEC §12.4, A4-9): (5, n) array."""
+    """Rest-to-rest cubic q_d(t) and derivatives up to 4 (SPEC §12.4, A4-9): (5, n) array at time
+    ``t`` (s), from ``q0`` to ``qf`` (n,) (rad) over [0, T] (s), held outside."""
     q0, qf = np.asarray(q0, float), np.asarray(qf, float)
     s = min(max(t / T, 0.0), 1.0)
     dq = qf - q0

@@ -31,10 +31,10 @@ from functools import lru_cache
 import casadi as ca
 
 from ..design import ii_aov_bounds
-from ..symbolic import christoffel_column_matrix, cholesky_velocity, skew_S
-from ._ii_common import (DEFAULT_N, beta_directional, designed_bounds, filter_symbols,
-                         frobenius_sq, ii_spec, lemma2_bound, lemma2_names, lemma2_values,
-                         quadrature_beta, resolve_wrap, split_params)
+from ..symbolic import christoffel_column_matrix, cholesky_velocity, routine, skew_S
+from ._ii_common import (DEFAULT_N, beta_directional, column_routines, designed_bounds,
+                         filter_symbols, frobenius_sq, ii_spec, lemma2_bound, lemma2_names,
+                         lemma2_values, quadrature_beta, resolve_wrap, split_params)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 
@@ -44,26 +44,23 @@ def p_names(n):
     return lemma2_names(SCALARS, "dq_k1", "dq_p", n)
 
 
-@lru_cache(maxsize=32)
-def _hbar_functions(robot):
-    """CasADi Functions of pure symbols (AD needs them): the Hbar columns, cached per robot."""
+def hbar_column(robot, q, v, k1, i):
+    """Hbar_i(q, v) = k1 T^{-1} e_i - T^T M (dT/dq_i) v - T^T C(q, e_i) T v  [DERIVED, SPEC §5]
+    for pure symbols q (AD of T needs them)."""
     n = robot.n
-    q, v, k1 = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("k1")
     Mq, T, Tinv = cholesky_velocity(robot, q)
-    cols = []
-    for i in range(n):
-        e = ca.DM.zeros(n, 1)
-        e[i] = 1.0
-        dT = ca.jtimes(T, q, e)
-        h = (k1 * Tinv[:, i] - ca.mtimes(ca.mtimes(T.T, Mq), ca.mtimes(dT, v))
-             - ca.mtimes(T.T, ca.mtimes(christoffel_column_matrix(robot, q, i), ca.mtimes(T, v))))
-        cols.append(ca.Function(f"hbar{i}", [q, v, k1], [h]))
-    return cols
+    e = ca.DM.zeros(n, 1)
+    e[i] = 1.0
+    dT = ca.jtimes(T, q, e)
+    return (k1 * Tinv[:, i] - ca.mtimes(ca.mtimes(T.T, Mq), ca.mtimes(dT, v))
+            - ca.mtimes(T.T, ca.mtimes(christoffel_column_matrix(robot, q, i), ca.mtimes(T, v))))
 
 
-def hbar_column(robot, q, p, k1, i):
-    """Hbar_i(q, p) = k1 T^{-1} e_i - T^T M (dT/dq_i) p - T^T C(q, e_i) T p  [DERIVED, SPEC §5]."""
-    return _hbar_functions(robot)[i](q, p, k1)
+@lru_cache(maxsize=32)
+def _skew_routine(robot):
+    """S(q, b) (symbolic.skew_S) as one routine in the C: the RHS calls it n + 1 times."""
+    q, b = ca.SX.sym("q", robot.n), ca.SX.sym("b", robot.n)
+    return routine("S", [q, b], [skew_S(robot, q, b)])
 
 
 def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=None,
@@ -84,17 +81,16 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     s, a, b = split_params(p, n, SCALARS)
     K1 = s["k1"]
 
-    def col(i, q, v):
-        return hbar_column(robot, q, v, K1, i)
-
-    beta, dbdq = quadrature_beta(col, y, qhat, phat, N, periodic, N_period)
+    cols = column_routines(robot, hbar_column, "hbar")
+    beta, dbdq = quadrature_beta(cols, K1, y, qhat, phat, N, periodic, N_period)
     pbh = xi + beta
     My, T, Tinv = cholesky_velocity(robot, y)
     qd_hat = ca.mtimes(T, pbh)
-    f = (ca.mtimes(skew_S(robot, y, pbh), pbh)
+    S = _skew_routine(robot)
+    f = (ca.mtimes(S(y, pbh), pbh)
          + ca.mtimes(T.T, u - robot.gravity(y) - ca.mtimes(ca.DM(robot.F), qd_hat)))
-    Hb_phat = ca.horzcat(*[col(i, y, phat) for i in range(n)])
-    DpT = ca.horzcat(*[ca.mtimes(skew_S(robot, y, T[:, k]), pbh - phat) for k in range(n)])  # Cbar(y, pbh - phat)
+    Hb_phat = ca.horzcat(*[col(y, phat, K1) for col in cols])
+    DpT = ca.horzcat(*[ca.mtimes(S(y, T[:, k]), pbh - phat) for k in range(n)])  # Cbar(y, pbh - phat)
     DqT = ca.mtimes(Hb_phat - dbdq, T)
     dbar_q = lemma2_bound(K1, a, b, phat)
     T2 = frobenius_sq(T)
@@ -109,7 +105,7 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", 2 * n)
     _, _, Tinv0 = cholesky_velocity(robot, y0)
     phat0 = ca.mtimes(Tinv0, est0[:n])
-    beta0, _ = quadrature_beta(col, y0, y0, phat0, N, periodic, N_period)
+    beta0, _ = quadrature_beta(cols, K1, y0, y0, phat0, N, periodic, N_period)
     x0 = ca.vertcat(ca.mtimes(Tinv0, est0[n:]) - beta0, y0, phat0, s["r0"])
 
     j = list(robot.joint_names)

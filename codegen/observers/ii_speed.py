@@ -17,7 +17,8 @@ the seed; a robot with friction keeps its F [ASSUMPTION]).
 
 Implementation choices:
 - H_i(q, x) = M(q)^{-1}(k1 e_i - C(q, e_i) x) (symmetry P2): one Christoffel matrix and one
-  unpivoted LDL^T solve per quadrature node, no symbolic inverse.
+  unpivoted LDL^T solve per quadrature node, no symbolic inverse; one routine per column in the
+  C, called at every node (_ii_common.column_routines).
 - beta by N-node Gauss-Legendre (``N``, a generation parameter), the intervals of 2 pi-periodic
   joints reduced to |rho| <= pi plus whole periods (``wrap``, ``N_period``; _ii_common and
   docs/quadrature.md; declared as ``spec.options`` (codegen.options.QuadratureOptions), which the
@@ -41,9 +42,9 @@ import casadi as ca
 from ..design import ii_speed_bounds
 from ..symbolic import christoffel_column_matrix, ldl_solve
 from ._ii_common import DEFAULT_N  # public: default quadrature nodes N (docs/quadrature.md)
-from ._ii_common import (beta_directional, designed_bounds, filter_symbols, frobenius_sq, ii_spec,
-                         lemma2_bound, lemma2_names, lemma2_values, quadrature_beta, resolve_wrap,
-                         split_params)
+from ._ii_common import (beta_directional, column_routines, designed_bounds, filter_symbols,
+                         frobenius_sq, ii_spec, lemma2_bound, lemma2_names, lemma2_values,
+                         quadrature_beta, resolve_wrap, split_params)
 
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 
@@ -84,10 +85,8 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     s, a, b = split_params(p, n, SCALARS)
     K1 = s["k1"]
 
-    def col(i, q, v):
-        return h_column(robot, q, v, K1, i)
-
-    beta, dbdy = quadrature_beta(col, y, s_y, s_x, N, periodic, N_period)   # [S003 (12),(13)]
+    cols = column_routines(robot, h_column, "h")
+    beta, dbdy = quadrature_beta(cols, K1, y, s_y, s_x, N, periodic, N_period)   # [S003 (12),(13)]
     xhat = xi + beta                                                    # [S003 (3b)]
     e_y, e_x = s_y - y, s_x - xhat                                      # [S003 (17),(18)]
     fd = robot.forward_dynamics(y, xhat, u)
@@ -107,7 +106,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
 
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", 2 * n)
     sx0, xhat0 = est0[:n], est0[n:]
-    beta0, _ = quadrature_beta(col, y0, y0, sx0, N, periodic, N_period)
+    beta0, _ = quadrature_beta(cols, K1, y0, y0, sx0, N, periodic, N_period)
     x0 = ca.vertcat(xhat0 - beta0, y0, sx0, s["r0"])
 
     j = list(robot.joint_names)

@@ -43,11 +43,14 @@ ADAPTATION_RATE = 500.0  # 1/s, the default gamma_j of other robots (see default
 
 
 def default_gains(nm):
-    """Table II for seed002_2r with its four rows; otherwise, per channel [ASSUMPTION]:
+    """Gains per channel of the NonMinimal coordinates ``nm`` (observers/_nonminimal.py).
+
+    Table II for seed002_2r with its four rows; otherwise, per channel [ASSUMPTION]:
     alpha = 30, lambda = 12 (Table II), thetahat0 = 2 theta_nominal (100 % error, as Table II's
     link-2 guess), and gamma = ADAPTATION_RATE lambda / zeta_nom^2 with zeta_nom = m g / alpha
     the static-load level of zeta, so that the linearised parameter-error rate
-    gamma zeta^2 / lambda is about ADAPTATION_RATE (1/s)."""
+    gamma zeta^2 / lambda is about ADAPTATION_RATE (1/s). Returns a dict of (r,) arrays:
+    alpha, lambda, gamma, thetahat0."""
     if nm.robot.name == "seed002_2r" and nm.rows == [0, 1, 2, 3]:
         return {k: np.array(v) for k, v in TABLE_II.items()}
     r = nm.r
@@ -60,11 +63,35 @@ def default_gains(nm):
 
 def build(robot, rows="all", alpha=None, lam=None, gamma=None, thetahat0=None,
           zhat1_from_y0=None, projection=False, theta_min=0.05, theta_max=20.0):
-    """Lotfi–Namvar observer for ``robot``; gains per channel (scalars broadcast).
+    """Lotfi–Namvar observer for ``robot`` (SPEC §3.2)  [S002 (12), (13), (17)].
 
-    rows           "all" (default, the seed's J_n = J_p), an int k (k best-conditioned rows)
-                   or a list of row indices into p (see ``_nonminimal.nonminimal``)
-    zhat1_from_y0  None: 0 for seed002_2r (Table II), 1 otherwise (zhat1(0) = pi(q0))
+    Gains are per channel (scalars broadcast); None takes ``default_gains``.
+
+    Parameters
+    ----------
+    robot : models.RobotModel
+        With CoM kinematics (``com_positions``, ``dim``) and link masses.
+    rows : "all", int or list of int
+        "all" (default, the seed's J_n = J_p), an int k (k best-conditioned rows) or a list of
+        row indices into p (see ``_nonminimal.nonminimal``); r channels.
+    alpha, lam : (r,) array_like or float, optional
+        Filter gains alpha_j and lambda_j, 1/s.
+    gamma : (r,) array_like or float, optional
+        Adaptation gains gamma_j, 1/(kg^2 m^2).
+    thetahat0 : (r,) array_like or float, optional
+        Initial estimates of theta_j = 1/m_link, 1/kg.
+    zhat1_from_y0 : float, optional
+        zhat1(0) = zhat1_from_y0 pi(q0); None: 0 for seed002_2r (Table II), 1 otherwise.
+    projection : bool
+        Clip thetahat into [theta_min, theta_max] before every step (the jump map).
+    theta_min, theta_max : float
+        Projection box, 1/kg [ASSUMPTION 0.05..20, SPEC §3.2].
+
+    Returns
+    -------
+    codegen.spec.ObserverSpec
+        Family ``lotfi_namvar``, vectors as in the module docstring; the gains are the
+        defaults of its runtime parameters p.
     """
     nm = nonminimal(robot, rows)
     r, n, no = nm.r, robot.n, len(nm.joints)

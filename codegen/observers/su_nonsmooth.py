@@ -40,8 +40,26 @@ def sg(e, eps):
 
 
 def build(robot, form="literal", smoothing_eps=None, K0=None, K1=None, K2=None):
-    """Su–Müller–Zheng observer for ``robot`` (only its size and joint names are used).
-    Gains per joint (scalars broadcast), defaults from seed 002 §V-B."""
+    """Su–Müller–Zheng observer for ``robot`` (SPEC §3.3)  [S002 (35)] (only its size and joint
+    names are used).
+
+    Parameters
+    ----------
+    robot : models.RobotModel
+        n joints.
+    form : {"literal", "xian"}
+        The printed (35) or the Xian form [DERIVED] (the runtime parameter ``xian``).
+    smoothing_eps : float, optional
+        sg = tanh(e / smoothing_eps) (rad); None or 0: the literal sign.
+    K0, K1, K2 : (n,) array_like or float, optional
+        Gains per joint (scalars broadcast): K0 (rad/s^2), K1 (1/s), K2 (1/s^2); defaults
+        500, 10, 2000 (seed 002 §V-B).
+
+    Returns
+    -------
+    codegen.spec.ObserverSpec
+        Family ``su_nonsmooth``, vectors as in the module docstring.
+    """
     if form not in FORMS:
         raise ValueError(f"form must be one of {FORMS}, got {form!r}")
     eps = 0.0 if smoothing_eps is None else float(smoothing_eps)

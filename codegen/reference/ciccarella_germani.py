@@ -100,17 +100,19 @@ def rhs(robot, x, y, u, p, variant):
 
 
 def output(robot, x, y, u, p):
-    """est = xhat (4n,); arguments as in ``rhs``."""
+    """est = xhat (4n,): the state ``x`` itself; ``robot``, ``y``, ``u``, ``p`` as in ``rhs``
+    (unused)."""
     return np.array(x, dtype=float)
 
 
 def init(robot, y0, est0, p):
-    """xhat(0) = est0 (4n,) [CODE-CP]; y0 as ``rhs``'s y, p as its p."""
+    """xhat(0) = est0 (4n,) [CODE-CP]; ``robot``, y0 (as ``rhs``'s y) and ``p`` are not read."""
     return np.array(est0, dtype=float)
 
 
 def sizes(robot, variant):
-    """{"nx": 4n, "ny": n (O1, O4) or 2n (O2, O3), "nu": n, "nest": 4n}."""
+    """{"nx": 4n, "ny": n (O1, O4) or 2n (O2, O3), "nu": n, "nest": 4n} for ``robot`` (n joints)
+    and ``variant`` (SPEC §8.4)."""
     n = robot.n
     ny = {"O1": n, "O4": n, "O2": 2 * n, "O3": 2 * n}[variant]
     return {"nx": 4 * n, "ny": ny, "nu": n, "nest": 4 * n}

@@ -44,12 +44,12 @@ class ElasticRobot:
         self.exact = isinstance(rigid, DHRobot)   # hyper-dual derivatives available
 
     def split(self, x):
-        """(x1, x2, x3, x4) = (q1, q1', q2, q2') blocks of n of a state (4n,)."""
+        """(x1, x2, x3, x4) = (q1, q1', q2, q2') blocks of n of a state ``x`` (4n,)."""
         n = self.n
         return x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n:]
 
     def M(self, q):
-        """Link mass matrix M(q1) (n, n), kg m^2."""
+        """Link mass matrix M(q1) (n, n), kg m^2, at link positions ``q`` (n,), rad."""
         return self.rigid.M(q)
 
     def y3(self, x):

@@ -89,17 +89,18 @@ def _unary(x, f, df, d2f):
 
 
 def sin(x):
-    """sin of a float or hyper-dual."""
+    """sin of ``x``, a float, array or hyper-dual."""
     return _unary(x, np.sin, np.cos, lambda a: -np.sin(a))
 
 
 def cos(x):
-    """cos of a float or hyper-dual."""
+    """cos of ``x``, a float, array or hyper-dual."""
     return _unary(x, np.cos, lambda a: -np.sin(a), lambda a: -np.cos(a))
 
 
 def stack(items, axis=0):
-    """np.stack for a mix of floats and hyper-duals (a hyper-dual if any item is one)."""
+    """np.stack of ``items`` along ``axis`` for a mix of floats and hyper-duals (a hyper-dual if any
+    item is one)."""
     if not any(isinstance(i, HyperDual) for i in items):
         return np.stack([np.asarray(i, dtype=float) for i in items], axis=axis)
     items = [HyperDual.lift(i) for i in items]

@@ -85,7 +85,8 @@ def kinematics(robot, q):
 
 
 def S(robot, q, b):
-    """S(q, b) = -T^T M sum_k dT/dq_k (T b)_k - T^T C(q, T b) T  (SPEC §5) (n, n); q (n,) rad, b (n,)."""
+    """S(q, b) = -T^T M sum_k dT/dq_k (T b)_k - T^T C(q, T b) T  (SPEC §5) (n, n), skew-symmetric;
+    ``robot`` as in ``kinematics``, q (n,) rad, b (n,)."""
     Mq, T, _, dT = kinematics(robot, q)
     Tb = T @ b
     return -T.T @ Mq @ sum(dT[k] * Tb[k] for k in range(robot.n)) - T.T @ robot.C(q, Tb) @ T
@@ -93,7 +94,8 @@ def S(robot, q, b):
 
 def hbar_column(robot, q, p, k1, i):
     """Hbar_i(q, p) = k1 T^{-1} e_i - T^T M dT/dq_i p - T^T C(q, e_i) T p  (SPEC §5) (n,);
-    q (n,) rad (complex allowed), p (n,) the momentum-like estimate, k1 (1/s), i the column."""
+    ``robot`` as in ``kinematics``, q (n,) rad (complex allowed), p (n,) the momentum-like
+    estimate, k1 (1/s), i the column."""
     Mq, T, Tinv, dT = kinematics(robot, q)
     e = np.zeros(robot.n)
     e[i] = 1.0
@@ -192,7 +194,8 @@ def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
 
 
 def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
-    """est = [T(y) phat; T(y) (xi + beta)] (2n,), rad/s; arguments as in ``rhs``."""
+    """est = [T(y) phat; T(y) (xi + beta)] (2n,), rad/s, of the state ``x``; ``robot``, ``y``,
+    ``u``, ``p`` and the quadrature ``N``, ``periodic``, ``N_period`` as in ``rhs``."""
     n = robot.n
     xi, qhat, phat = x[:n], x[n:2 * n], x[2 * n:3 * n]
     beta, *_ = beta_and_derivatives(robot, y, qhat, phat, params(p, n)[0]["k1"], N or DEFAULT_N, False,
@@ -203,7 +206,8 @@ def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
 
 def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
     """x(0) = [T^{-1} est0[n:] - beta; y0; phat0 = T^{-1} est0[:n]; r0] (3n + 1,); y0 (n,) rad,
-    est0 (2n,) rad/s, the rest as in ``rhs``."""
+    est0 (2n,) rad/s; ``robot``, ``p`` (k1, r0 read from it) and the quadrature ``N``,
+    ``periodic``, ``N_period`` as in ``rhs``."""
     n = robot.n
     s = params(p, n)[0]
     Tinv = kinematics(robot, y0)[2]
@@ -214,5 +218,7 @@ def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
 
 
 def configure(robot, options):
-    """This family bound to the spec's quadrature (reference/ii_speed.py ``quadrature``)."""
+    """This family bound to the quadrature the spec declares (reference/ii_speed.py ``quadrature``):
+    ``options`` a codegen.options.QuadratureOptions, its periodic joints checked against
+    ``robot``."""
     return bound(__name__, **quadrature(robot, options))

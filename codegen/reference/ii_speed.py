@@ -250,7 +250,8 @@ def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
 
 
 def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
-    """est = [s_x; xhat = xi + beta] (2n,), rad/s; arguments as in ``rhs``."""
+    """est = [s_x; xhat = xi + beta] (2n,), rad/s, of the state ``x``; ``robot``, ``y``, ``u``,
+    ``p`` and the quadrature ``N``, ``periodic``, ``N_period`` as in ``rhs``."""
     n = robot.n
     xi, s_y, s_x, _ = _split(x, n)
     beta, *_ = beta_and_derivatives(robot, y, s_y, s_x, params(p, n)[0]["k1"], N or DEFAULT_N,
@@ -260,7 +261,8 @@ def output(robot, x, y, u, p, N=None, periodic=None, N_period=None):
 
 def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
     """x(0) = [est0[n:] - beta(y0, y0, s_x); y0; s_x = est0[:n]; r0] (3n + 1,); y0 (n,) rad,
-    est0 (2n,) rad/s, the rest as in ``rhs``."""
+    est0 (2n,) rad/s; ``robot``, ``p`` (k1, r0 read from it) and the quadrature ``N``,
+    ``periodic``, ``N_period`` as in ``rhs``."""
     n = robot.n
     s = params(p, n)[0]
     sx0, xhat0 = est0[:n], est0[n:]
@@ -270,7 +272,7 @@ def init(robot, y0, est0, p, N=None, periodic=None, N_period=None):
 
 
 def sizes(robot):
-    """{"nx": 3n + 1, "ny": n, "nu": n, "nest": 2n}."""
+    """{"nx": 3n + 1, "ny": n, "nu": n, "nest": 2n} for ``robot`` with n joints."""
     n = robot.n
     return {"nx": 3 * n + 1, "ny": n, "nu": n, "nest": 2 * n}
 
@@ -320,5 +322,6 @@ def quadrature(robot, options):
 
 
 def configure(robot, options):
-    """This family bound to the spec's quadrature (see ``quadrature``)."""
+    """This family bound to the spec's quadrature (see ``quadrature``): ``options`` a
+    codegen.options.QuadratureOptions, its periodic joints checked against ``robot``."""
     return bound(__name__, **quadrature(robot, options))

@@ -105,7 +105,8 @@ def rhs(robot, x, y, u, p, nm):
 
 def output(robot, x, y, u, p, nm):
     """est = [qd_hat (n_o, rad/s); nuhat (r, m/s); thetahat (r)], qd_hat by the left
-    pseudo-inverse of J_n (A2-6); arguments as in ``rhs``."""
+    pseudo-inverse of J_n (A2-6), from the state ``x`` and the measured q in ``y``; ``robot``,
+    ``u`` (unused), ``p`` and ``nm`` as in ``rhs``."""
     r, q, ff, zh1, zh2, zeta, th, al, la, ga = _split(robot, nm, x, y, p)
     nuhat = zh2 + zeta * th
     Jn = robot.com_jacobian(q)[nm.rows][:, nm.joints]
@@ -114,8 +115,9 @@ def output(robot, x, y, u, p, nm):
 
 
 def jump(robot, x, y, p, nm):
-    """x+ (4r,): thetahat clipped into [theta_min, theta_max] when projection = 1 (identity
-    otherwise); arguments as in ``rhs``."""
+    """x+ (4r,): thetahat of the state ``x`` clipped into [theta_min, theta_max] when projection
+    = 1 (identity otherwise); ``robot``, ``y`` (unused), ``p`` (projection, theta_min,
+    theta_max read from it) and ``nm`` as in ``rhs``."""
     r = len(nm.rows)
     if p[4 * r + 1] == 0.0:
         return np.array(x, dtype=float)
@@ -149,6 +151,7 @@ def init(robot, y0, est0, p, nm):
 
 
 def sizes(robot, nm):
-    """{"nx": 4r, "ny": n + r, "nu": n, "nest": n_o + 2r}."""
+    """{"nx": 4r, "ny": n + r, "nu": n, "nest": n_o + 2r} for ``robot`` (n joints) and ``nm``
+    (r rows, n_o joints)."""
     r, n = len(nm.rows), robot.n
     return {"nx": 4 * r, "ny": n + r, "nu": n, "nest": len(nm.joints) + 2 * r}

@@ -131,7 +131,8 @@ class Planar2R(ReferenceRobot):
         return np.array([(p["m1"] * p["lc1"] + p["m2"] * p["l1"]) * p["g0"] * np.cos(q[0]) + g12, g12])
 
     def com_positions(self, q):
-        """p = [lc1 c1, lc1 s1, l1 c1 + lc2 c12, l1 s1 + lc2 s12]  [S002 (34)], SPEC §3.1."""
+        """p = [lc1 c1, lc1 s1, l1 c1 + lc2 c12, l1 s1 + lc2 s12]  [S002 (34)], SPEC §3.1: (4,), m,
+        at joint positions ``q`` (2,), rad."""
         p = self.params
         c1, s1, c12, s12 = np.cos(q[0]), np.sin(q[0]), np.cos(q[0] + q[1]), np.sin(q[0] + q[1])
         return np.array([p["lc1"] * c1, p["lc1"] * s1,

@@ -45,10 +45,11 @@ def torque(robot, y, extra):
 
 
 def output(robot, x, y, u, p):
-    """tau of [S000 (18)] (2,), N m; x (0,), y = [q; t] (3,), u (0,), p (0,)."""
+    """tau of [S000 (18)] (2,), N m, on ``robot`` (2 joints); x (0,), y = [q; t] (3,), u (0,),
+    p (0,)."""
     return torque(robot, y, extra_torque)
 
 
 def sizes(robot):
-    """{"nx": 0, "ny": n + 1, "nu": 0, "nest": n}."""
+    """{"nx": 0, "ny": n + 1, "nu": 0, "nest": n} for ``robot`` with n joints."""
     return {"nx": 0, "ny": robot.n + 1, "nu": 0, "nest": robot.n}

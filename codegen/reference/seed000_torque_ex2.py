@@ -21,5 +21,6 @@ def extra_torque(t):
 
 
 def output(robot, x, y, u, p):
-    """tau of [S000 (19)] (2,), N m; x (0,), y = [q; t] (3,), u (0,), p (0,)."""
+    """tau of [S000 (19)] (2,), N m, on ``robot`` (2 joints); x (0,), y = [q; t] (3,), u (0,),
+    p (0,)."""
     return torque(robot, y, extra_torque)

@@ -31,7 +31,7 @@ rhs, init = constant_state(0)
 
 
 def sizes(robot):
-    """{"nx": 0, "ny": 2n + 1, "nu": 0, "nest": n}."""
+    """{"nx": 0, "ny": 2n + 1, "nu": 0, "nest": n} for ``robot`` with n joints."""
     n = robot.n
     return {"nx": 0, "ny": 2 * n + 1, "nu": 0, "nest": n}
 

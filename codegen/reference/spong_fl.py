@@ -30,7 +30,8 @@ rhs, init = constant_state(1)
 
 
 def require_exact(robot, family):
-    """ValueError unless ``robot`` is elastic over a DH rigid part (exact hyper-dual derivatives)."""
+    """ValueError, naming the law ``family``, unless ``robot`` is elastic over a DH rigid part
+    (exact hyper-dual derivatives)."""
     if not getattr(robot, "exact", False):
         raise ValueError(f"{family}: needs an elastic robot over a DH rigid part (exact hyper-dual "
                          f"derivatives); got {getattr(robot, 'name', robot)!r}")
@@ -93,13 +94,14 @@ def spong_y3_y4_F(robot, x, with_F=True):
 
 
 def sizes(robot):
-    """nx = 1 (dummy), ny = 9n, nu = 0, nest = n."""
+    """nx = 1 (dummy), ny = 9n, nu = 0, nest = n, for ``robot`` with n joints."""
     n = robot.n
     return {"nx": 1, "ny": 9 * n, "nu": 0, "nest": n}
 
 
 def configure(robot, options):
-    """This law, after checking the robot has exact derivatives."""
+    """This law, after checking ``robot`` has exact derivatives; ``options`` declares nothing
+    here."""
     require_exact(robot, "spong_fl")
     return bound(__name__)
 

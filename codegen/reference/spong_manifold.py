@@ -30,7 +30,8 @@ from .spong_fl import init, law_inputs, require_exact, rhs, sizes, spong_y3_y4_F
 
 
 def configure(robot, options):
-    """This law, after checking the robot has exact derivatives."""
+    """This law, after checking ``robot`` has exact derivatives; ``options`` declares nothing
+    here."""
     require_exact(robot, "spong_manifold")
     return bound(__name__)
 
@@ -48,9 +49,10 @@ def _h0(robot, q, v, r0, r1, r2, KP, KD):
 
 
 def output(robot, x, y, u, p):
-    """Motor torques u = sat(u_s + u_f) (n,), N m  [S004 (4.17)-(4.23)], [CODE-CP]; arguments as
-    in reference/spong_fl.py ``output`` but p = [K_P (n, 1/s^2); K_D (n, 1/s); K_f (eta, eta'
-    per joint); u_max (N m)]."""
+    """Motor torques u = sat(u_s + u_f) (n,), N m  [S004 (4.17)-(4.23)], [CODE-CP].
+
+    ``robot``, ``x`` (dummy state, unused), ``y`` and ``u`` as in reference/spong_fl.py
+    ``output``, but p = [K_P (n, 1/s^2); K_D (n, 1/s); K_f (eta, eta' per joint); u_max (N m)]."""
     n = robot.n
     xs, r, p = law_inputs("spong_manifold", robot, y, p)
     KP, KD, Kf, umax = p[:n], p[n:2 * n], p[2 * n:4 * n].reshape(n, 2), float(p[4 * n])

@@ -53,8 +53,8 @@ def output(robot, x, y, u, p):
 
 
 def rhs(robot, x, y, u, p):
-    """[qhat' (rad/s); w' (rad/s^2)] (2n,) of the form ``xian`` selects  [S002 (35)],
-    [DERIVED]; arguments as in ``output``."""
+    """[qhat' (rad/s); w' (rad/s^2)] (2n,) of the form ``xian`` selects  [S002 (35)], [DERIVED];
+    ``robot``, ``x``, ``y``, ``u`` (unused) and ``p`` as in ``output``."""
     n, qhat, w, K0, K1, K2, xian, eps = _parts(robot, x, y, p)
     qd_hat = output(robot, x, y, u, p)[:n]
     if xian == 1.0:
@@ -89,6 +89,6 @@ def init(robot, y0, est0, p):
 
 
 def sizes(robot):
-    """{"nx": 2n, "ny": n, "nu": n, "nest": 2n}."""
+    """{"nx": 2n, "ny": n, "nu": n, "nest": 2n} for ``robot`` with n joints."""
     n = robot.n
     return {"nx": 2 * n, "ny": n, "nu": n, "nest": 2 * n}

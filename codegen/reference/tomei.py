@@ -75,16 +75,18 @@ def rhs(robot, x, y, u, p):
 
 
 def output(robot, x, y, u, p):
-    """est = [qhat1; qhat1'; qhat2; qhat2'] (4n,); arguments as in ``rhs``."""
+    """est = [qhat1; qhat1'; qhat2; qhat2'] (4n,), the first 4n entries of the state ``x``;
+    ``robot``, ``y``, ``u``, ``p`` as in ``rhs`` (unused)."""
     return np.array(x[:4 * robot.n], dtype=float)
 
 
 def init(robot, y0, est0, p):
-    """x(0) = [est0 (4n); 0 (n)]: the filter starts at rest [CODE-CP]; est0 as ``output``."""
+    """x(0) = [est0 (4n); 0 (n)]: the filter starts at rest [CODE-CP]; est0 as ``output``'s
+    result, ``robot`` and ``p`` as in ``rhs``, ``y0`` unused."""
     return np.concatenate([est0, np.zeros(robot.n)])
 
 
 def sizes(robot):
-    """{"nx": 5n, "ny": 2n, "nu": n, "nest": 4n}."""
+    """{"nx": 5n, "ny": 2n, "nu": n, "nest": 4n} for ``robot`` with n joints."""
     n = robot.n
     return {"nx": 5 * n, "ny": 2 * n, "nu": n, "nest": 4 * n}

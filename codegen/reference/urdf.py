@@ -131,7 +131,8 @@ class UrdfRobot(ReferenceRobot):
         return model
 
     def pin_q(self, q):
-        """Our coordinates (n,) -> pinocchio configuration (nq,)."""
+        """Our coordinates ``q`` (n,) -> pinocchio configuration (nq,) (cos, sin for continuous
+        joints)."""
         q = np.asarray(q, dtype=float).reshape(-1)
         q_pin = np.zeros(self.model.nq)
         for j in self.model.joints[1:]:
@@ -195,16 +196,17 @@ class UrdfRobot(ReferenceRobot):
         return np.array(self.model.gravity.linear, dtype=float)
 
     def com_positions(self, q):
-        """World CoM of each body moved by a joint, stacked (3n,):  oMi[i] * lever_i
-        (per link, not pin.centerOfMass, which is per subtree)."""
+        """World CoM of each body moved by a joint, stacked (3n,), m, at joint positions ``q`` (n,):
+        oMi[i] * lever_i (per link, not pin.centerOfMass, which is per subtree)."""
         pin = self._pin
         pin.forwardKinematics(self.model, self.data, self.pin_q(q))
         return np.concatenate([self.data.oMi[i].act(self.model.inertias[i].lever)
                                for i in range(1, self.model.njoints)])
 
     def com_jacobian(self, q):
-        """J_p (3n, n): J_c^i = J_lin^i - [r_i]x J_ang^i with the joint Jacobians in
-        LOCAL_WORLD_ALIGNED (linear part = velocity of the joint origin) and r_i = oR_i lever_i."""
+        """J_p (3n, n) at joint positions ``q`` (n,): J_c^i = J_lin^i - [r_i]x J_ang^i with the
+        joint Jacobians in LOCAL_WORLD_ALIGNED (linear part = velocity of the joint origin) and
+        r_i = oR_i lever_i."""
         pin = self._pin
         qp = self.pin_q(q)
         pin.computeJointJacobians(self.model, self.data, qp)

@@ -10,7 +10,8 @@ from .plant import SampledPlant, state_space_spec
 
 
 def elastic_plant_spec(robot):
-    """Elastic plant: state x (4n), input u (n), output x."""
+    """Elastic plant of the ``models.ElasticRobot`` ``robot``: state x (4n), input u (n, N m),
+    output x; x' = f(x) + G u  [S004 (2.8)-(2.11)]."""
     return state_space_spec("elastic_plant", robot, robot.state_names,
                             [f"u_{j}" for j in robot.joint_names],
                             lambda x, u: ca.cse(robot.dynamics(x, u)))
@@ -24,4 +25,5 @@ class ElasticPlant(SampledPlant):
         super().__init__(elastic_plant_spec(robot), dt, substeps, out_dir)
 
     def reset(self, x0):
+        """Start from the state ``x0`` = [q1; q1'; q2; q2'] (4n,), rad and rad/s."""
         self.reset_state(x0)

@@ -199,7 +199,8 @@ class MujocoPlant:
 
 def sinusoids(robot, f_min=0.15, f_max=0.35, amplitude=0.6, seed=0):
     """q_d,i(t) = c_i + a_i sin(2 pi f_i t + phi_i), f_i evenly spread over [f_min, f_max] Hz,
-    c_i the middle of joint i's range, a_i = min(amplitude, 0.4 x range) (rad), random phases.
+    c_i the middle of joint i's range, a_i = min(amplitude, 0.4 x range) (rad), random phases
+    drawn with ``seed``; n and the ranges from ``robot`` (q_lower, q_upper).
 
     Returns
     -------

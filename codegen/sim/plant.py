@@ -17,7 +17,23 @@ from .blocks import block
 
 
 def state_space_spec(family, robot, x_names, u_names, xdot):
-    """Spec of x' = xdot(x, u) with no measurement, no parameter, output x, init x0 = est0."""
+    """Spec of x' = xdot(x, u) with no measurement, no parameter, output x, init x0 = est0.
+
+    Parameters
+    ----------
+    family : str
+        Family name of the spec (and of its C symbols).
+    robot : models.RobotModel or models.ElasticRobot
+        The robot the spec belongs to.
+    x_names, u_names : list of str
+        State and input names (sizes nx, nu).
+    xdot : callable
+        (x (nx, 1) SX, u (nu, 1) SX) -> (nx, 1) SX.
+
+    Returns
+    -------
+    codegen.spec.ObserverSpec
+    """
     nx, nu = len(x_names), len(u_names)
     x, u = ca.SX.sym("x", nx), ca.SX.sym("u", nu)
     y, p, x0 = ca.SX.sym("y", 0), ca.SX.sym("p", 0), ca.SX.sym("x0", nx)
@@ -49,6 +65,7 @@ class SampledPlant:
         self._empty = np.zeros(0)
 
     def reset_state(self, x0):
+        """Start from the state ``x0`` (nx,)."""
         self.block.reset(self._empty, est0=np.asarray(x0, dtype=float))
 
     def advance(self, u):
@@ -69,4 +86,5 @@ class Plant(SampledPlant):
         super().__init__(plant_spec(robot), dt, substeps, out_dir)
 
     def reset(self, q0, qd0):
+        """Start from joint positions ``q0`` (n,), rad, and velocities ``qd0`` (n,), rad/s."""
         self.reset_state(np.concatenate([q0, qd0]))

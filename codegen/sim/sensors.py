@@ -15,6 +15,19 @@ import numpy as np
 
 @dataclass
 class Sensor:
+    """Joint-position sensor (module docstring): sample-and-hold, seeded Gaussian noise, quantiser.
+
+    Parameters
+    ----------
+    noise_std : float or (n,) array
+        sigma per channel (rad); 0: no noise.
+    quantum : float
+        Quantisation step Delta (rad); 0: no quantisation.
+    every : int
+        Sample period in simulation steps (>= 1).
+    seed : int
+        Seed of the noise stream.
+    """
     noise_std: float | np.ndarray = 0.0   # sigma per channel (rad), 0: no noise
     quantum: float = 0.0                  # Delta (rad), 0: no quantisation
     every: int = 1                        # sample period in simulation steps
@@ -33,6 +46,7 @@ class Sensor:
         return bool(np.any(np.asarray(self.noise_std) > 0))
 
     def reset(self):
+        """Restart the noise stream from ``seed`` and forget the held sample."""
         self._rng = np.random.default_rng(self.seed)
         self._held = None
         self._noise = None
@@ -64,3 +78,29 @@ class Sensor:
         if self._held is None or k % self.every == 0:
             self.measure(k, q, np.empty(len(q)))
         return self._held.copy()
+
+
+def measured(rec, quantization=0.0, noise=0.0, seed=0):
+    """A recording as the sensor gives it: q of ``rec`` (the truth) sampled every sample with
+    seeded Gaussian noise ``noise`` (rad) and quantised to ``quantization`` (rad); t, tau and
+    the true qd kept.
+
+    Parameters
+    ----------
+    rec : codegen.recording.Recording
+        The true run.
+    quantization, noise : float
+        Encoder step and Gaussian standard deviation (rad); 0: none.
+    seed : int
+        Seed of the noise.
+
+    Returns
+    -------
+    codegen.recording.Recording
+    """
+    from ..recording import Recording
+    sensor = Sensor(noise_std=noise, quantum=quantization, seed=seed)
+    Y = np.empty_like(rec.q)
+    for k, q in enumerate(rec.q):
+        sensor.measure(k, q, Y[k])
+    return Recording(t=rec.t, q=Y, tau=rec.tau, qd=rec.qd, joint_names=rec.joint_names)

@@ -63,6 +63,7 @@ def adaptive_beta(robot, y, s_y, s_x, k1, epsabs=1e-14, epsrel=1e-13):
     robot : reference robot (codegen.reference.reference_robot)
     y, s_y, s_x : (n,) measured angle, filter states (rad, rad/s)
     k1 : gain of H = M^{-1} (k1 I - C)
+    epsabs, epsrel : absolute and relative tolerances of quad_vec
 
     Returns
     -------
@@ -84,14 +85,34 @@ def adaptive_beta(robot, y, s_y, s_x, k1, epsabs=1e-14, epsrel=1e-13):
 
 def quadrature_study(robots=("seed003_2r_abs", "ur5"), Ns=range(2, 17), samples=4, seed=0,
                      write=None, y_range=3 * np.pi):
-    """beta, dbeta/ds_y, dbeta/ds_x (reference formulas, N nodes, interval reduction of the
-    periodic joints: N-node Gauss-Legendre on [0, rho], |rho| <= pi, plus m periods by the
-    N-node trapezoid) against an adaptive reference (scipy.integrate.quad_vec, epsabs 1e-14,
-    epsrel 1e-13) of the same integrands on the whole [0, y_i] (so the reduction itself is
-    checked). y ~ U(-y_range, y_range)^n (up to 1.5 turns: m in {-1, 0, 1}). Returns
-    {robot: {N: (err_beta, err_dsy, err_dsx, err_beta_nowrap)}}: worst relative errors over
-    ``samples`` random (y, s_y, s_x), the last one without reduction (N-node Gauss-Legendre on
-    [0, y_i]); with ``write`` a path, writes the markdown table there."""
+    """Errors of the quadrature of beta, dbeta/ds_y, dbeta/ds_x against an adaptive reference.
+
+    The reference formulas (N nodes, interval reduction of the periodic joints: N-node
+    Gauss-Legendre on [0, rho], |rho| <= pi, plus m periods by the N-node trapezoid) against an
+    adaptive reference (``adaptive_beta``: scipy.integrate.quad_vec, epsabs 1e-14, epsrel 1e-13)
+    of the same integrands on the whole [0, y_i] (so the reduction itself is checked).
+
+    Parameters
+    ----------
+    robots : sequence of str
+        Catalog names.
+    Ns : iterable of int
+        Node counts N.
+    samples : int
+        Random (y, s_y, s_x) per robot; y ~ U(-y_range, y_range)^n.
+    seed : int
+        Seed of ``numpy.random.default_rng``.
+    write : path-like, optional
+        Write the markdown page there (``write_quadrature_doc``).
+    y_range : float
+        rad (default 3 pi: up to 1.5 turns, m in {-1, 0, 1}).
+
+    Returns
+    -------
+    dict
+        {robot: {N: (err_beta, err_dsy, err_dsx, err_beta_nowrap)}}: worst relative errors over
+        the samples, the last one without reduction (N-node Gauss-Legendre on [0, y_i]).
+    """
     from models import load_robot
 
     from ..reference import reference_robot
@@ -123,7 +144,9 @@ def quadrature_study(robots=("seed003_2r_abs", "ur5"), Ns=range(2, 17), samples=
 
 
 def write_quadrature_doc(table, path, samples, y_range=3 * np.pi):
-    """docs/quadrature.md from a ``quadrature_study`` table: the method, one table per robot, the notes."""
+    """docs/quadrature.md from a ``quadrature_study`` ``table``: the method, one table per robot,
+    the notes; written to ``path`` (returned), citing the study's ``samples`` and ``y_range``
+    (rad)."""
     lines = ["# Quadrature order of the I&I speed observers (seed 003)", "",
              "beta (12) and its derivatives (14), (15) are quadratures of the columns of H. For a "
              "2 pi-periodic (revolute) joint the interval is reduced (`wrap`, default \"auto\"): "

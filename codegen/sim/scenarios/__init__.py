@@ -18,6 +18,7 @@ from pathlib import Path
 
 
 def registry():
+    """{name: scenario function}: the ``SCENARIOS`` of every public module of this package."""
     reg = {}
     for m in pkgutil.iter_modules(__path__):
         if not m.name.startswith("_"):
@@ -26,8 +27,25 @@ def registry():
 
 
 def run(name, reference=False, out="build/sim", **options):
-    """Run scenario ``name`` (or print the list for "list"); ``options`` (e.g. quantization,
-    noise, mismatch, T of the mujoco-* scenarios) go to scenarios that take them."""
+    """Run scenario ``name`` (or print the list for "list") and write its summary.json.
+
+    Parameters
+    ----------
+    name : str
+        A key of ``registry()``, or "list".
+    reference : bool
+        Run the observers with the numpy reference instead of the compiled C.
+    out : path-like
+        Parent folder; the scenario writes into ``out/<name>``.
+    **options
+        Options (e.g. quantization, noise, mismatch, T of the mujoco-* scenarios) of scenarios
+        that take them; SystemExit for an option the scenario does not take.
+
+    Returns
+    -------
+    int
+        0 (the CLI's exit code).
+    """
     reg = registry()
     if name == "list":
         natural = lambda s: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]  # noqa: E731

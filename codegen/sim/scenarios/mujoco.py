@@ -22,8 +22,6 @@ import json
 from functools import lru_cache
 from pathlib import Path
 
-import numpy as np
-
 ROBOTS = ("ur5", "panda")
 T_DEFAULT = 20.0
 DT = 1e-3
@@ -57,28 +55,37 @@ def recording(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0
     -------
     codegen.recording.Recording
     """
-    from ...recording import Recording
-    from ..sensors import Sensor
+    from ..sensors import measured
     if robot_name not in ROBOTS:
         raise ValueError(f"robot: the MuJoCo scenarios have {', '.join(ROBOTS)}, got {robot_name!r}")
-    true = _true_run(robot_name, float(T), float(mismatch), int(seed))
-    sensor = Sensor(noise_std=noise, quantum=quantization, seed=seed)
-    Y = np.empty_like(true.q)
-    for k, q in enumerate(true.q):
-        sensor.measure(k, q, Y[k])
-    return Recording(t=true.t, q=Y, tau=true.tau, qd=true.qd, joint_names=true.joint_names)
+    return measured(_true_run(robot_name, float(T), float(mismatch), int(seed)), quantization, noise, seed)
 
 
 def title(robot_name, quantization=0.0, noise=0.0, mismatch=0.0):
-    """The heading of a run's table and figures."""
+    """The heading of a run's table and figures: ``robot_name``, ``quantization`` and ``noise``
+    (rad), ``mismatch`` (relative)."""
     return (f"MuJoCo {robot_name}: quantisation {quantization:g} rad, noise {noise:g} rad, "
             f"mismatch {mismatch:g}")
 
 
 def experiment(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0, seed=0,
                reference=False, out=None):
-    """Run the comparison; write the run (``run.csv``, the compare CSV format), the figures
-    and ``table.txt`` into ``out``; return the summary (one row per method)."""
+    """Run the comparison of observers and tuned baselines on one MuJoCo run.
+
+    Parameters
+    ----------
+    robot_name, T, quantization, noise, mismatch, seed
+        The run, as in ``recording``.
+    reference : bool
+        Observers by the numpy reference instead of the compiled C.
+    out : path-like, optional
+        Folder for the run (``run.csv``, the compare CSV format), the figures and ``table.txt``.
+
+    Returns
+    -------
+    dict
+        The summary: the run's settings, the best baseline, the table and one row per method.
+    """
     from models import load_robot
 
     from ...compare import compare, design_inputs

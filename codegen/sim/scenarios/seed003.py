@@ -58,7 +58,29 @@ def specs(N=None, wrap="auto", N_period=None):
 
 def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True, N=None, wrap="auto",
                 N_period=None):
-    """Closed loop of SPEC §12.3 with both observers; returns (summary, traces dict)."""
+    """Closed loop of SPEC §12.3 with both observers (I&I speed and AOV).
+
+    Parameters
+    ----------
+    reference : bool
+        Observers by the numpy reference instead of the compiled C.
+    out : path-like, optional
+        Folder for seed003.npz and (with ``plots``) the figures; None: nothing written.
+    T : float
+        Horizon, s.
+    dt : float
+        Sample time, s.
+    plots : bool
+        Write Figs. 2-5 into ``out``.
+    N, wrap, N_period
+        The quadrature of beta (``specs``).
+
+    Returns
+    -------
+    summary : dict
+    traces : dict
+        t (N,), x (N, 2n), states and est per observer ("ii", "aov").
+    """
     sp_ii, sp_aov = specs(N, wrap, N_period)
     robot = sp_ii.robot
     n = robot.n
@@ -111,7 +133,8 @@ def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True, N=None,
 
 
 def summarize(tr, n):
-    """Convergence figures of both observers (SPEC §12.3 'Expected')."""
+    """Convergence figures of both observers (SPEC §12.3 'Expected') from the traces ``tr`` of
+    ``run_seed003``, for ``n`` joints: a dict per observer."""
     t, X = tr["t"], tr["x"]
     q, qd = X[:, :n], X[:, n:]
     res = {}
@@ -136,14 +159,16 @@ def summarize(tr, n):
 
 
 def stiffness_sweep(obs, r_grid=None):
-    """Fig. 5: ||[xi'; s_y'; s_x'; r']|| at the Table-I state for r on a log grid 1e-3..1e2."""
+    """Fig. 5: ||[xi'; s_y'; s_x'; r']|| of the I&I observer block ``obs`` at the Table-I state
+    for r on ``r_grid`` (default a log grid 1e-3..1e2, 51 points); returns (r_grid, norms)."""
     r_grid = np.logspace(-3, 2, 51) if r_grid is None else np.asarray(r_grid)
     vals = [np.linalg.norm(obs.rhs(np.concatenate([XI0, SY0, SX0, [r]]), Y0, np.zeros(2))) for r in r_grid]
     return r_grid, np.array(vals)
 
 
 def figures(tr, sweep, out, n):
-    """Figs. 2-5 of the seed (PNG, see sim/plots.py)."""
+    """Figs. 2-5 of the seed (PNG, see sim/plots.py) into ``out``, from the traces ``tr`` and the
+    ``sweep`` of ``stiffness_sweep``, for ``n`` joints."""
     t, X = tr["t"], tr["x"]
     Si, Sa = tr["states"]["ii"], tr["states"]["aov"]
     Ei, Ea = tr["est"]["ii"], tr["est"]["aov"]
@@ -165,7 +190,8 @@ def figures(tr, sweep, out, n):
 
 
 def seed003(reference, out):
-    """Registry entry (python -m codegen simulate seed003)."""
+    """Registry entry (python -m codegen simulate seed003): ``run_seed003`` with ``reference`` and
+    ``out``; returns its summary."""
     summary, _ = run_seed003(reference=reference, out=out)
     return summary
 
@@ -183,7 +209,28 @@ def seed003_ur5(reference=False, out=None, T=2.0, dt=1e-3, substeps=4, N=8):
     r(0) = 2 c_r (the theory needs r(0) > c_r) [ASSUMPTION]: psi1, psi2 (53)-(54) grow like
     r^2 k_M^2 / (k1 k_m) ||Deltabar||^2, and with ur5's k_m = 0.016, k_M = 4.7 the seed's
     r(0) = 0.1 puts the linearisation's eigenvalues at about -5e5 1/s (explicit RK4 would need
-    sub-steps below 5 us); at 2 c_r they are ~2500x smaller."""
+    sub-steps below 5 us); at 2 c_r they are ~2500x smaller.
+
+    Parameters
+    ----------
+    reference : bool
+        Observer by the numpy reference instead of the compiled C.
+    out : path-like, optional
+        Folder for run.csv and errors.png; None: nothing written.
+    T : float
+        Horizon, s.
+    dt : float
+        Sample time of plant, law and observer, s.
+    substeps : int
+        RK4 sub-steps per sample (plant and observer).
+    N : int
+        Gauss-Legendre nodes of beta.
+
+    Returns
+    -------
+    dict
+        Errors of xhat and s_x at a few times, r_max, sizes and timings.
+    """
     from models import load_robot
 
     from ...observers import build

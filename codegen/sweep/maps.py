@@ -1,0 +1,133 @@
+"""Robustness maps of a finished sweep: a metric over two axes, the best gain per noise level.
+
+    frame = Store(out).read();  designed = Store(out).get("designed.json")
+    heatmap(frame, "k0", "noise", path, designed=designed)    # median over the other axes
+    best_gain(frame, "k0", "noise", designed=designed)        # a DataFrame, one row per level
+
+Diverged cells count as +inf. The designed gain (``designed.json``, written by ``run``) is
+drawn over the map, one marker per level of the y axis, beside the swept optimum.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _observer(frame, method):
+    obs = frame[frame["kind"] == "observer"]
+    method = method or (obs["method"].iloc[0] if len(obs) else None)
+    sub = frame[frame["method"] == method].copy()
+    if sub.empty:
+        raise ValueError(f"method: no rows of {method!r}; have {sorted(frame['method'].unique())}")
+    return method, sub
+
+
+def table(frame, x, y, metric="rms", method=None):
+    """(method, pivot): the median of ``metric`` per (y, x) over every other axis (diverged
+    cells as +inf), rows y, columns x, both sorted."""
+    method, sub = _observer(frame, method)
+    for a in (x, y, metric):
+        if a not in sub.columns:
+            raise ValueError(f"{a!r} is not a column of the results; have {', '.join(sub.columns)}")
+    sub[metric] = np.where(sub["diverged"].astype(bool), np.inf, sub[metric].astype(float))
+    return method, sub.groupby([y, x])[metric].median().unstack(x).sort_index().sort_index(axis=1)
+
+
+def _designed(designed, method, y, gain):
+    """{y value: [designed gain values]} of ``method`` from designed.json rows."""
+    out = {}
+    for r in designed or ():
+        if r.get("method") == method and gain in r and y in r:
+            out.setdefault(r[y], set()).add(float(r[gain]))
+    return {k: sorted(v) for k, v in out.items()}
+
+
+def best_gain(frame, gain, by="noise", metric="rms", method=None, designed=None):
+    """Per level of ``by``: the swept gain with the lowest median ``metric``, that metric, the
+    designed gain and the metric of the swept gain nearest to it (in log), and their ratio.
+
+    Returns
+    -------
+    pandas.DataFrame
+    """
+    import pandas as pd
+    method, piv = table(frame, gain, by, metric, method)
+    des = _designed(designed, method, by, gain)
+    xs = np.asarray(piv.columns, dtype=float)
+    rows = []
+    for level, row in piv.iterrows():
+        vals = row.to_numpy(dtype=float)
+        i = int(np.nanargmin(np.where(np.isnan(vals), np.inf, vals)))
+        d = des.get(level, [np.nan])[0]
+        j = int(np.argmin(np.abs(np.log(xs) - np.log(d)))) if np.isfinite(d) and d > 0 and np.all(xs > 0) else None
+        rows.append({by: level, f"best {gain}": xs[i], f"{metric} at best": vals[i], f"designed {gain}": d,
+                     f"{metric} near designed": vals[j] if j is not None else np.nan,
+                     "near designed / best": vals[j] / vals[i] if j is not None else np.nan})
+    return pd.DataFrame(rows)
+
+
+def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=None):
+    """A map of log10(median ``metric``) over the swept values of x (columns) and y (rows),
+    each cell a grid point (equal spacing, ticks the values), the best x per row marked (x)
+    and the designed value of x per row (o, placed between the swept values in log).
+    Returns the path."""
+    import matplotlib
+    matplotlib.use("Agg")
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+    method, piv = table(frame, x, y, metric, method)
+    Z = np.log10(piv.to_numpy(dtype=float))
+    xs, ys = np.asarray(piv.columns, dtype=float), np.asarray(piv.index, dtype=float)
+    fig, ax = plt.subplots(figsize=(1.2 + 0.55 * len(xs), 1.4 + 0.4 * len(ys)))
+    im = ax.imshow(np.where(np.isfinite(Z), Z, np.nan), origin="lower", aspect="auto", cmap="viridis")
+    fig.colorbar(im, ax=ax, label=f"log10 median {metric}")
+    ax.set_xticks(range(len(xs)), [f"{v:.3g}" for v in xs], rotation=60)
+    ax.set_yticks(range(len(ys)), [f"{v:.3g}" for v in ys])
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+    for r, row in enumerate(piv.to_numpy(dtype=float)):
+        if np.any(np.isfinite(row)):
+            ax.plot(int(np.nanargmin(np.where(np.isnan(row), np.inf, row))), r, "rx", ms=9, mew=2,
+                    label="swept best" if r == 0 else None)
+    des = _designed(designed, method, y, x)
+    if des and np.all(xs > 0):
+        pos = [(np.interp(np.log(v), np.log(xs), np.arange(len(xs))), r)
+               for r, level in enumerate(ys) for v in des.get(level, []) if v > 0]
+        if pos:
+            ax.plot(*zip(*pos), "o", color="darkorange", mfc="none", ms=10, mew=2.5, label=f"designed {x}")
+    ax.legend(loc="upper left", bbox_to_anchor=(0, -0.25), ncol=2, fontsize=8, frameon=False)
+    ax.set_title(title or f"{method}: {metric} over {x} x {y}", fontsize=9)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def default_axes(sweep):
+    """(x, y) of the default map: the first gain axis over noise (else quantisation), or None
+    when the sweep has no such pair; the sweep's [map] table (x, y) wins."""
+    from .plan import AXES
+    gains = [k for k in sweep.axes if k not in AXES]
+    x = sweep.map.get("x") or (gains[0] if gains else None)
+    y = sweep.map.get("y") or next((a for a in ("noise", "quantization") if isinstance(sweep.axes.get(a), list)
+                                    and len(sweep.axes[a]) > 1), None)
+    return (x, y) if x and y else None
+
+
+def write(out, sweep):
+    """map.png and best.txt of a finished sweep in its folder (when it has a gain axis and a
+    noise or quantisation axis, or a [map] table): returns the paths written."""
+    from .store import Store
+    axes = default_axes(sweep)
+    if axes is None:
+        return []
+    store = Store(out)
+    frame, designed = store.read(), store.get("designed.json")
+    metric, method = sweep.map.get("metric", "rms"), sweep.map.get("method")
+    x, y = axes
+    fig = heatmap(frame, x, y, store.out / "map.png", metric, method, designed,
+                  title=f"{sweep.name}: {sweep.robot} ({sweep.plant} plant), median {metric} (rad/s)")
+    text = best_gain(frame, x, y, metric, method, designed).to_string(index=False, float_format="%.4g")
+    (store.out / "best.txt").write_text(text + "\n")
+    return [fig, store.out / "best.txt"]
