@@ -32,7 +32,7 @@ from .cache import cached_json
 from .sampling import declared_slots, measurements
 from .discretize import step_jacobians
 
-VERSION = 3            # of this check (part of the cache key)
+VERSION = 4            # of this check (part of the cache key)
 POINTS = 8             # sampled configurations; each at rest and moving
 TOL = 1e-6             # relative slack on the spectral radius
 GROWTH = 4.0 ** 10     # a gain is searched up to this multiple of its value (x4 at a time)
@@ -85,6 +85,7 @@ class StabilityReport:
     substeps_needed: int | None = None
     points: int = 0
     checked: bool = True
+    evaluable: bool = True     # False: the step is not finite at the working points (not judged)
 
     def as_dict(self):
         return asdict(self)
@@ -232,7 +233,10 @@ def _compute(spec, disc, p, gains, bounds=True):
     rho, flow, excess, step_error = lin.radii(p, disc.dt, accuracy=True)
     idx = {g: [spec.p_names.index(s) for s in slots] for g, slots in gains.items()}
     negative = [g for g, i in idx.items() if np.any(p[i] < 0)]
-    stable = excess <= 1 + TOL and not negative
+    # a step that is not finite at p (e.g. a guard parameter that rejects every pivot) is not
+    # judged here: the C reports it at run time (status 3); growth is what this check refuses
+    evaluable = math.isfinite(rho)
+    stable = (excess <= 1 + TOL or not evaluable) and not negative
     report = {"gains": {}}
     for g, i in idx.items():
         top, found = _max_stable(lin, p, i, disc.dt) if bounds else (None, False)
@@ -240,7 +244,7 @@ def _compute(spec, disc, p, gains, bounds=True):
                               "limit_found": found}
     report.update({
         "stable": stable, "spectral_radius": rho, "flow_radius": flow, "step_error": step_error,
-        "negative": negative, "points": lin.S})
+        "negative": negative, "points": lin.S, "evaluable": evaluable})
     if bounds and not stable and not negative:
         dt_max = _largest(lambda dt: lin.stable(p, dt), 0.0, disc.dt, 0)[0]
         report["dt_max"] = dt_max if dt_max > 0 else None
