@@ -184,10 +184,12 @@ static void set_op(OBS_STATE *s, source *in, int params)
     OBS_STATE before = *s;
     numbers(in, v, n);
     st = params ? OBS_FN(set_params)(s, v) : OBS_FN(set_state)(s, v);
-    check_status(st, finite(v, n), 0, params ? "set_params: status" : "set_state: status");
+    /* set_params retunes the state (bumpless): finite but huge values may overflow it */
+    check_status(st, finite(v, n), params, params ? "set_params: status" : "set_state: status");
     if (st != ST(OK) && !same_state(s, &before)) fail("set: state changed on error", st);
     if (st == ST(OK) && memcmp(params ? s->p : s->x, v, sizeof(real) * (size_t)n) != 0)
         fail("set: value not stored", st);
+    if (st == ST(OK) && params && !finite(s->x, OBS_NX)) fail("set_params: OK with a non-finite state", st);
 }
 
 static void null_op(OBS_STATE *s)

@@ -18,6 +18,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from .atomic import replace_dir
+from .cache import build_dir, cache_dir, package_data  # noqa: F401  (re-exported: one place for the paths)
 
 C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Wdouble-promotion"]
 # -fno-semantic-interposition: let gcc inline CasADi's non-static helpers (casadi_sq) under -fPIC
@@ -41,27 +42,6 @@ class ToolError(RuntimeError):
 
 class BuildError(ToolError):
     """The C (or C++) compiler failed or is missing."""
-
-
-def build_dir():
-    """Where outputs go unless told otherwise: $CODEGEN_BUILD, else ``build/`` in the working
-    folder (never the package's own folder, which is read-only data once installed)."""
-    return Path(os.environ.get("CODEGEN_BUILD") or "build").resolve()
-
-
-def cache_dir():
-    """$CODEGEN_CACHE, else ``build_dir()/cache``."""
-    return Path(os.environ.get("CODEGEN_CACHE") or build_dir() / "cache").resolve()
-
-
-def package_data(name):
-    """A data folder or file shipped with the package: ``codegen/<name>`` once installed (package
-    data), ``<checkout>/<name>`` in a source checkout (e.g. "c_harness")."""
-    here = Path(__file__).resolve().parent
-    for path in (here / name, here.parent / name):
-        if path.exists():
-            return path
-    raise FileNotFoundError(f"package data {name!r} not found in {here} or {here.parent}")
 
 
 def compiler(cc=None, env="CC", default="gcc"):

@@ -252,6 +252,8 @@ def _compare_source(args):
         name = args.source.removeprefix("mujoco-")
         if args.robot not in (None, name):
             raise ValueError(f"robot: scenario {args.source} is {name}, got --robot {args.robot}")
+        # a simulated sensor is what the options say: unstated means exact
+        args.quantization, args.noise = args.quantization or 0.0, args.noise or 0.0
         rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
         return rec, robot_by_name(name), mujoco.title(name, args.quantization, args.noise, args.mismatch)
     if not str(args.source).endswith(".csv"):
@@ -333,7 +335,7 @@ def _target_options(p, out_help):
     a("--param", action="append", metavar="NAME=VALUE", help="runtime parameter overriding the designed "
       "default (e.g. k0=50); repeatable")
     a("--dt", type=float, help="sample time in s (default 1e-3)")
-    a("--method", choices=METHODS, help="integrator (default rk4)")
+    a("--method", choices=METHODS, help="integrator (default etdrk4: RK4 with the gain term integrated exactly)")
     a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discretize)")
     a("--substeps", type=int, help="integrator sub-steps per sample (default 1)")
     a("--precision", choices=PRECISIONS, help="real type of the C (default double)")
@@ -385,8 +387,10 @@ def parser():
     cp.add_argument("--robot", help="robot of a CSV: catalog name or a .urdf path")
     cp.add_argument("--observers", default="reduced_order,nicosia_tomei", help="comma-separated families")
     cp.add_argument("--baselines", help="comma-separated (default: all of codegen.baselines)")
-    cp.add_argument("--quantization", type=float, default=0.0, help="encoder step (rad)")
-    cp.add_argument("--noise", type=float, default=0.0, help="Gaussian noise std (rad)")
+    cp.add_argument("--quantization", type=float,
+                    help="encoder step (rad); scenario: of its sensor (default 0); both this and --noise "
+                         "unset on a CSV: the design assumes a 2^16 counts/rev encoder")
+    cp.add_argument("--noise", type=float, help="Gaussian noise std (rad; scenario default 0)")
     cp.add_argument("--mismatch", type=float, default=0.0,
                     help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
     cp.add_argument("--T", type=float, help="scenario length (s, default 20)")

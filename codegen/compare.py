@@ -201,7 +201,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     for item in families:
         fam, given = parse_observer(item)
         try:
-            spec = observers.build(fam, robot, **{**(design or {}), **given})
+            spec = observers.build(fam, robot, **{**design_for(fam, design), **given})
         except TypeError as e:
             raise ValueError(f"observers: {item!r}: {e}") from None
         if spec.nest != robot.n or spec.ny != robot.n:
@@ -229,5 +229,22 @@ def robot_by_name(name):
 
 def design_inputs(quantization=0.0, noise=0.0, uncertainty=0.0):
     """Keyword arguments of ``observers.build`` describing the sensor (rad) and the relative
-    model uncertainty."""
-    return {}
+    model uncertainty (the noise-aware design of codegen.design.noise). quantization and noise
+    both None: the sensor is not stated, the design assumes its default encoder; 0 and 0: a
+    noise-free sensor, the guarantee gains."""
+    sensor = ({} if quantization is None and noise is None else
+              {"quantization": float(quantization or 0.0), "noise": float(noise or 0.0)})
+    return {**sensor, "uncertainty": float(uncertainty or 0.0)}
+
+
+def design_for(family, design):
+    """The keywords of ``design`` that ``family``'s build takes (families without a noise-aware
+    design ignore the sensor description)."""
+    import importlib
+    import inspect
+
+    from .observers import FAMILIES
+    if family not in FAMILIES:
+        return {}                     # observers.build names the valid families
+    params = inspect.signature(importlib.import_module(f"codegen.observers.{family}").build).parameters
+    return {k: v for k, v in (design or {}).items() if k in params}

@@ -27,6 +27,7 @@ from .atomic import replace_dir
 from .version import __version__
 from .discretize import discretize, estimate
 from .spec import ObserverSpec, real_number
+from .stability import require_stable
 from .target import REAL_TYPES, sanitize
 
 HOLD_TEXT = {
@@ -110,9 +111,10 @@ def _comment(text):
     return str(text).replace("*/", "* /").replace("\n", " ")
 
 
-def metadata(spec, target, kernels):
-    """The target's metadata JSON (dict): what was built (the Target, the spec's declared data)
-    and what the C holds (sizes, slot names, defaults, kernels, status codes, fingerprints)."""
+def metadata(spec, target, kernels, stability=None):
+    """The target's metadata JSON (dict): what was built (the Target, the spec's declared data),
+    what the C holds (sizes, slot names, defaults, kernels, status codes, fingerprints) and the
+    discrete stability check of the default parameters (codegen.stability)."""
     d = target.discretization
     return {
         "prefix": target.prefix,
@@ -127,6 +129,9 @@ def metadata(spec, target, kernels):
         "p_default": [float(v) for v in spec.p_default],
         "options": spec.options.to_dict(),
         "discretization": {**d.to_dict(), "hybrid": spec.jump is not None},
+        "rate_states": list(spec.rate_states),
+        "gains": {g: list(slots) for g, slots in spec.gains.items()},
+        "stability": stability,
         "kernels": kernels,
         "status": STATUS,
         "precision": target.precision,
@@ -164,10 +169,11 @@ def emit(target, out_dir, spec=None, force=True):
         spec = build_spec(target)
     if target.params:
         spec = with_params(spec, target.params)
+    stability = require_stable(spec, target.discretization).as_dict()   # before writing anything
     prefix = target.prefix
     fns = {"step": discretize(spec, target.discretization, target.inline),
            "estimate": estimate(spec, target.discretization, target.inline), "rhs": spec.rhs,
-           "init": spec.init}
+           "init": spec.init, "retune": retune_function(spec)}
     kernels = {}
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -187,7 +193,7 @@ def emit(target, out_dir, spec=None, force=True):
         for kfile in (tmp / f"{prefix}_kernels.c", tmp / f"{prefix}_kernels.h"):
             code = _bind_real(kfile.read_text(), prefix, target.precision)
             kfile.write_text(_void_unused(code) if kfile.suffix == ".c" else code)
-        meta = metadata(spec, target, kernels)
+        meta = metadata(spec, target, kernels, stability)
         values = template_values(meta)
         for template, name in TEMPLATES.items():
             (tmp / name.format(prefix=prefix)).write_text(render(template, values))
@@ -230,6 +236,16 @@ def check_folder(folder, target):
 def _short(value, width=60):
     text = json.dumps(value, sort_keys=True)
     return text if len(text) <= width else text[:width - 3] + "..."
+
+
+def retune_function(spec):
+    """``spec.retune``, or the identity (x, y, p_old, p_new) -> x when the estimate does not
+    depend on the parameters through the state."""
+    if spec.retune is not None:
+        return spec.retune
+    x, y = ca.SX.sym("x", spec.nx), ca.SX.sym("y", spec.ny)
+    p_old, p_new = ca.SX.sym("p_old", spec.np), ca.SX.sym("p_new", spec.np)
+    return ca.Function("retune", [x, y, p_old, p_new], [x])
 
 
 def with_params(spec, params):
@@ -289,8 +305,24 @@ def template_values(meta):
         **{key: max(v[key] for v in k.values()) for key in ("sz_arg", "sz_res")},
         **{key: max(1, max(v[key] for v in k.values())) for key in ("sz_iw", "sz_w")},
         "slot_macros": "\n".join(_slot_macros(P, meta["names"])), "status_enum": status,
+        "stability_macros": "\n".join(_stability_macros(P, meta["stability"])),
         "p_default": ", ".join(_num(v, precision) for v in meta["p_default"]) or "0",
     }
+
+
+def _stability_macros(P, report):
+    """``#define <P>_<GAIN>_MAX_STABLE <value>`` per declared gain, and the spectral radius
+    (nothing for a spec the check does not cover: a plant)."""
+    if not report.get("checked", True):
+        return ["/* not checked: no measurement (a plant, not an observer) */"]
+    out = [f"#define {P}_SPECTRAL_RADIUS {_num(report['spectral_radius'])}  "
+           "/* of the linearised step at the default parameters */"]
+    for g, v in report["gains"].items():
+        if v["max_stable"] is None:
+            continue
+        note = "" if v["limit_found"] else "  /* no instability found up to this value */"
+        out.append(f"#define {P}_{sanitize(g).upper()}_MAX_STABLE {_num(v['max_stable'])}{note}")
+    return out
 
 
 def _slot_macros(P, names):

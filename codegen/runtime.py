@@ -84,8 +84,16 @@ class CompiledObserver:
 
     ``obs.reset(y0, est0=None, p=None)``, ``obs.step(y, u) -> est``, ``obs.run(Y, U) -> EST``,
     ``obs.rhs(x, y, u)``; ``obs.state``, ``obs.params``; ``obs.meta`` is the target's metadata.
+
+    New parameters (``obs.params = p``, ``reset(..., p=p)``) are checked for discrete stability:
+    with ``obs.spec`` known (``compile_observer`` attaches it) by the full check
+    (codegen.stability), otherwise against the bounds recorded in the metadata (each gain
+    >= 0 and below its largest stable value, the others at their defaults). Setting them is
+    bumpless: the C transforms the state so that the estimate at the last measurement is kept.
     Results are float64 arrays whatever the target's precision (``obs.dtype`` is the C's).
     """
+
+    spec = None
 
     def __init__(self, lib_path, meta):
         self.lib_path = Path(lib_path).resolve()
@@ -147,7 +155,7 @@ class CompiledObserver:
         """Initialise from the first measurement y0 and an initial estimate est0 (zeros)."""
         y0 = as_vector("y0", y0, self.ny, self.dtype)
         est0 = as_vector("est0", np.zeros(self.nest) if est0 is None else est0, self.nest, self.dtype)
-        p = as_vector("p", self.p_default if p is None else p, self.np, self.dtype)
+        p = as_vector("p", self.p_default if p is None else self.check_params(p), self.np, self.dtype)
         arr = [np.ascontiguousarray(a) for a in (p, y0, est0)]
         self._check(self._init(self._s, *(a.ctypes.data_as(self._R) for a in arr)), "init")
 
@@ -237,7 +245,30 @@ class CompiledObserver:
 
     @params.setter
     def params(self, p):
+        p = self.check_params(p)
         self._check(self._set_params(self._s, self._load("p", "p", p, self.np)), "set_params")
+
+    def check_params(self, p):
+        """p as a finite vector, refused (codegen.stability.UnstableDiscretization, a ValueError)
+        when the discrete observer would be unstable with it (see the class docstring)."""
+        from .stability import UnstableDiscretization, require_stable
+        from .target import Discretization
+        p = as_vector("p", p, self.np)
+        disc = Discretization.from_dict({k: v for k, v in self.meta["discretization"].items() if k != "hybrid"})
+        if self.spec is not None:
+            require_stable(self.spec, disc, p)
+            return p
+        names = self.meta["names"]["p"]
+        for gain, g in ((self.meta.get("stability") or {}).get("gains") or {}).items():
+            idx = [names.index(s) for s in g["slots"]]
+            value = float(np.max(p[idx]))
+            top = g["max_stable"] if g["limit_found"] else None
+            if np.any(p[idx] < 0) or (top is not None and value > top):
+                raise UnstableDiscretization(
+                    f"{self.prefix}: {gain} = {value:.6g} at dt = {disc.dt:g} with {disc.method}: outside the "
+                    f"recorded stable range 0 <= {gain} <= {top if top is not None else 'inf'} (the other "
+                    f"parameters at their defaults)")
+        return p
 
     def __repr__(self):
         return f"<CompiledObserver {self.prefix} nx={self.nx} dt={self.dt} {self.precision}>"

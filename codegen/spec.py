@@ -30,6 +30,14 @@ class ObserverSpec:
       output(x, y, u, p) -> est             the estimate at the current sample
       init(y0, est0, p)  -> x0              state from a first measurement and an initial estimate
       jump(x, y, p)      -> x+   (or None)  hybrid jump map, applied before each step
+      rate(x, p)         -> a    (or None)  the flow's linear gain rate: rhs = N - a x on the
+                                            states ``rate_states`` (a constant along the flow),
+                                            integrated exactly by the default "etdrk4"
+      retune(x, y, p_old, p_new) -> x+  (or None: identity)  the state after a parameter change
+                                            at measurement y that keeps the estimate continuous
+      measurement(est)   -> y    (or None)  the measurement of a plant in the estimated state
+                                            (families estimating the whole state): consistent
+                                            working points for the stability check
 
     Declared data (what the reference and the cross-check read, never guessed):
       variant     the family's variant (None if it has none)
@@ -37,6 +45,9 @@ class ObserverSpec:
       inputs      where the cross-check draws random inputs (codegen.options.InputRanges)
       design      the design report (JSON-able dict: why the default gains are what they are)
       build_args  the keyword arguments ``observers.build`` received (plain data, for Target)
+      rate_states names of the states the linear gain term acts on (with ``rate``)
+      gains       gain name -> the parameter slots it scales together (non-negative gains the
+                  discrete stability check bisects on, codegen.stability)
     """
 
     family: str
@@ -51,11 +62,16 @@ class ObserverSpec:
     output: ca.Function
     init: ca.Function
     jump: ca.Function | None = None
+    rate: ca.Function | None = None
+    retune: ca.Function | None = None
+    measurement: ca.Function | None = None
     variant: str | None = None
     options: Options = field(default_factory=Options)
     inputs: InputRanges = DEFAULT_INPUTS
     design: dict = field(default_factory=dict)
     build_args: dict = field(default_factory=dict)
+    rate_states: tuple = ()
+    gains: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self.p_default = np.asarray(self.p_default, dtype=float).reshape(-1)
@@ -73,6 +89,15 @@ class ObserverSpec:
             if got_in != ins or got_out != outs:
                 raise ValueError(f"{self.family}: function {f.name()} has sizes {got_in}->{got_out}, "
                                  f"expected {ins}->{outs}")
+        self.rate_states = tuple(self.rate_states)
+        unknown = [s for s in self.rate_states if s not in self.x_names]
+        if unknown or (self.rate is None) != (not self.rate_states):
+            raise ValueError(f"{self.family}: rate_states {list(self.rate_states)} must name states "
+                             f"and come with a rate function")
+        self.gains = {str(g): tuple(slots) for g, slots in self.gains.items()}
+        for g, slots in self.gains.items():
+            if not slots or any(s not in self.p_names for s in slots):
+                raise ValueError(f"{self.family}: gain {g!r} scales unknown parameters {list(slots)}")
 
     nx = property(lambda self: len(self.x_names))
     ny = property(lambda self: len(self.y_names))
@@ -107,7 +132,8 @@ class ObserverSpec:
                 "names": {"x": list(self.x_names), "y": list(self.y_names), "u": list(self.u_names),
                           "p": list(self.p_names), "est": list(self.est_names)},
                 "p_default": [float(v) for v in self.p_default], "options": self.options.to_dict(),
-                "hybrid": self.jump is not None}
+                "hybrid": self.jump is not None, "rate_states": list(self.rate_states),
+                "gains": {g: list(slots) for g, slots in self.gains.items()}}
 
 
 def real_number(name, value):

@@ -25,14 +25,14 @@ def spec_of():
 
 @pytest.fixture(scope="session")
 def compiled():
-    """Cached CompiledObserver per catalog robot (dt = 1e-3, rk4)."""
+    """Cached CompiledObserver per catalog robot (the default discretisation, dt = 1e-3)."""
     from codegen import compile_observer
     from codegen.targets import default_spec
     cache = {}
 
     def get(name):
         if name not in cache:
-            cache[name] = compile_observer(default_spec(name), dt=1e-3, method="rk4")
+            cache[name] = compile_observer(default_spec(name), dt=1e-3)
         return cache[name]
     return get
 

@@ -96,7 +96,12 @@ def test_jittered_configurations_are_one_fixed_draw():
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_c_equals_reference_on_drawn_inputs(case):
-    r = cross_check(spec_of(case), count=COUNT)
+    """At the default discretisation with the fewest stable sub-steps (the tanh-smoothed Su
+    observer, eps = 1e-4, is too stiff for one step at 1 kHz: the stability check refuses it)."""
+    from codegen.stability import auto_substeps
+    from codegen.target import DEFAULT_DISCRETIZATION
+    spec = spec_of(case)
+    r = cross_check(spec, auto_substeps(spec, DEFAULT_DISCRETIZATION), count=COUNT)
     for key in ("step_est", "step_state", "rhs", "run"):
         assert r[key] <= TOL, (key, r)
 

@@ -3,8 +3,10 @@
 Every module of ``models`` and ``codegen`` is parsed (imports inside functions count too) and
 each import must point down the layers, with no cycle anywhere:
 
-    values (codegen.target, codegen.options)
-      -> models -> codegen.symbolic -> codegen.design -> observers, controllers, spec
+    values (codegen.target, codegen.options, codegen.cache: stdlib-only paths and JSON memo)
+      -> models -> codegen.symbolic -> codegen.design -> observers, controllers, spec, with the
+         discrete step and its stability check (discretize, stability, sampling: a family's
+         default gains are kept inside the stable region of the default discretisation)
       -> pipeline (discretize, emit, build, runtime, harness, trajectory, codegen itself)
       -> check  <-  reference (which imports only the values)
       -> sim, bench, compare, sweep, embedded (Cortex-M runs checked against the host), jobs, cli
@@ -20,11 +22,12 @@ PACKAGES = ("models", "codegen")
 
 # (prefix, rank): the longest matching prefix decides a module's layer
 LAYERS = [
-    ("codegen.target", 0), ("codegen.options", 0),
+    ("codegen.target", 0), ("codegen.options", 0), ("codegen.cache", 0),
     ("models", 1),
     ("codegen.symbolic", 2),
     ("codegen.design", 3),
     ("codegen.spec", 4), ("codegen.observers", 4), ("codegen.controllers", 4),
+    ("codegen.discretize", 4), ("codegen.stability", 4), ("codegen.sampling", 4),
     ("codegen", 5),                     # the pipeline: discretize, emit, build, runtime, harness, ...
     ("codegen.reference", 5),
     ("codegen.check", 6),

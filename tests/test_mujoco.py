@@ -136,18 +136,22 @@ def test_compare_cli_errors(tmp_path, capsys):
 # ------------------------------------------------------------------------------ the comparison
 @pytest.fixture(scope="module")
 def ur5_quantised():
-    """3 s of MuJoCo ur5 with a 1e-4 rad encoder: reduced-order observer at k0 = 25 and every
-    baseline tuned on the run (codegen.compare)."""
-    from codegen.compare import compare
+    """3 s of MuJoCo ur5 with a 1e-4 rad encoder: the reduced-order observer with the gain the
+    design gives for that encoder (codegen.compare.design_inputs) and every baseline tuned on
+    the run (codegen.compare)."""
+    from codegen.compare import compare, design_inputs
     from codegen.sim.scenarios import mujoco
     rec = mujoco.recording("ur5", T=3.0, quantization=1e-4)
-    return compare(rec, load_robot("ur5"), families=("reduced_order:k0=25",), t_ss=1.0)
+    return compare(rec, load_robot("ur5"), families=("reduced_order",), t_ss=1.0,
+                   design=design_inputs(quantization=1e-4))
 
 
 def test_observer_beats_the_tuned_baselines_on_mujoco(ur5_quantised):
-    """Measured over 20 s: RMS 1.75e-3 against 2.6e-3 for the best tuned baseline (Kalman),
-    below 1e-2 at 0.21 s, gain 1 +- 1e-6, lag 2 us. Asserted with margins on 3 s."""
-    obs, best = ur5_quantised["reduced_order:k0=25"].metrics, ur5_quantised.best_baseline()
+    """The default design for a 1e-4 rad encoder (k0 = ln(200)/0.2 = 26.5, the convergence
+    floor). Asserted with margins on 3 s; the 20 s figures are in the README."""
+    entry = ur5_quantised["reduced_order"]
+    assert entry.params["k0"] == pytest.approx(np.log(200) / 0.2)
+    obs, best = entry.metrics, ur5_quantised.best_baseline()
     assert best.name in ("kalman", "levant")
     assert obs["rms"] < 0.9 * best.metrics["rms"]
     assert obs["t_conv"] < 0.3
@@ -177,7 +181,8 @@ def test_simulate_mujoco_scenario_with_options(tmp_path, capsys):
     rec = read_csv(folder / "run.csv", load_robot("ur5").joint_names)
     assert np.allclose(rec.q / 1e-4, np.round(rec.q / 1e-4), atol=1e-6)    # quantised
     capsys.readouterr()
-    assert main(["compare", str(folder / "run.csv"), "--robot", "ur5", "--out", str(tmp_path / "c")]) == 0
+    assert main(["compare", str(folder / "run.csv"), "--robot", "ur5", "--quantization", "1e-4",
+                 "--out", str(tmp_path / "c")]) == 0
     table = capsys.readouterr().out
     rows = json.loads((tmp_path / "c" / "compare.json").read_text())["rows"]
     assert [r["rms"] for r in rows] == pytest.approx([summary["methods"][r["name"]]["rms"] for r in rows],
@@ -185,3 +190,13 @@ def test_simulate_mujoco_scenario_with_options(tmp_path, capsys):
     assert "kalman" in table and (tmp_path / "c" / "errors.png").is_file()
     with pytest.raises(SystemExit, match="takes no option --quantization"):
         main(["simulate", "seed000-ex1a", "--quantization", "1e-4", "--out", str(tmp_path)])
+
+
+def test_design_inputs_describe_the_sensor():
+    """compare passes the sensor and the uncertainty to the families that design for them; an
+    unstated sensor leaves the design its default encoder."""
+    from codegen.compare import design_for, design_inputs
+    assert design_inputs(None, None, 0.1) == {"uncertainty": 0.1}
+    assert design_inputs(1e-4, None) == {"quantization": 1e-4, "noise": 0.0, "uncertainty": 0.0}
+    assert set(design_for("nicosia_tomei", design_inputs(1e-4))) == {"quantization", "noise", "uncertainty"}
+    assert design_for("ii_speed", design_inputs(1e-4)) == {}

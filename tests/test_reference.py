@@ -32,7 +32,9 @@ def fake_spec(source, k0=16.037, family="reduced_order"):
     return {"family": family, "variant": None, "robot": source, "p_default": [k0],
             "names": {"p": ["k0"], "x": [f"z{i}" for i in range(n)], "y": [f"q{i}" for i in range(n)],
                       "u": [f"tau{i}" for i in range(n)], "est": [f"dq_hat{i}" for i in range(n)]},
-            "options": {"kind": "Options"}, "hybrid": False}
+            "options": {"kind": "Options"}, "hybrid": False,
+            "rate_states": [f"z{i}" for i in range(n)] if family == "reduced_order" else [],
+            "gains": {"k0": ["k0"]} if family == "reduced_order" else {}}
 
 
 # ---------------------------------------------------------------------------- independence

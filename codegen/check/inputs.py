@@ -9,6 +9,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from ..sampling import declared_slots, measurements, slot_index, torques
 from ..trajectory import demo_trajectory, elastic_measurement, elastic_trajectory
 
 Run = namedtuple("Run", "Y U truth truth_names")
@@ -48,31 +49,9 @@ def random_inputs(spec, count, seed=0):
     if _elastic(robot):       # y measured off true states, the estimate started near them
         S = robot.sample_states(count, seed)
         Y, G = elastic_measurement(spec, S), np.asarray(robot.rigid.g.map(count)(S[:, :robot.n].T)).T
-        return _states(spec, ir, Y, rng, est=S), Y, _torques(ir, G, spec.nu, rng)
-    Q = (robot.sample_configurations(count, seed) if ir.y_jitter is None else
-         robot.sample_configurations(count, 0) + ir.y_jitter * rng.normal(size=(count, robot.n)))
-    Y = np.column_stack([Q] + [m + s * rng.normal(size=count) for m, s in ir.y_extra])
-    if Y.shape[1] != spec.ny:
-        raise ValueError(f"{spec.family}: inputs give {Y.shape[1]} measurement slots, the spec has {spec.ny}")
-    U = _torques(ir, np.asarray(robot.g.map(count)(Q.T)).T, spec.nu, rng)
+        return _states(spec, ir, Y, rng, est=S), Y, torques(ir, G, spec.nu, rng)
+    Y, U = measurements(spec, count, seed, rng)
     return _states(spec, ir, Y, rng), Y, U
-
-
-def _torques(ir, G, nu, rng):
-    """u (N, nu) of ``ir.u`` from the gravity torques G (N, n)."""
-    W = ir.u_scale * rng.normal(size=(G.shape[0], nu))
-    if ir.u == "gravity":
-        return G[:, :nu] + W
-    if ir.u == "scaled":
-        return W * np.maximum(1.0, np.abs(G).max(axis=0))[:nu]
-    return W
-
-
-def _slot(spec, names, name):
-    """Index of slot ``name`` in ``names`` (ValueError naming the family and slot)."""
-    if name not in names:
-        raise ValueError(f"{spec.family}: inputs name slot {name!r}, not one of {list(names)}")
-    return names.index(name)
 
 
 def _states(spec, ir, Y, rng, est=None):
@@ -81,7 +60,7 @@ def _states(spec, ir, Y, rng, est=None):
     count = Y.shape[0]
     p = spec.p_default.copy()
     for name, value in ir.init_p:
-        p[_slot(spec, spec.p_names, name)] = value
+        p[slot_index(spec, spec.p_names, name)] = value
     EST = ir.est_scale * rng.normal(size=(count, spec.nest)) if est is None else est
     X0 = np.asarray(spec.init.map(count)(Y.T, EST.T, np.tile(p[:, None], count))).T.reshape(count, spec.nx)
     scale = np.asarray(ir.x_scale, dtype=float)
@@ -89,18 +68,10 @@ def _states(spec, ir, Y, rng, est=None):
         raise ValueError(f"{spec.family}: inputs x_scale has {scale.size} entries, the spec has nx = {spec.nx}")
     scale = np.broadcast_to(scale, (spec.nx,))
     X = X0 + rng.normal(size=(count, spec.nx)) * scale
-    if ir.x_about_y:
-        fine = None if ir.x_fine is None else rng.uniform(size=count) < 0.5
-        for xs, ys in ir.x_about_y:
-            i, j = _slot(spec, spec.x_names, xs), _slot(spec, spec.y_names, ys)
-            s = scale[i] if fine is None else np.where(fine, ir.x_fine, scale[i])
-            X[:, i] = Y[:, j] + s * rng.normal(size=count)
-    for name, lo, hi in ir.x_uniform:
-        X[:, _slot(spec, spec.x_names, name)] = rng.uniform(lo, hi, size=count)
-    for name, mean, std in ir.x_normal:
-        X[:, _slot(spec, spec.x_names, name)] = mean + std * rng.normal(size=count)
-    for name, lo, hi in ir.x_integer:
-        X[:, _slot(spec, spec.x_names, name)] = rng.integers(lo, hi + 1, size=count)
+    fine = None if not ir.x_about_y or ir.x_fine is None else rng.uniform(size=count) < 0.5
+    spread = {i: (s if fine is None else np.where(fine, ir.x_fine, s)) for i, s in enumerate(scale)}
+    for i, values in declared_slots(spec, Y, rng, spread).items():
+        X[:, i] = values
     return X
 
 

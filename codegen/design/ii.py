@@ -99,7 +99,7 @@ def _affine_derivatives(robot, split):
 
 def _frobenius_bound(robot, hm_fun, points, refine):
     """max_q max_{|v|=1} ||sum_m v_m H^(m)(q)||_F (= sqrt of lambda_max of the Gram matrix of
-    the H^(m) in the Frobenius inner product), sampled then refined by Nelder-Mead."""
+    the H^(m) in the Frobenius inner product), sampled then refined by a pattern search."""
     n = robot.n
 
     def val(pts):
@@ -108,7 +108,7 @@ def _frobenius_bound(robot, hm_fun, points, refine):
         G = np.einsum("ismj,islj->sml", A, A)
         return np.sqrt(np.maximum(np.linalg.eigvalsh(G)[:, -1], 0.0))
 
-    return refine_max(lambda q: val(q)[0], robot, points, val(points), 3 if refine else 0)[0]
+    return refine_max(val, robot, points, val(points), 3 if refine else 0)[0]
 
 
 def _lemma2(robot, split, points, refine):
@@ -150,7 +150,7 @@ def ii_speed_bounds(robot, samples=2000, seed=0, refine=True):
     """k_m, k_M, k_c and the Lemma-1/Lemma-2 bounds of the I&I speed observer [S003 (21), (27)].
 
     Sups over configurations: ``samples`` uniform samples of the joint ranges (plus the centre),
-    then local refinement (Nelder-Mead for k_m, k_M, k_c, k_cF; a batch pattern search for the
+    then local refinement (pattern searches for k_m, k_M, k_c, k_cF and for the
     partial derivatives of H) unless ``refine`` is False.
 
     Parameters

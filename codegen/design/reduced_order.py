@@ -7,16 +7,27 @@
     Remark 3: k0 = [c0bar (v_max + eta) - lambda_min(F)] / (2 lambda1)
     k_r     = max_q [c0(q)(eta + r vbar) - lambda_min(F)] / lambda_min(M(q))     (16)
 
-Maxima over configurations by ``ConfigurationStats`` (sampled, then refined locally).
+Maxima over configurations by ``ConfigurationStats`` (sampled, then refined locally), kept on
+disk by robot content (codegen.cache). The default gain of the observer families is the
+noise-aware one (``reduced_order_design``, codegen.design.noise); (12) stays in its report.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
+import casadi as ca
 import numpy as np
 
-from .configurations import ConfigurationStats
+from ..cache import cached_json, key_digest
+from .configurations import ConfigurationStats, sample_points
+from .noise import (NoiseAwareDesign, check_uncertainty, convergence_floor, gravity_statistics,
+                    reduced_order_noise_gain, sensor_sigma)
+
+VERSION = 2          # of these designs (part of the disk-cache key)
+SAMPLES = 512        # sampled configurations
+REFINE = 8           # local searches from the best samples
 
 
 @dataclass
@@ -50,7 +61,7 @@ class ReducedOrderDesign:
             f"  c0bar = {self.c0bar:.6g},  lambda_min(F) = {self.lambda_min_F:.6g}",
             f"  lambda1 = {self.lambda1:.6g}, lambda2 = {self.lambda2:.6g}   (8)",
             f"  region of attraction contains |eps| < eta sqrt(lambda1/lambda2) = {self.radius:.4g}   (13)",
-            f"  ({self.samples} sampled configurations, best 3 refined locally)",
+            f"  ({self.samples} sampled configurations, best {REFINE} refined locally)",
         ])
 
 
@@ -64,21 +75,36 @@ def _gain_objective(lamF, speed):
     return lambda lmin, lmax, c0: (c0 * speed - lamF) / lmin
 
 
+def robot_key(robot):
+    """What a design depends on: the content of M(q) and g(q), F and the joint ranges."""
+    return key_digest([robot.M.serialize(), robot.g.serialize(), np.asarray(robot.F).tolist(),
+                       np.asarray(robot.q_lower).tolist(), np.asarray(robot.q_upper).tolist()])
+
+
+def _disk(kind, robot, compute, **inputs):
+    return cached_json("design", {"kind": kind, "version": VERSION, "robot": robot_key(robot), **inputs},
+                       compute)
+
+
 @lru_cache(maxsize=32)
 def _design_cached(robot, eta, v_max, samples, seed):
-    stats = ConfigurationStats(robot, samples, seed)
-    lamF = _lambda_min_F(robot)
-    k0, q_k0 = stats.maximise(_gain_objective(lamF, v_max + eta))
-    lmin, lmax, c0bar = stats.extremes()
-    lambda1, lambda2 = lmin / 2, lmax / 2
-    return ReducedOrderDesign(
-        robot=robot.name, eta=eta, v_max=v_max, lambda_min_F=lamF, k0=k0, q_k0=np.asarray(q_k0),
-        k0_remark3=(c0bar * (v_max + eta) - lamF) / (2 * lambda1), c0bar=c0bar,
-        lambda1=lambda1, lambda2=lambda2, radius=eta * np.sqrt(lambda1 / lambda2), samples=samples)
+    def compute():
+        stats = ConfigurationStats(robot, samples, seed)
+        lamF = _lambda_min_F(robot)
+        k0, q_k0 = stats.maximise(_gain_objective(lamF, v_max + eta), REFINE)
+        lmin, lmax, c0bar = stats.extremes(REFINE)
+        lambda1, lambda2 = lmin / 2, lmax / 2
+        return dict(robot=robot.name, eta=eta, v_max=v_max, lambda_min_F=lamF, k0=k0,
+                    q_k0=[float(x) for x in q_k0],
+                    k0_remark3=(c0bar * (v_max + eta) - lamF) / (2 * lambda1), c0bar=c0bar,
+                    lambda1=lambda1, lambda2=lambda2, radius=eta * math.sqrt(lambda1 / lambda2),
+                    samples=samples)
+    d = _disk("reduced_order_gain", robot, compute, eta=eta, v_max=v_max, samples=samples, seed=seed)
+    return ReducedOrderDesign(**{**d, "robot": robot.name, "q_k0": np.asarray(d["q_k0"])})
 
 
-def reduced_order_gain(robot, eta=1.0, v_max=2.0, samples=2000, seed=0):
-    """Design k0 for the reduced-order observer [S000 (12)] (cached).
+def reduced_order_gain(robot, eta=1.0, v_max=2.0, samples=SAMPLES, seed=0):
+    """Design k0 for the reduced-order observer [S000 (12)] (cached in memory and on disk).
 
     Parameters
     ----------
@@ -96,7 +122,22 @@ def reduced_order_gain(robot, eta=1.0, v_max=2.0, samples=2000, seed=0):
     return _design_cached(robot, float(eta), float(v_max), int(samples), int(seed))
 
 
-def scheduled_gains(robot, eta=1.0, vbar=2.0, r_max=6, samples=2000, seed=0):
+@lru_cache(maxsize=32)
+def _scheduled_cached(robot, eta, vbar, r_max, samples, seed):
+    def compute():
+        stats = ConfigurationStats(robot, samples, seed)
+        lamF = _lambda_min_F(robot)
+        gains, q = [], None
+        for r in range(1, r_max + 1):       # after r = 1: from the previous maximiser and 2 samples
+            k, q = stats.maximise(_gain_objective(lamF, eta + r * vbar), REFINE if q is None else 2,
+                                  starts=None if q is None else q[None])
+            gains.append(k)
+        return gains
+    return np.array(_disk("scheduled_gains", robot, compute, eta=eta, vbar=vbar, r_max=r_max,
+                          samples=samples, seed=seed))
+
+
+def scheduled_gains(robot, eta=1.0, vbar=2.0, r_max=6, samples=SAMPLES, seed=0):
     """k_r for r = 1..r_max [S000 (16)]: max_q [c0(q)(eta + r vbar) - lambda_min(F)] / lambda_min(M(q)).
 
     Parameters
@@ -107,8 +148,48 @@ def scheduled_gains(robot, eta=1.0, vbar=2.0, r_max=6, samples=2000, seed=0):
 
     Returns
     -------
-    (r_max,) array of gains k_1 .. k_r_max [1/s]."""
-    stats = ConfigurationStats(robot, samples, seed)
-    lamF = _lambda_min_F(robot)
-    return np.array([stats.maximise(_gain_objective(lamF, eta + r * vbar))[0]
-                     for r in range(1, r_max + 1)])
+    (r_max,) array of gains k_1 .. k_r_max [1/s] (cached in memory and on disk)."""
+    return _scheduled_cached(robot, float(eta), float(vbar), int(r_max), int(samples), int(seed))
+
+
+@lru_cache(maxsize=32)
+def model_statistics(robot, samples=SAMPLES, seed=0):
+    """``noise.gravity_statistics`` of ``robot`` over the design's sampled configurations."""
+    q = ca.SX.sym("q", robot.n)
+    dg = ca.Function("dg", [q], [ca.jacobian(robot.gravity(q), q)])
+    return gravity_statistics(robot.M, robot.g, dg, sample_points(robot, samples, seed))
+
+
+def reduced_order_design(robot, dt, noise=None, quantization=None, uncertainty=0.0, eta=1.0, v_max=2.0,
+                         t_conv=0.2):
+    """The default k0: the predicted-error minimiser for the sensor and model uncertainty,
+    next to the guarantee (12) and Remark 3 (codegen.design.noise).
+
+    Parameters
+    ----------
+    robot : RobotModel (n joints)
+    dt : float, sample time (s)
+    noise, quantization : float or None, Gaussian std and quantisation step of y (rad);
+        both None: a 2^16 counts/rev encoder
+    uncertainty : float, relative error of masses and inertias (0.1 = 10 %)
+    eta, v_max : float, (12)'s error radius and speed bound (rad/s); v_max is also the initial
+        error of the convergence floor (the estimate starts at 0, the robot at up to v_max)
+    t_conv : float, time (s) to fall below 1e-2 rad/s from v_max
+
+    Returns
+    -------
+    NoiseAwareDesign"""
+    uncertainty = check_uncertainty(uncertainty)
+    sigma = sensor_sigma(noise, quantization)
+    guarantee = reduced_order_gain(robot, eta=eta, v_max=v_max)
+    stats = model_statistics(robot)
+    e_rms, G = uncertainty * stats["minv_g_rms"], stats["minv_dg_rms"]
+    floor = convergence_floor(v_max, t_conv)
+    k0, choice, why, k_noise, predicted = reduced_order_noise_gain(robot.n, dt, sigma, e_rms, G, floor,
+                                                                   guarantee.k0)
+    return NoiseAwareDesign(
+        robot=robot.name, k0=float(k0), choice=choice, why=why, k0_noise=float(k_noise), k0_floor=floor,
+        k0_guarantee=guarantee.k0, k0_remark3=guarantee.k0_remark3,
+        predicted_error=predicted, sigma=sigma, noise=noise, quantization=quantization,
+        uncertainty=uncertainty, e_rms=e_rms, G=G, dt=float(dt), t_conv=float(t_conv), eta=float(eta),
+        v_max=float(v_max), guarantee=guarantee.as_dict())

@@ -130,6 +130,7 @@ def build(robot, variant="O1", eigenvalues=None, gains=None, rcond_min=1e-12):
         rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
         output=ca.Function("output", [x, y, u, p], [x]),
         init=ca.Function("init", [y0, est0, p], [est0]),   # every integrator starts at x0_hat [CODE-CP]
+        measurement=ca.Function("measurement", [x], [H]),
         variant=variant, options=VariantOptions(variant=variant),
         design={"structured_solve": structured, "degrees": degs, "rows": rows,
                 "eigenvalues": None if eigenvalues is None else np.asarray(eigenvalues, float).tolist()},

@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ..design import scheduled_gains
+from ..design import reduced_order_design, scheduled_gains
 from ..options import HybridOptions, InputRanges
 from ..spec import ObserverSpec
+from ._design import check_design, design_discretization, stable_report
 from .reduced_order import flow
 
 
@@ -56,7 +57,8 @@ def switch(r, speed, eta, vbar, delta, r_max):
     return r
 
 
-def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None):
+def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, quantization=None,
+          uncertainty=0.0, design="noise", dt=None, t_conv=0.2):
     """Hybrid reduced-order observer for ``robot``.
 
     Parameters
@@ -68,13 +70,26 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None):
     delta : float
         Down-jump tolerance layer (rad/s) [ASSUMPTION SPEC §1.3: 0.1].
     gains : sequence of r_max floats, optional
-        k_1 .. k_{r_max}; designed by (16) (``design.scheduled_gains``) when not given.
+        k_1 .. k_{r_max}; given, they bypass the design (not the stability check).
+    noise, quantization, uncertainty, dt, t_conv
+        As in ``reduced_order.build``.
+    design : {"noise", "guarantee"}
+        "guarantee": the (16) table; "noise" (default): k_1 is the noise-aware reduced-order gain
+        (with v_max = vbar) and the increments k_r - k_1 of (16) are kept.
     """
     if int(r_max) != r_max or r_max < 1:
         raise ValueError(f"r_max must be a positive integer, got {r_max!r}")
     r_max = int(r_max)
+    report = {}
     if gains is None:
-        gains = scheduled_gains(robot, eta=eta, vbar=vbar, r_max=r_max)
+        disc = design_discretization(dt)
+        table = scheduled_gains(robot, eta=eta, vbar=vbar, r_max=r_max)
+        gains = table
+        report = {"k_r (16)": table.tolist(), "design": check_design(design)}
+        if design == "noise":
+            nd = reduced_order_design(robot, disc.dt, noise, quantization, uncertainty, eta, vbar, t_conv)
+            gains = nd.k0 + (table - table[0])         # the (16) increments on the noise-aware k_1
+            report["k_1"] = nd.as_dict()
     gains = [float(g) for g in gains]
     if len(gains) != r_max:
         raise ValueError(f"gains: expected {r_max} values k_1..k_{r_max}, got {len(gains)}")
@@ -90,10 +105,12 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None):
     x2hat, zdot = flow(robot, z, y, tau, k_r)                         # [S000 (6)] with k_r of (16)
     r_plus = switch(logic_index(r, r_max), ca.norm_2(x2hat), eta_s, vbar_s, delta_s, r_max)
     z_plus = z + (k_r - scheduled_gain(r_plus, ca.vertsplit(k))) * y  # [DERIVED] x2hat continuous
+    p_new = ca.SX.sym("p_new", p.numel())
+    z_retuned = z + (k_r - scheduled_gain(r, ca.vertsplit(p_new[:r_max]))) * y   # likewise at a retune
 
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     joints = robot.joint_names
-    return ObserverSpec(
+    spec = ObserverSpec(
         family="reduced_order_hybrid", robot=robot,
         x_names=[f"z_{j}" for j in joints] + ["r"], y_names=[f"q_{j}" for j in joints],
         u_names=[f"tau_{j}" for j in joints], p_names=gain_names(r_max) + ["eta", "vbar", "delta"],
@@ -103,8 +120,13 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None):
         # [S000 §V] r(0) = 1; [CODE-KUKA] z(0) = x2hat(0) - k_1 y(0); the first jump raises r if needed
         init=ca.Function("init", [y0, est0, p], [ca.vertcat(est0 - k[0] * y0, 1)]),
         jump=ca.Function("jump", [x, y, p], [ca.vertcat(z_plus, r_plus)]),
+        # the flow is [FD - k_r^2 y] - k_r z on z (r' = 0: k_r constant along it)
+        rate=ca.Function("rate", [x, p], [k_r]), rate_states=[f"z_{j}" for j in joints],
+        retune=ca.Function("retune", [x, y, p, p_new], [ca.vertcat(z_retuned, r)]),
+        gains={"k_r": tuple(gain_names(r_max))},
         options=HybridOptions(r_max=r_max),
         inputs=InputRanges(x_integer=(("r", 1, r_max),)),
         design={"eta": float(eta), "vbar": float(vbar), "r_max": r_max, "delta": float(delta),
-                "k_r": gains},
+                "k_r": gains, **report},
     )
+    return stable_report(spec, disc) if report else spec

@@ -59,5 +59,6 @@ def build(robot, A=2000.0, K2=2000.0, Ka=10000.0, Q_lyap=2000.0, K1=None):
         rhs=ca.Function("rhs", [x, y, u, p], [xdot]),
         output=ca.Function("output", [x, y, u, p], [x[:4 * n]]),
         init=ca.Function("init", [y0, est0, p], [ca.vertcat(est0, ca.SX.zeros(n))]),  # filter x0 = 0 [CODE-CP]
+        measurement=ca.Function("measurement", [est0], [est0[:2 * n]]),               # y = (q1, q1')
         design={"Q_lyap": Q_lyap.tolist(), "K1_from_lyapunov": K1.tolist()},
     )

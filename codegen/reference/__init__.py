@@ -84,6 +84,17 @@ def _vector(value, n, name):
     return a
 
 
+def _jacobian(f, x, rel=1e-6):
+    """Central-difference Jacobian of f at x (steps rel max(1, |x_j|))."""
+    cols = []
+    for j in range(len(x)):
+        h = rel * max(1.0, abs(x[j]))
+        e = np.zeros(len(x))
+        e[j] = h
+        cols.append((np.asarray(f(x + e), float) - np.asarray(f(x - e), float)) / (2 * h))
+    return np.column_stack(cols) if cols else np.zeros((0, 0))
+
+
 def _matrix(value, N, n, name, n_rows_name="N"):
     """A finite float64 array of shape (N, n) (N None: any), or ValueError naming it."""
     try:
@@ -141,13 +152,77 @@ class ReferenceObserver:
         if self.hybrid and not hasattr(self.family, "jump"):
             raise ValueError(f"{family_name}: the spec has a jump map but the reference family has none")
 
-        self.p_default = _vector(desc["p_default"], self.np, "p_default")
-        self.params = self.p_default.copy()
-        self._x = None
+        has_rate = bool(desc.get("rate_states"))
+        if has_rate != hasattr(self.family, "rate"):
+            raise ValueError(f"{family_name}: the spec {'declares' if has_rate else 'has no'} a gain rate "
+                             f"but the reference family {'has none' if has_rate else 'does'}")
+        self._mask = self.family.rate_states(self.robot) if has_rate else None
 
-    # ------------------------------------------------------------ continuous time
-    def _p(self, p):
-        return self.params if p is None else _vector(p, self.np, "p")
+        self.gains = {g: list(slots) for g, slots in (desc.get("gains") or {}).items()}
+        self.p_default = _vector(desc["p_default"], self.np, "p_default")
+        self._p = self.p_default.copy()
+        self._x = None
+        self._y_last = None   # the last measurement (set by reset and step), for retuning
+
+    # ------------------------------------------------------------ parameters
+    @property
+    def params(self):
+        """Copy of the runtime parameters."""
+        return self._p.copy()
+
+    @params.setter
+    def params(self, p):
+        """New parameters, refused (ValueError) when a declared gain is negative or the step is
+        unstable at the current state (``check_params``); the state is then transformed
+        (``retune`` of the family, if any) so that the estimate at the last measurement is
+        unchanged (bumpless retuning)."""
+        p = _vector(p, self.np, "p")
+        x = self._retuned(p)
+        self.check_params(p, x)
+        self._x, self._p = x, p
+
+    def _retuned(self, p):
+        """The state that keeps the estimate at the last measurement under parameters p."""
+        retune = getattr(self.family, "retune", None)
+        if retune is None or self._x is None:
+            return self._x
+        return np.asarray(retune(self.robot, self._x, self._y_last, self._p, p), dtype=float).reshape(self.nx)
+
+    def check_params(self, p, x=None):
+        """The reference's own stability check of parameters p: each declared gain >= 0, and, at
+        the state x (default: the current one, retuned to p) and the last measurement held, the
+        spectral radius of the step's Jacobian
+        (central differences) at most that of the exact linearised flow, exp(dt max Re eig J),
+        J = (J(x) + J(x_next))/2 by central differences, or 1 (relative slack 1e-5).
+        ValueError naming the gain, dt and method otherwise."""
+        p = _vector(p, self.np, "p")
+        where = f"at dt = {self.dt:g} with {self.method}"
+        for gain, slots in self.gains.items():
+            values = p[[self.p_names.index(s) for s in slots]]
+            if np.any(values < 0):
+                raise ValueError(f"{gain} = {values.max():.6g} {where}: {gain} must be >= 0")
+        x0 = self._retuned(p) if x is None else x
+        if x0 is None:
+            return
+        y = self._y_last
+        u = self._prev[1] if self._prev is not None else np.zeros(self.nu)
+        saved = self._p
+        try:
+            self._p = p
+            step = lambda x: self._advance(x, (y, u), y, u)[1]                        # noqa: E731
+            flow = lambda x: np.asarray(self.family.rhs(self.robot, x, y, u, p), float)  # noqa: E731
+            Phi = _jacobian(step, x0)
+            J = 0.5 * (_jacobian(flow, x0) + _jacobian(flow, step(x0)))
+        finally:
+            self._p = saved
+        rho = np.max(np.abs(np.linalg.eigvals(Phi)))
+        rho_c = max(1.0, float(np.exp(self.dt * np.max(np.linalg.eigvals(J).real))))
+        if not rho <= rho_c * (1 + 1e-5):
+            raise ValueError(f"parameters {dict(zip(self.p_names, p.tolist()))} {where}: spectral radius "
+                             f"{rho:.4g} > {rho_c:.4g} (the continuous-time observer's) at the current state")
+
+    def _p_or(self, p):
+        return self._p if p is None else _vector(p, self.np, "p")
 
     def rhs(self, x, y, u, p=None):
         """Flow xdot = rhs(x, y, u, p) of the continuous-time observer.
@@ -165,12 +240,12 @@ class ReferenceObserver:
         (nx,) array
         """
         return self.family.rhs(self.robot, _vector(x, self.nx, "x"), _vector(y, self.ny, "y"),
-                               _vector(u, self.nu, "u"), self._p(p))
+                               _vector(u, self.nu, "u"), self._p_or(p))
 
     def output(self, x, y, u, p=None):
         """Estimate est = output(x, y, u, p) (nest,); arguments as in ``rhs``."""
         return self.family.output(self.robot, _vector(x, self.nx, "x"), _vector(y, self.ny, "y"),
-                                  _vector(u, self.nu, "u"), self._p(p))
+                                  _vector(u, self.nu, "u"), self._p_or(p))
 
     def jump(self, x, y, p=None):
         """Hybrid jump map x+ = jump(x, y, p) (nx,), the identity for non-hybrid families;
@@ -178,7 +253,7 @@ class ReferenceObserver:
         x = _vector(x, self.nx, "x")
         if not self.hybrid:
             return x
-        return self.family.jump(self.robot, x, _vector(y, self.ny, "y"), self._p(p))
+        return self.family.jump(self.robot, x, _vector(y, self.ny, "y"), self._p_or(p))
 
     # ------------------------------------------------------------ discrete time
     @property
@@ -213,17 +288,18 @@ class ReferenceObserver:
         x0 = np.asarray(self.family.init(self.robot, y0, est0, p), dtype=float).reshape(self.nx)
         if not np.all(np.isfinite(x0)):
             raise FloatingPointError(f"non-finite initial state {x0}")
-        self.params, self._x, self._prev = p, x0, None
+        self._p, self._x, self._prev, self._y_last = p, x0, None, y0
         return self.state
 
     def _flow(self, x, y_of_t, u, dt):
-        p = self.params
+        p = self._p
+        rate = self.family.rate(self.robot, x, p) if self._mask is not None else None
         return discretize.integrate(lambda t, xi: self.family.rhs(self.robot, xi, y_of_t(t), u, p),
-                                    x, dt, self.method, self.substeps)
+                                    x, dt, self.method, self.substeps, rate, self._mask)
 
     def _advance(self, x, prev, y, u):
         """(est, x_next) for one sample from state x; raises on a non-finite result."""
-        p = self.params
+        p = self._p
         if self.hold == "foh" and prev is not None:
             yp, up = prev
             x = self._flow(x, lambda t: yp + (t / self.dt) * (y - yp), up, self.dt)
@@ -256,7 +332,7 @@ class ReferenceObserver:
         y = _vector(y, self.ny, "y")
         u = _vector(u, self.nu, "u")
         est, self._x = self._advance(self._x, self._prev, y, u)
-        self._prev = (y, u)
+        self._prev, self._y_last = (y, u), y
         return est
 
     def estimate(self, y, u):
@@ -286,4 +362,6 @@ class ReferenceObserver:
             EST[k], x = self._advance(x, prev, Y[k], U[k])
             prev = (Y[k], U[k])
         self._x, self._prev = x, prev
+        if len(Y):
+            self._y_last = Y[-1]
         return EST

@@ -47,6 +47,16 @@ def rhs(robot, x, y, u, p):
     return np.concatenate([v, robot.forward_dynamics(y, v, u + kp * x1tilde)])
 
 
+def rate(robot, x, p):
+    """The gain rate kd of x1hat' = [x2hat + kd y] - kd x1hat (integrated exactly by etdrk4)."""
+    return float(p[0])
+
+
+def rate_states(robot):
+    """0/1 per state: the linear term -kd x1hat acts on x1hat."""
+    return np.concatenate([np.ones(robot.n), np.zeros(robot.n)])
+
+
 def init(robot, y0, est0, p):
     """x(0) = [x1hat(0) = y0; x2hat(0) = est0] (2n,)  [CODE-KUKA]; y0 (n,) rad, est0 (n,) rad/s."""
     return np.concatenate([np.asarray(y0, float), np.asarray(est0, float)])

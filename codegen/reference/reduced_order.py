@@ -44,6 +44,21 @@ def rhs(robot, x, y, u, p):
     return robot.forward_dynamics(y, x2hat, u) - p[0] * x2hat
 
 
+def rate(robot, x, p):
+    """The gain rate a = k0 of z' = [FD - k0^2 y] - k0 z, on every state (integrated exactly by etdrk4)."""
+    return float(p[0])
+
+
+def rate_states(robot):
+    """0/1 per state: the linear gain term acts on all of z."""
+    return np.ones(robot.n)
+
+
+def retune(robot, x, y, p_old, p_new):
+    """z+ = z + (k0_old - k0_new) y: x2hat = z + k0 y continuous at a change of k0."""
+    return np.asarray(x, dtype=float) + (p_old[0] - p_new[0]) * np.asarray(y, dtype=float)
+
+
 def init(robot, y0, est0, p):
     """z(0) = x2hat(0) - k0 y(0)  [CODE-KUKA] (n,), rad/s; y0 = q(0) (n,) rad, est0 = x2hat(0)
     (n,) rad/s, p as in ``output``."""

@@ -92,6 +92,22 @@ def jump(robot, x, y, p):
     return np.append(z_plus, float(r))
 
 
+def rate(robot, x, p):
+    """The gain rate k_r of the flow on z (r' = 0, so constant along it)."""
+    return float(gain(x, p))
+
+
+def rate_states(robot):
+    """0/1 per state: the linear gain term acts on z, not on r."""
+    return np.append(np.ones(robot.n), 0.0)
+
+
+def retune(robot, x, y, p_old, p_new):
+    """z+ = z + (k_r(p_old) - k_r(p_new)) y, r unchanged: x2hat continuous at a change of gains."""
+    x = np.asarray(x, dtype=float)
+    return np.append(x[:-1] + (gain(x, p_old) - gain(x, p_new)) * np.asarray(y, float), x[-1])
+
+
 def init(robot, y0, est0, p):
     """x(0) = [x2hat(0) - k_1 y(0); 1] (n + 1,)  [S000 §V, CODE-KUKA]; y0 = q(0) (n,) rad,
     est0 = x2hat(0) (n,) rad/s, p as in ``output``."""

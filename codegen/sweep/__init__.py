@@ -83,7 +83,7 @@ def prepare(sweep, robot, out):
     import json
 
     from .. import observers
-    from ..compare import design_inputs, parse_observer
+    from ..compare import design_for, design_inputs, parse_observer
     from ..emit import emit
     from ..sim.blocks import compiler_flags
     from ..target import discretization
@@ -99,7 +99,7 @@ def prepare(sweep, robot, out):
             inputs = {} if point is None else design_inputs(point["quantization"], point["noise"],
                                                             abs(point["mismatch"]))
             try:
-                specs[key] = observers.build(fam, robot, **{**inputs, **given})
+                specs[key] = observers.build(fam, robot, **{**design_for(fam, inputs), **given})
             except TypeError as e:
                 raise ValueError(f"observers: {item!r}: {e}") from None
         return specs[key]

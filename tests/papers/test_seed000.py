@@ -18,7 +18,7 @@ def robot():
 
 @pytest.fixture(scope="module")
 def hybrid_spec(robot):
-    return observers.build("reduced_order_hybrid", robot, eta=1.0, vbar=2.0, delta=0.1)
+    return observers.build("reduced_order_hybrid", robot, eta=1.0, vbar=2.0, delta=0.1, design="guarantee")
 
 
 @pytest.fixture(scope="module")
@@ -110,10 +110,19 @@ def test_hybrid_init_and_gains(hybrid_spec, hybrid):
         observers.build("reduced_order_hybrid", S.robot(), gains=[1.0, 2.0], r_max=3)
 
 
+def test_hybrid_noise_design_keeps_the_increments_of_16(robot, hybrid_spec):
+    """design="noise" (default): k_1 is the noise-aware reduced-order gain, k_r - k_1 as in (16)."""
+    spec = observers.build("reduced_order_hybrid", robot, eta=1.0, vbar=2.0, delta=0.1)
+    k1 = observers.build("reduced_order", robot, eta=1.0, v_max=2.0).p_default[0]
+    table = hybrid_spec.p_default[:6]
+    assert np.allclose(spec.p_default[:6], k1 + table - table[0], rtol=1e-12)
+
+
 def test_nicosia_tomei_defaults_and_equations(robot):
-    """K_D = k0 I (12), K_P = 500 I; x1hat(0) = y(0); C evaluated at x1hat' (A0-6)."""
-    spec = observers.build("nicosia_tomei", robot)
-    k0 = observers.build("reduced_order", robot).p_default[0]
+    """The paper's setting (design="guarantee"): K_D = k0 I (12), K_P = 500 I; x1hat(0) = y(0);
+    C evaluated at x1hat' (A0-6)."""
+    spec = observers.build("nicosia_tomei", robot, design="guarantee")
+    k0 = observers.build("reduced_order", robot, design="guarantee").p_default[0]
     assert spec.params == pytest.approx({"kd": k0, "kp": 500.0})
     obs = compile_observer(spec)
     obs.reset([0.3, -0.2], est0=[1.0, 2.0])

@@ -34,6 +34,7 @@ NOISE_1A = dict(noise_std=2e-4, quantum=7e-4)    # [S000 Ex. 1a] Delta_q; sigma 
 NOISE_HIGH = dict(noise_std=1e-3, quantum=7e-4)  # [ASSUMPTION SPEC §12.1] "high level of noise"
 ETA, VMAX, VBAR = 1.0, 2.0, 2.0                  # [S000 §V]
 DELTA_SPEC = 0.1                                 # [ASSUMPTION SPEC §1.3] down-jump tolerance
+PAPER = "guarantee"                              # the papers' gains: (12), (16), K_P = 500 I
 DELTA_HIGH_NOISE = 0.3   # [ASSUMPTION SPEC §1.3 "scale delta with the noise"]: > noise peak of x2hat (~0.2)
 DELTA_WHY = ("Example 2 uses delta = 0.3, not SPEC's 0.1: with sigma = 1e-3 rad at 1 kHz the noise "
              "alone moves ||x2hat|| by more than 0.1 rad/s about ||x2|| (noise_on_speed_peak), so with "
@@ -123,7 +124,7 @@ def example1(reference=False, noisy=True, mass_scale=1.0, T=T_OPEN, dt=DT, seed=
     Returns (Result, summary)."""
     from ...observers import build
     nominal = robot()
-    obs = {f: observer(build(f, nominal, eta=ETA, v_max=VMAX), reference, dt, hold=hold)
+    obs = {f: observer(build(f, nominal, eta=ETA, v_max=VMAX, design=PAPER), reference, dt, hold=hold)
            for f in ("reduced_order", "nicosia_tomei")}
     sensor = Sensor(**NOISE_1A, seed=seed) if noisy else Sensor()
     res = simulate(plant(mass_scale, dt), Q0, QD0, T, dt, open_loop_law(1, dt), obs, sensor=sensor)
@@ -174,7 +175,7 @@ def example2(reference=False, T=T_OPEN, dt=DT, seed=2, fixed=None, delta=None):
     with k = k_r for r in ``fixed`` (default 2..r_max). Returns (Result, summary, gains)."""
     from ...observers import build
     nominal = robot()
-    hyb = build("reduced_order_hybrid", nominal, eta=ETA, vbar=VBAR,
+    hyb = build("reduced_order_hybrid", nominal, eta=ETA, vbar=VBAR, design=PAPER,
                 delta=DELTA_HIGH_NOISE if delta is None else delta)
     gains = hyb.p_default[:-3]
     fixed = range(2, len(gains) + 1) if fixed is None else fixed
@@ -241,7 +242,7 @@ def example3(reference=False, T=T_CLOSED, dt=DT, seed=3, setpoint=True):
     quintic q(0) -> qbar of SPEC §12.1. Returns (Result, summary)."""
     from ...controllers.seed000 import Q_GOAL, T_MOVE, quintic
     from ...observers import build
-    hyb = build("reduced_order_hybrid", robot(), eta=ETA, vbar=VBAR, delta=DELTA_SPEC)
+    hyb = build("reduced_order_hybrid", robot(), eta=ETA, vbar=VBAR, delta=DELTA_SPEC, design=PAPER)
     q_start = np.asarray(Q_GOAL) if setpoint else Q0
     res = simulate(plant(1.0, dt), Q0, QD0, T, dt, tracking_law("hybrid", dt, q_start),
                    {"hybrid": observer(hyb, reference, dt)}, sensor=Sensor(**NOISE_1A, seed=seed),
@@ -294,4 +295,3 @@ def ex3(reference=False, out=Path("build/sim/seed000-ex3"), T=T_CLOSED):
 
 
 SCENARIOS = {"seed000-ex1a": ex1a, "seed000-ex1b": ex1b, "seed000-ex2": ex2, "seed000-ex3": ex3}
-

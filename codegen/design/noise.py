@@ -1,0 +1,233 @@
+"""Noise-aware gains: the gain minimising the predicted estimation error (numbers only).
+
+Sensor: Gaussian noise sigma and/or a quantisation step q (uniform error, std q/sqrt(12)),
+per joint, white at the sample rate: sigma_e^2 = sigma^2 + q^2 / 12. Default when the user
+gives nothing: a 2^16 counts/rev encoder, q = 2 pi / 65536 = 9.59e-5 rad [ASSUMPTION].
+Model: masses and inertias off by a relative ``uncertainty`` d, so the model's acceleration is
+off by e = d (qdd + M^-1 (C qd + g)) ~ d M(q)^-1 g(q) for slow motions [DERIVED].
+
+Reduced-order observer (linearised error dynamics eps' = -k0 eps + e, estimate x2hat = z + k0 y):
+under the default discretisation (ETD-RK4, first-order hold) the scalar observer is exactly
+
+    w_k+1 = E w_k + (1 - E) (y_k+1 - y_k) / dt,   E = exp(-k0 dt)        [DERIVED]
+
+(an exponential smoother of the backward difference), so per joint
+
+    noise std  s(k0) = sigma_e (1 - E) / dt sqrt(2 / (1 + E))   (~ k0 sigma_e for k0 dt << 1)
+    bias             = |e| / k0
+
+and the noise also enters through the model: the acceleration FD(y, ...) moves with y by
+~ -M^-1 dg/dq n (gravity stiffness; slow motions), white noise of PSD sigma_e^2 G^2 dt with
+G = rms_q ||M^-1 dg/dq||_F, which the error dynamics filter by 1/(s + k0):
+
+    E(k0)^2 = n s(k0)^2 + sigma_e^2 G^2 dt / (2 k0) + d^2 rms_q |M^-1 g|^2 / k0^2   (norm, RMS)
+
+and the error from an initial eps0 decays like eps0 exp(-k0 t): below ``tol`` within ``t_conv``
+needs k0 >= ln(eps0 / tol) / t_conv (the convergence floor), eps0 = v_max: the estimate starts at 0
+while the robot may move at up to v_max [ASSUMPTION].
+
+Nicosia-Tomei (kd, kp) (SPEC §2), per mode mu of M^-1: eps1'' + kd eps1' + kp mu eps1 = e, the
+estimate x2hat = kp mu s / (s^2 + kd s + kp mu) y [DERIVED], so
+
+    noise variance  sigma_e^2 dt (kp mu)^2 / (2 kd)   (white noise of PSD sigma_e^2 dt)
+    bias            kd / kp |M e| = kd / kp d |g|
+    slowest rate    kd/2 - sqrt(max(0, kd^2/4 - kp mu_min)),  mu_min = 1 / max lambda_max(M)
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize, minimize_scalar
+
+ENCODER_COUNTS = 2 ** 16
+DEFAULT_QUANTIZATION = 2 * math.pi / ENCODER_COUNTS    # rad, [ASSUMPTION] a 16-bit encoder
+TOL = 1e-2                                            # rad/s, convergence threshold
+
+
+def sensor_sigma(noise=None, quantization=None):
+    """Per-joint std of the measurement error (rad): sqrt(sigma^2 + q^2/12).
+
+    Parameters
+    ----------
+    noise : float or None
+        Gaussian std sigma (rad).
+    quantization : float or None
+        Quantisation step q (rad). Both None: the default encoder (``DEFAULT_QUANTIZATION``).
+
+    Returns
+    -------
+    float
+    """
+    for name, v in (("noise", noise), ("quantization", quantization)):
+        if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise ValueError(f"{name} must be a finite number >= 0 (rad), got {v!r}")
+    if noise is None and quantization is None:
+        quantization = DEFAULT_QUANTIZATION
+    return math.sqrt((noise or 0.0) ** 2 + (quantization or 0.0) ** 2 / 12)
+
+
+def check_uncertainty(uncertainty):
+    if not (isinstance(uncertainty, (int, float)) and math.isfinite(uncertainty) and 0 <= uncertainty < 1):
+        raise ValueError(f"uncertainty must be a relative error in [0, 1), got {uncertainty!r}")
+    return float(uncertainty)
+
+
+def convergence_floor(eps0, t_conv, tol=TOL):
+    """Rate (1/s) that brings an error eps0 below tol within t_conv: ln(eps0/tol) / t_conv."""
+    if not (t_conv > 0 and eps0 > 0):
+        raise ValueError(f"t_conv and the initial error must be positive, got t_conv={t_conv}, eps0={eps0}")
+    return max(math.log(eps0 / tol), 0.0) / t_conv
+
+
+def smoother_noise(k0, dt, sigma):
+    """Std of w = the exponential smoother of the backward difference (module docstring)."""
+    E = math.exp(-k0 * dt)
+    return sigma * (1 - E) / dt * math.sqrt(2 / (1 + E))
+
+
+def reduced_order_error(k0, dt, n, sigma, e_rms, G=0.0):
+    """Predicted RMS of the error norm (rad/s), module docstring:
+    sqrt(n s(k0)^2 + sigma^2 G^2 dt / (2 k0) + (e_rms / k0)^2)."""
+    return math.sqrt(n * smoother_noise(k0, dt, sigma) ** 2 + sigma ** 2 * G ** 2 * dt / (2 * k0)
+                     + (e_rms / k0) ** 2)
+
+
+@dataclass
+class NoiseAwareDesign:
+    """The reduced-order gain minimising the predicted error, with the values it is chosen among.
+
+    k0 is the default; ``choice`` and ``why`` say which value it is and why."""
+    robot: str
+    k0: float
+    choice: str                # "noise-aware optimum" | "convergence floor" | "guarantee (12)"
+    why: str
+    k0_noise: float            # argmin of the predicted error (unconstrained), inf without noise
+    k0_floor: float            # ln(v_max / tol) / t_conv
+    k0_guarantee: float        # (12)
+    k0_remark3: float
+    predicted_error: dict      # name -> predicted RMS error norm at that gain (rad/s)
+    sigma: float               # per-joint measurement std used (rad)
+    noise: float | None
+    quantization: float | None
+    uncertainty: float
+    e_rms: float               # rms_q |M^-1 g| * uncertainty (rad/s^2)
+    G: float                   # rms_q ||M^-1 dg/dq||_F (1/s^2)
+    dt: float
+    t_conv: float
+    eta: float
+    v_max: float
+    guarantee: dict            # the (12) design report
+
+    def as_dict(self):
+        return dict(self.__dict__)
+
+    def __str__(self):
+        pe = self.predicted_error
+        return "\n".join([
+            f"reduced-order gain for {self.robot}: k0 = {self.k0:.6g} ({self.choice}): {self.why}",
+            f"  sensor std {self.sigma:.3g} rad (noise {self.noise}, quantization {self.quantization}),"
+            f" model uncertainty {self.uncertainty:g}, dt {self.dt:g} s",
+            f"  noise-aware optimum {self.k0_noise:.6g}, convergence floor {self.k0_floor:.6g}"
+            f" (below 1e-2 within {self.t_conv:g} s from {self.v_max:g} rad/s),",
+            f"  guarantee (12) {self.k0_guarantee:.6g}, Remark 3 {self.k0_remark3:.6g}",
+            "  predicted RMS error: " + ", ".join(f"{k} {v:.3g}" for k, v in pe.items()) + " rad/s",
+        ])
+
+
+def reduced_order_noise_gain(n, dt, sigma, e_rms, G, floor, guarantee):
+    """Choose k0 (see NoiseAwareDesign): the predicted-error minimiser, raised to the convergence
+    floor; without noise the guarantee gain (12) (a higher gain only lowers the bias), raised to
+    the floor. (The families then keep it inside the stable region, codegen.stability.)
+
+    Returns (k0, choice, why, k0_noise, predicted errors dict)."""
+    def err(k):
+        return reduced_order_error(k, dt, n, sigma, e_rms, G)
+    if sigma > 0 and (e_rms > 0 or G > 0):
+        # the k0 dt << 1 optima of each pair of terms bracket the minimiser
+        guesses = [(e_rms ** 2 / (n * sigma ** 2)) ** 0.25, (G ** 2 * dt / (4 * n)) ** (1 / 3)]
+        lo, hi = min(g for g in guesses if g > 0), max(guesses)
+        res = minimize_scalar(lambda lk: err(math.exp(lk)), method="bounded",
+                              bounds=(math.log(lo) - 2, math.log(hi) + 2))
+        k_noise = math.exp(res.x)
+    elif sigma > 0:
+        k_noise = 0.0          # the error only grows with k0: the floor decides
+    else:
+        k_noise = math.inf     # no noise: the error only falls with k0
+    if sigma == 0:
+        k0, choice = max(guarantee, floor), "guarantee (12)" if guarantee >= floor else "convergence floor"
+        why = "no sensor noise: a higher gain only lowers the model-error bias; (12) certifies the region (13)"
+    elif k_noise >= floor:
+        k0, choice = k_noise, "noise-aware optimum"
+        why = ("minimises the predicted error (measurement noise ~ k0 sigma against noise through the model "
+               "~ sigma G sqrt(dt / 2 k0) and model-error bias ~ |e|/k0)")
+    else:
+        k0, choice = floor, "convergence floor"
+        why = (f"the noise-aware optimum {k_noise:.4g} is below the gain that converges to 1e-2 rad/s in time; "
+               "lower gains would only be slower")
+    predicted = {"default": err(k0), "guarantee (12)": err(guarantee), "floor": err(floor)}
+    return k0, choice, why, k_noise, predicted
+
+
+def nicosia_tomei_noise_gains(dt, sigma, g_rms, uncertainty, trace_minv2, mu_min, rate):
+    """(kd, kp) minimising the predicted error of Nicosia-Tomei (module docstring) subject to
+    the slowest error mode decaying at ``rate`` or faster.
+
+    Parameters
+    ----------
+    dt : float, sample time (s);  sigma : measurement std (rad)
+    g_rms : rms_q |g(q)| (N m);  uncertainty : relative model error
+    trace_minv2 : mean_q trace(M(q)^-2) (1/(kg m^2)^2);  mu_min : 1 / max_q lambda_max(M(q))
+    rate : required slowest decay rate (1/s)
+
+    Returns
+    -------
+    (kd, kp, predicted RMS error norm)."""
+    def error(kd, kp):
+        return math.sqrt(sigma ** 2 * dt * kp ** 2 * trace_minv2 / (2 * kd) + (kd / kp * uncertainty * g_rms) ** 2)
+
+    def slowest(kd, kp):
+        return kd / 2 - math.sqrt(max(0.0, kd ** 2 / 4 - kp * mu_min))
+
+    kd0 = 2 * rate                       # critically damped slowest mode: the least noise at no model error
+    kp0 = rate ** 2 / mu_min
+    if uncertainty == 0 or g_rms == 0:
+        return kd0, kp0, error(kd0, kp0)
+
+    def cost(v):
+        kd, kp = math.exp(v[0]), math.exp(v[1])
+        short = max(0.0, rate - slowest(kd, kp)) / rate
+        return math.log(error(kd, kp)) + 1e3 * short ** 2
+    res = minimize(cost, [math.log(kd0), math.log(kp0)], method="Nelder-Mead",
+                   options={"xatol": 1e-6, "fatol": 1e-10, "maxiter": 2000})
+    kd, kp = math.exp(res.x[0]), math.exp(res.x[1])
+    if slowest(kd, kp) < rate * (1 - 1e-3):
+        kd, kp = kd0, kp0
+    return kd, kp, error(kd, kp)
+
+
+def gravity_statistics(M, g, dg, points):
+    """Statistics of the model over sampled configurations (for the predictions above).
+
+    Parameters
+    ----------
+    M, g, dg : casadi.Function q -> M(q) (n, n), g(q) (n,), dg/dq (n, n)
+    points : (S, n) configurations
+
+    Returns
+    -------
+    dict: minv_g_rms (rms |M^-1 g|, rad/s^2), minv_dg_rms (rms ||M^-1 dg/dq||_F, 1/s^2), g_rms
+    (rms |g|, N m), trace_minv2 (mean tr(M^-2)), mu_min (1 / max lambda_max(M)), mu_max
+    (1 / min lambda_min(M))."""
+    S, n = points.shape
+    Ms = np.asarray(M.map(S)(points.T)).reshape(n, S, n).transpose(1, 0, 2)
+    gs = np.asarray(g.map(S)(points.T)).reshape(n, S).T
+    dgs = np.asarray(dg.map(S)(points.T)).reshape(n, S, n).transpose(1, 0, 2)
+    Minv_g = np.linalg.solve(Ms, gs[:, :, None])[:, :, 0]
+    lam = np.linalg.eigvalsh(Ms)
+    return {"minv_g_rms": float(np.sqrt(np.mean(np.sum(Minv_g ** 2, axis=1)))),
+            "minv_dg_rms": float(np.sqrt(np.mean(np.sum(np.linalg.solve(Ms, dgs) ** 2, axis=(1, 2))))),
+            "g_rms": float(np.sqrt(np.mean(np.sum(gs ** 2, axis=1)))),
+            "trace_minv2": float(np.mean(np.sum(lam ** -2.0, axis=1))),
+            "mu_min": float(1 / lam[:, -1].max()), "mu_max": float(1 / lam[:, 0].min())}
