@@ -14,7 +14,6 @@ from pathlib import Path
 
 import pytest
 
-import codegen
 
 ROOT = Path(__file__).resolve().parent.parent
 SOURCES = ("pyproject.toml", "README.md", "models", "codegen", "c_harness")
