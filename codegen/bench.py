@@ -148,7 +148,10 @@ def seed003_ii_ur5(robot="ur5", N=8, native=False, blocks=51, wrap=False, opt="-
     synthetic inputs drive the observer to, which for this observer diverges: see "errors"), and
     through ctypes at a plausible state (``ns_per_rhs_ctypes``, ~1 us of call overhead).
     Before the quadrature columns became called routines (_ii_common.column_routines) this
-    kernel was 7.0 MB of C taking ~170 s CPU at gcc -O2 -c (N = 8, wrap off); now < 1 MB."""
+    kernel was 7.0 MB of C taking ~170 s CPU at gcc -O2 -c (N = 8, wrap off); now < 1 MB.
+
+    ``robot``: catalog name; ``N``: Gauss-Legendre nodes of ii_speed [S003 (12)]; ``native``: -march=native;
+    ``blocks``: timing blocks of time_target. Returns a dict of the figures and gates."""
     import timeit
 
     from models import load_robot
@@ -198,7 +201,10 @@ def seed004_cg(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
     BENCH_GATES_NS, and the kernel file compiled by gcc -O2 -c in <= 30 s CPU
     (``compile_kernels``). With RK4 the step calls the RHS routine (discretize.INLINE_LIMIT);
     inlining its four stages, as before, made elastic ur5 1.0 MB of C, ~31 s CPU at -O2 for the
-    kernel file and a step ~4 times slower. Returns a list of dicts (one per robot)."""
+    kernel file and a step ~4 times slower. Returns a list of dicts (one per robot).
+
+    ``robots``: elastic catalog names; ``method``, ``dt`` (s): the discretisation; ``checks``:
+    random states of the cross-check."""
     import tempfile
 
     from models.catalog import load_elastic
@@ -304,7 +310,8 @@ def sweep_ur5(path=None, modes=(0, 1, 2)):
     (cluster start and worker imports excluded, true runs included), cells per CPU-second of the
     cell computations (what a mode costs per cell, whatever else the machine runs), their ratio
     (the cores the mode had: on a shared machine the 2 workers may get no more than 1), the
-    2-vs-1-worker ratio (issue 14 asks >= 1.7) and whether every mode gave identical rows."""
+    2-vs-1-worker ratio (issue 14 asks >= 1.7) and whether every mode gave identical rows.
+    ``path``: the sweep file (default the example); ``modes``: worker counts (0: in-process)."""
     import tempfile
 
     from . import sweep
@@ -333,6 +340,7 @@ SCENARIOS = {"seed000": seed000_loop, "seed003": seed003_ii_ur5, "seed004": seed
 def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, generate=True):
     """Print the observer-RHS table, (``scenarios``) every scenario bench and (``generate``) the
     time of `make generate` from scratch; with ``json_path`` also write the figures there.
+    ``robots``: catalog names of the table; ``native``: compile with -march=native.
     Returns 0 (the CLI's exit status)."""
     rows = observer_rhs(robots, native)
     print(f"{'robot':8s} {'RHS ns':>9s} {'step ns':>9s} {'rk4/zoh ns':>11s} {'pin aba ns':>11s} {'RHS/aba':>8s} "

@@ -27,6 +27,7 @@ class Parser(argparse.ArgumentParser):
     """argparse with one-line errors."""
 
     def error(self, message):
+        """Exit with status 2 and the one-line ``message`` (argparse's hook)."""
         self.exit(2, f"{self.prog}: error: {message} (--help for usage)\n")
 
 
@@ -138,6 +139,8 @@ def _times(row, stages):
 
 # ------------------------------------------------------------------------------------ commands
 def cmd_list(args):
+    """`list`: print the catalog robots, the families and the targets of ./targets.toml.
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from models import names
     from models.catalog import ELASTIC
 
@@ -155,7 +158,8 @@ def cmd_list(args):
 
 
 def cmd_generate(args):
-    """Design, emit, compile, run the C harness and ctypes on each target (`make generate`)."""
+    """Design, emit, compile, run the C harness and ctypes on each target (`make generate`).
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from .jobs import GENERATE
 
     def line(job, row):
@@ -172,7 +176,8 @@ def cmd_generate(args):
 
 
 def cmd_build(args):
-    """Design, emit and compile each target."""
+    """Design, emit and compile each target.
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from .jobs import BUILD
     rows, failed = _report(_jobs(args, BUILD), args,
                            lambda job, row: f"{row['prefix']}: {row['lib']}  ({_times(row, BUILD)})")
@@ -180,7 +185,8 @@ def cmd_build(args):
 
 
 def cmd_check(args):
-    """Cross-check each target's C against the reference (worst relative errors)."""
+    """Cross-check each target's C against the reference (worst relative errors).
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from .jobs import CHECK
     if args.out is None:
         args.out, args.force = str(build_dir() / "check"), True   # a scratch folder
@@ -198,6 +204,8 @@ def cmd_check(args):
 
 
 def cmd_bench(args):
+    """`bench`: timings as ratios (codegen.bench, `make bench`).
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from .bench import main
     return main(args.bench_robots, native=args.native, json_path=args.json, scenarios=not args.no_scenarios,
                 generate=not args.no_generate)
@@ -206,7 +214,8 @@ def cmd_bench(args):
 def cmd_embedded(args):
     """Every target in double on an emulated Cortex-M7 and in float on a Cortex-M4F: flash, static
     RAM, peak stack, instructions per step and the difference from the host build, recorded in
-    each target's JSON and printed as a table."""
+    each target's JSON and printed as a table.
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from . import embedded
     missing = embedded.missing_packages()
     if missing:
@@ -236,6 +245,8 @@ def cmd_embedded(args):
 
 
 def cmd_simulate(args):
+    """`simulate`: run a scenario of the seed papers (codegen.sim.scenarios).
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from .sim import scenarios
     options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T")
                if getattr(args, k) is not None}
@@ -266,7 +277,8 @@ def _compare_source(args):
 
 
 def cmd_compare(args):
-    """Observers and tuned baselines on a scenario or a CSV: table, figures, JSON."""
+    """Observers and tuned baselines on a scenario or a CSV: table, figures, JSON.
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from .compare import compare, design_inputs
     from .recording import RecordingError
     try:
@@ -289,7 +301,8 @@ def cmd_compare(args):
 
 
 def cmd_sweep(args):
-    """A Monte-Carlo sweep on Dask (codegen.sweep): results, map and best-gain table in --out."""
+    """A Monte-Carlo sweep on Dask (codegen.sweep): results, map and best-gain table in --out.
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from . import sweep
     from .sweep import maps, plan
     try:
@@ -307,6 +320,8 @@ def cmd_sweep(args):
 
 
 def cmd_sanitize(args):
+    """`sanitize`: the C harness under ASan/UBSan and a libFuzzer campaign (codegen.check.sanitize).
+    ``args``: the parsed argparse namespace; returns the exit status."""
     from .check import sanitize
     return sanitize.run(args.runs, args.seconds)
 
@@ -347,6 +362,7 @@ def _target_options(p, out_help):
 
 
 def parser():
+    """The argparse parser of all commands (a :class:`Parser`)."""
     ap = Parser(prog="observer-codegen", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--debug", action="store_true", help="show the traceback of an error")
     debug = Parser(add_help=False)     # also after the command; SUPPRESS keeps a --debug given before it
@@ -413,6 +429,8 @@ def parser():
 
 
 def main(argv=None):
+    """Run the command of ``argv`` (None: sys.argv[1:]); returns the exit status (2: a user error,
+    printed on one line unless --debug)."""
     args = parser().parse_args(argv)
     try:
         return COMMANDS[args.cmd](args)

@@ -90,9 +90,9 @@ class Comparison:
         return "\n".join(lines)
 
     def figures(self, out, joint=0, zoom=None):
-        """Write ``errors.png`` (||qd - qd_hat|| on a log axis, every method) and
-        ``joint<j>.png`` (joint j's estimates against the truth over ``zoom`` = (t0, t1),
-        default the first 0.5 s after t_ss). Returns the paths."""
+        """Write to the folder ``out`` ``errors.png`` (||qd - qd_hat|| on a log axis, every method)
+        and ``joint<j>.png`` (estimates of ``joint`` j (0-based) against the truth over ``zoom`` =
+        (t0, t1) s, default the first 0.5 s after t_ss). Returns the paths."""
         from .sim import plots
         out = Path(out)
         errs = {e.name: e.est - self.truth for e in self.entries}
@@ -106,7 +106,7 @@ class Comparison:
 
 
 def parse_observer(text):
-    """``"family[:name=value[:name=value...]]"`` -> (family, {name: float value}).
+    """``text`` = ``"family[:name=value[:name=value...]]"`` -> (family, {name: float value}).
 
     >>> parse_observer("nicosia_tomei:kd=50:kp=625")
     ('nicosia_tomei', {'kd': 50.0, 'kp': 625.0})
@@ -140,9 +140,10 @@ def run_observer(spec, Y, U, dt, reference=False):
 
 
 def tune(name, Y, t, truth, t_ss, dt, grid=None):
-    """The baseline ``name`` run over each value of its grid that it accepts at this dt; returns
-    (params, estimate) of the value with the lowest RMS after t_ss (the only value for an
-    untuned baseline)."""
+    """The baseline ``name`` run over each value of its ``grid`` (None: baselines.GRIDS) that it
+    accepts at this dt (s); returns (params, estimate (N, n)) of the value with the lowest RMS of
+    est - ``truth`` (N, n) after t_ss (s) (the only value for an untuned baseline). ``Y`` (N, n):
+    measured positions (rad) at the times ``t`` (N,) s."""
     cls = baselines.BASELINES[name]
     values = [None] if cls.tuned is None else (grid or baselines.GRIDS[name])
     best = None
@@ -184,6 +185,8 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         Default: all of ``codegen.baselines.BASELINES``.
     reference : bool
         Run the observers with the numpy reference instead of the compiled C.
+    title : str
+        Title of the table and figures.
 
     Returns
     -------

@@ -151,9 +151,10 @@ def build_harness(target_dir, build_dir=None, native=False, cc=None, extra_flags
 
 
 def run_csv(target_dir, csv_in, csv_out, est0=None, build_dir=None, native=False):
-    """Run the target over ``csv_in`` (header, then rows t, y.., u..) into ``csv_out``.
+    """Run the target in ``target_dir`` over ``csv_in`` (header, then rows t, y.., u..) into ``csv_out``.
 
-    ``est0``: initial estimate (NEST numbers; default zeros). Returns Path(csv_out).
+    ``est0``: initial estimate (NEST numbers; default zeros); ``build_dir``, ``native``: as in
+    :func:`build_harness`. Returns Path(csv_out).
     Raises HarnessError with run_csv's message (row number, status name) on failure;
     ``csv_out`` is then not written."""
     exe = build_harness(target_dir, build_dir, native=native)["run_csv"]
@@ -166,7 +167,9 @@ def run_csv(target_dir, csv_in, csv_out, est0=None, build_dir=None, native=False
 
 
 def time_target(target_dir, blocks=51, block_ms=15.0, build_dir=None, native=False, extra_flags=()):
-    """ns per <prefix>_step and per <prefix>_rhs (medians over ``blocks`` blocks of ~block_ms).
+    """ns per <prefix>_step and per <prefix>_rhs of the target in ``target_dir`` (medians over
+    ``blocks`` blocks of ~``block_ms`` ms); ``build_dir``, ``native``, ``extra_flags``: as in
+    :func:`build_harness`.
 
     Returns the program's JSON line as a dict: target, ns_per_step, ns_per_rhs, blocks,
     calls_per_block, calls_per_block_rhs, nx, ny, nu, nest, dt, errors (step calls that
@@ -196,7 +199,8 @@ def find_pin_prefix():
 
 
 def find_eigen_include(pin_prefix=None):
-    """Folder holding Eigen/Core: cmeel-eigen's, else the system's; None if absent."""
+    """Folder holding Eigen/Core: cmeel-eigen's (under ``pin_prefix``, default
+    :func:`find_pin_prefix`), else the system's; None if absent."""
     pin_prefix = pin_prefix or find_pin_prefix()
     cands = ([Path(pin_prefix) / "include" / "eigen3"] if pin_prefix else []) + \
         [Path("/usr/include/eigen3"), Path("/usr/local/include/eigen3")]
@@ -204,7 +208,8 @@ def find_eigen_include(pin_prefix=None):
 
 
 def find_urdfdom_headers(pin_prefix=None):
-    """Folder holding urdf_model/model.h (cmeel-urdfdom-headers, else the system's) or None."""
+    """Folder holding urdf_model/model.h (cmeel-urdfdom-headers under ``pin_prefix``, default
+    :func:`find_pin_prefix`, else the system's) or None."""
     pin_prefix = pin_prefix or find_pin_prefix()
     cands = ([Path(pin_prefix) / "include" / "urdfdom_headers"] if pin_prefix else []) + \
         [Path("/usr/include/urdfdom_headers"), Path("/usr/include")]
@@ -230,7 +235,8 @@ def build_pin_bench(build_dir=None, mode="library", cxx=None):
 
     mode "library" (default) calls the wheel's precompiled instantiations in
     libpinocchio_default.so (what a CMake user of pinocchio::pinocchio gets); "header"
-    instantiates the algorithms from the headers with our -O3 (slow to compile, ~2 min)."""
+    instantiates the algorithms from the headers with our -O3 (slow to compile, ~2 min).
+    ``build_dir``: cache root (default build/harness); ``cxx``: C++ compiler (default $CXX, else g++)."""
     if mode not in PIN_MODES:
         raise ValueError(f"mode: expected one of {PIN_MODES}, got {mode!r}")
     missing = pin_bench_missing()
@@ -270,7 +276,8 @@ def resolve_urdf(urdf):
 
 
 def time_pin(urdf, locked_joints=(), blocks=51, block_ms=15.0, build_dir=None, mode="library"):
-    """ns per pinocchio aba, rnea and crba on ``urdf``.
+    """ns per pinocchio aba, rnea and crba on ``urdf`` (medians over ``blocks`` blocks of
+    ~``block_ms`` ms), pin_aba built by :func:`build_pin_bench` with ``build_dir`` and ``mode``.
 
     ``locked_joints``: joint names (held at the neutral configuration, 0 for revolute and
     prismatic joints) or a dict {name: value} (one-coordinate joints held at value); they
@@ -300,7 +307,8 @@ def time_pin(urdf, locked_joints=(), blocks=51, block_ms=15.0, build_dir=None, m
 def write_csv(path, t, Y, U, y_names=None, u_names=None):
     """Write the run_csv input: header, then rows t, y_1..y_NY, u_1..u_NU (%.17g, exact).
 
-    t: (n,); Y: (n, NY) (a 1-D Y is one column); U: (n, NU) likewise (NU may be 0)."""
+    path: the CSV written; t: (n,) s; Y: (n, NY) (a 1-D Y is one column); U: (n, NU) likewise
+    (NU may be 0); y_names, u_names: column names (default y0.., u0..)."""
     t = np.asarray(t, dtype=float).ravel()
     n = t.size
     cols = [t[:, None]]
@@ -327,7 +335,7 @@ def write_csv(path, t, Y, U, y_names=None, u_names=None):
 
 
 def read_csv(path):
-    """Read run_csv's output: returns (t of shape (n,), EST of shape (n, NEST))."""
+    """Read run_csv's output file ``path``: returns (t of shape (n,), EST of shape (n, NEST))."""
     with open(path) as f:
         header = f.readline()
         if not header:

@@ -138,8 +138,8 @@ def _make_reporting(i, job):
 
 
 def run(jobs, processes=None, debug=False):
-    """Make every job, ``processes`` at a time (default: one per core, at most one per job),
-    with a progress bar over all stages when stderr is a terminal.
+    """Make every job of ``jobs`` (a list of Job), ``processes`` at a time (default: one per core,
+    at most one per job), with a progress bar over all stages when stderr is a terminal.
 
     Yields
     ------

@@ -152,7 +152,9 @@ class CompiledObserver:
 
     # -------------------------------------------------------------- API
     def reset(self, y0, est0=None, p=None):
-        """Initialise from the first measurement y0 and an initial estimate est0 (zeros)."""
+        """Initialise from the first measurement y0 (ny,) and an initial estimate est0 (nest,)
+        (default zeros), with parameters ``p`` (np,) (default p_default; checked by
+        :meth:`check_params`)."""
         y0 = as_vector("y0", y0, self.ny, self.dtype)
         est0 = as_vector("est0", np.zeros(self.nest) if est0 is None else est0, self.nest, self.dtype)
         p = as_vector("p", self.p_default if p is None else self.check_params(p), self.np, self.dtype)
@@ -174,7 +176,8 @@ class CompiledObserver:
         return self._out("est", self.nest)
 
     def bind(self, y, u, est):
-        """Zero-copy calls on caller-owned C-contiguous buffers of ``obs.dtype`` (simulation loops).
+        """Zero-copy calls on caller-owned C-contiguous buffers of ``obs.dtype`` (simulation loops):
+        ``y`` (>= ny), ``u`` (>= nu) and ``est`` (>= nest) entries (at least one each).
 
         Returns (step, estimate): functions of no argument that run the C on the buffers' current
         contents, write into ``est`` and raise ObserverError on a non-zero status. Python checks
@@ -199,7 +202,8 @@ class CompiledObserver:
         return step, estimate
 
     def c_step(self, y, u):
-        """The raw C step, no Python-side checks: returns (status, est). For tests of the C."""
+        """The raw C step on measurement ``y`` (ny,) and input ``u`` (nu,), no Python-side checks:
+        returns (status, est). For tests of the C."""
         self._buf["y"][: self.ny] = np.asarray(y, float).reshape(-1)[: self.ny]
         self._buf["u"][: self.nu] = np.asarray(u, float).reshape(-1)[: self.nu]
         st = self._step(self._s, self._ptr["y"], self._ptr["u"], self._ptr["est"])
@@ -222,7 +226,8 @@ class CompiledObserver:
         return EST.astype(np.float64, copy=False)
 
     def rhs(self, x, y, u):
-        """Continuous-time right-hand side with the current parameters."""
+        """Continuous-time right-hand side xdot (nx,) at state ``x`` (nx,), measurement ``y`` (ny,) and
+        input ``u`` (nu,), with the current parameters."""
         xp = self._load("x", "x", x, self.nx)
         yp = self._load("y", "y", y, self.ny)
         up = self._load("u", "u", u, self.nu)
@@ -231,20 +236,24 @@ class CompiledObserver:
 
     @property
     def state(self):
+        """The observer state (nx,) (a float64 copy)."""
         self._check(self._get_state(self._s, self._ptr["x"]), "get_state")
         return self._out("x", self.nx)
 
     @state.setter
     def state(self, x):
+        """Set the observer state to ``x`` (nx,) (finite)."""
         self._check(self._set_state(self._s, self._load("x", "x", x, self.nx)), "set_state")
 
     @property
     def params(self):
+        """The runtime parameters (np,) in the order of meta["names"]["p"]."""
         self._check(self._get_params(self._s, self._ptr["p"]), "get_params")
         return self._out("p", self.np)
 
     @params.setter
     def params(self, p):
+        """Set the runtime parameters to ``p`` (np,), checked by :meth:`check_params` (bumpless)."""
         p = self.check_params(p)
         self._check(self._set_params(self._s, self._load("p", "p", p, self.np)), "set_params")
 
@@ -275,8 +284,9 @@ class CompiledObserver:
 
 
 def load(target_dir, lib_path):
-    """CompiledObserver from a generated folder and its built library, with the metadata the
-    library was built from (kept beside it by ``codegen.build.build``; else the folder's)."""
+    """CompiledObserver from the generated folder ``target_dir`` and its built library ``lib_path``,
+    with the metadata the library was built from (kept beside it by ``codegen.build.build``; else
+    the folder's)."""
     lib_path = Path(lib_path)
     meta = lib_path.parent / f"{lib_path.stem.removeprefix('lib')}.json"
     if not meta.is_file():

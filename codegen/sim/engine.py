@@ -27,6 +27,17 @@ from .blocks import bind
 
 @dataclass
 class Result:
+    """The record of one :func:`simulate` run, one row per sample k (t_k = k dt).
+
+    Attributes
+    ----------
+    t : (N,) sample times, s
+    x : (N, 2n) true state [q, qd] at t_k (rad, rad/s); ``q``, ``qd`` and ``n`` view it
+    y : (N, ny) measurements;  u : (N, nu) inputs held over [t_k, t_k+1] (N m)
+    est, states : dict name -> (N, nest) estimates / (N, nx) observer states before the step
+    extra : dict, anything a scenario or controller logs (e.g. ``<name>_state_final``)
+    """
+
     t: np.ndarray                     # (N,)
     x: np.ndarray                     # (N, 2n) true [q, qd]
     y: np.ndarray                     # (N, ny) measurements
@@ -48,7 +59,8 @@ class Result:
         return self.x[:, self.n:]
 
     def write_csv(self, path):
-        """One row per sample: t, q, qd, y, u, then each observer's estimate."""
+        """Write the run to the CSV file ``path`` (see :func:`write_columns`), one row per sample:
+        t, q, qd, y, u, then each observer's estimate and each logged state; returns the path."""
         cols = {"t": self.t, "q": self.q, "qd": self.qd, "y": self.y, "u": self.u}
         cols.update({f"{name}_est": E for name, E in self.est.items()})
         cols.update({f"{name}_x": S for name, S in self.states.items()})
@@ -104,14 +116,17 @@ class Port:
         self._step, self._estimate = bind(block, y, u, self._est)
 
     def step(self):
+        """Advance the block one sample from the shared ``y``, ``u``; returns its output ``est``."""
         self._step()
         return self.est
 
     def estimate(self):
+        """The block's output for the current state and shared ``y`` (no step), in ``est``."""
         self._estimate()
         return self.est
 
     def state(self):
+        """The block's current state vector (nx,)."""
         return self.block.state
 
 
@@ -137,12 +152,16 @@ def simulate(plant, q0, qd0, T, dt, controller, observers=None, sensor=None, est
     """Run the loop of the module docstring for T seconds; returns a Result.
 
     plant       sim.plant.Plant (its dt must equal dt)
+    q0, qd0     (n,) initial joint positions (rad) and velocities (rad/s) of the plant
+    T, dt       horizon and sample period, s (N = round(T / dt) + 1 samples)
     controller  callable(t, y, est: dict, x_true) -> u; an optional attribute ``feedback``
                 (names of the observers it reads) spares the other observers' estimate call
     observers   dict name -> observer; each is reset with y_0 and est0.get(name) (zeros)
     sensor      sim.sensors.Sensor (default: exact, every sample)
+    est0        dict name -> initial estimate of that observer (default: zeros)
     log_states  names of observers whose state is recorded each sample (before its step);
                 the state after the last step is in ``extra[name + "_state_final"]``
+    progress    show a tqdm progress bar on stderr (if tqdm is installed)
 
     ``est`` passed to the controller holds buffers that are overwritten at the next sample.
     """
@@ -200,7 +219,9 @@ def simulate(plant, q0, qd0, T, dt, controller, observers=None, sensor=None, est
 
 
 def settling_time(t, err, level):
-    """First time after which ||err|| stays below level (inf if never)."""
+    """First time in ``t`` (N,) s after which ||err|| stays below ``level`` (inf if never).
+
+    ``err`` is (N, m) (row norms) or (N,) (absolute values); t[0] if it is below from the start."""
     norm = np.linalg.norm(np.atleast_2d(err.T).T, axis=1) if err.ndim > 1 else np.abs(err)
     above = np.nonzero(norm >= level)[0]
     if len(above) == 0:
@@ -209,5 +230,5 @@ def settling_time(t, err, level):
 
 
 def rms(err):
-    """Root mean square of the norm of each row."""
+    """Root mean square of the norm of each row of ``err`` (N, m), or of its entries if (N,)."""
     return float(np.sqrt(np.mean(np.sum(np.atleast_2d(err.T).T ** 2, axis=-1))))

@@ -72,7 +72,8 @@ def panels(path, x, rows, title="", cols=1, cell=(8.0, 2.6), xlabel="t [s]"):
     path : path of the PNG
     x : (N,) array, the common x axis (time in s unless ``xlabel`` says otherwise)
     rows : list of Panel
-    cell : (width, height) of one panel in inches
+    title : figure title ("" for none);  cols : number of columns of the grid
+    cell : (width, height) of one panel in inches;  xlabel : label of the bottom x axes
     """
     plt = _plt()
     nrows = -(-len(rows) // cols)
@@ -106,8 +107,10 @@ def per_joint(path, t, truth, estimates, ylabel="qd{} [rad/s]", truth_label="tru
 
     Parameters
     ----------
+    path : path of the PNG;  title : figure title
     t : (N,) s;  truth : (N, n);  estimates : dict label -> (N, >= n) (first n columns drawn)
     ylabel : axis label per joint, ``{}`` replaced by the joint number (1-based)
+    truth_label : legend label of the true signal
     zoom : (t0, t1) in s, optional
         Adds the same curves over [t0, t1] in an inset box of each axes [S000 Fig. 7].
     """
@@ -142,10 +145,11 @@ def error_norms(path, t, errors, levels=(1e-2, 1e-3), ylabel="||qd - qd_hat|| [r
 
     Parameters
     ----------
-    t : (N,) s
+    path : path of the PNG;  t : (N,) s
     errors : dict label -> (N_i, m) errors, or (N_i,) norms; N_i <= N (a run that stopped early
         is drawn as far as it went)
     levels : horizontal lines (e.g. the settling levels)
+    ylabel, title : axis label and figure title
     """
     norms = {k: np.maximum(np.linalg.norm(np.reshape(e, (len(e), -1)), axis=1), 1e-12)
              for k, e in errors.items()}
@@ -154,7 +158,8 @@ def error_norms(path, t, errors, levels=(1e-2, 1e-3), ylabel="||qd - qd_hat|| [r
 
 
 def tracking(path, t, e, tau, title=""):
-    """Tracking errors q_d - q (top) and joint torques (bottom) of a closed-loop run."""
+    """Tracking errors q_d - q (top) and joint torques (bottom) of a closed-loop run, to the PNG
+    ``path``: ``t`` (N,) s, ``e`` (N, n) rad, ``tau`` (N, n) N m, figure ``title``."""
     n = e.shape[1]
     return panels(path, t, [Panel({f"e{i + 1}": e[:, i] for i in range(n)}, ylabel="q_d - q [rad]"),
                             Panel({f"tau{i + 1}": tau[:, i] for i in range(n)}, ylabel="tau [N m]")],
@@ -163,7 +168,16 @@ def tracking(path, t, e, tau, title=""):
 
 def positions_and_bound(path, t, q, qd, est, r, vbar, q_ref=None, title=""):
     """Top: joint positions (and references). Bottom: ||qd||, ||qd_hat|| and the bound r vbar
-    [Figs. 4, 6]."""
+    [S000 Figs. 4, 6].
+
+    Parameters
+    ----------
+    path : path of the PNG;  title : figure title
+    t : (N,) s;  q, qd : (N, n) true positions (rad) and velocities (rad/s)
+    est : (N, n) velocity estimate, rad/s
+    r : (N,) logic state of the hybrid observer;  vbar : speed step of the bound, rad/s
+    q_ref : (N, n) reference positions (rad), drawn dotted if given
+    """
     plt = _plt()
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5.6), sharex=True)
     for i in range(q.shape[1]):
@@ -195,6 +209,7 @@ def elastic_errors(path, t, E, title=""):
 
     Parameters
     ----------
+    path : path of the PNG;  title : figure title
     t : (N,) s
     E : (N, 4n) errors in the state order [q1; q1'; q2; q2'] (rad, rad/s)
     """
@@ -211,6 +226,7 @@ def joint_trajectory(path, t, R, n, title=""):
 
     Parameters
     ----------
+    path : path of the PNG;  title : figure title
     t : (N,) s
     R : (N, >= 4n) rows [q_d, its 1st, 2nd, 3rd derivative, ...] (rad, rad/s, rad/s^2, rad/s^3)
     n : int, number of joints

@@ -46,7 +46,8 @@ _ROBOTS = {}
 
 # ----------------------------------------------------------------------------- building blocks
 def robot(mass_scale=1.0):
-    """seed000_2r, one instance per mass scale (so the gain designs are cached)."""
+    """seed000_2r [SPEC §11.1] with link masses x ``mass_scale``, one instance per scale (so the
+    gain designs are cached)."""
     from models.closed_form import seed000_2r
     if mass_scale not in _ROBOTS:
         _ROBOTS[mass_scale] = seed000_2r(mass_scale)
@@ -54,22 +55,27 @@ def robot(mass_scale=1.0):
 
 
 def observer(spec, reference, dt=DT, prefix=None, hold="zoh"):
-    """The observer of ``spec`` (RK4, one step per sample) as compiled C, or the numpy reference."""
+    """The observer of ``spec`` (RK4, one step of ``dt`` s per sample, measurement ``hold`` "zoh" or
+    "foh") as compiled C, or the numpy reference if ``reference``; ``prefix`` names the C symbols."""
     return block(spec, Discretization(dt=dt, method="rk4", hold=hold), reference=reference, prefix=prefix)
 
 
 def law(spec, dt=DT):
-    """A control law (stateless, so the hold changes nothing) as a compiled block."""
+    """The control law ``spec`` (stateless, so the hold changes nothing) as a compiled block
+    sampled every ``dt`` s."""
     return block(spec, Discretization(dt=dt, method="rk4", hold="zoh"))
 
 
 def plant(mass_scale=1.0, dt=DT):
+    """The simulated seed000_2r (masses x ``mass_scale``): compiled RK4 at PLANT_STEP, sampled every
+    ``dt`` s."""
     return Plant(robot(mass_scale), dt, substeps=max(1, int(round(dt / PLANT_STEP))))
 
 
 def open_loop_law(example, dt=DT):
-    """Torque (18) or (19). [ASSUMPTION] its gravity term g(q) uses the true q: the command is
-    an open-loop profile, so sensor noise does not enter the plant."""
+    """Torque [S000 (18)] or (19) for ``example`` 1 or 2, sampled every ``dt`` s. [ASSUMPTION] its
+    gravity term g(q) uses the true q: the command is an open-loop profile, so sensor noise does
+    not enter the plant."""
     from ...controllers.seed000 import open_loop
 
     def assemble(t, y, est, x, out):
@@ -80,7 +86,8 @@ def open_loop_law(example, dt=DT):
 
 def tracking_law(feedback, dt=DT, q_start=Q0):
     """Example-3 law fed by measured q and the estimate of observer ``feedback``; reference
-    quintic from ``q_start`` to qbar over [0, 8] s (q_start = qbar: a constant set-point)."""
+    quintic from ``q_start`` (rad) to qbar over [0, 8] s (q_start = qbar: a constant set-point);
+    sampled every ``dt`` s [SPEC §1.4]."""
     from ...controllers.seed000 import tracking
 
     def assemble(t, y, est, x, out):
@@ -102,13 +109,16 @@ def accuracy(t, qd, est, t_from):
 
 
 def logic_trace(res, name):
-    """Logic state r active at each sample (after that sample's jumps) of hybrid observer ``name``:
-    the state before step k+1 (the flow leaves r unchanged), the final state for the last sample."""
+    """Logic state r active at each sample (after that sample's jumps) of hybrid observer ``name``
+    in the Result ``res`` (which logged its states): the state before step k+1 (the flow leaves r
+    unchanged), the final state for the last sample. Returns (N,) int."""
     r = np.append(res.states[name][1:, -1], res.extra[f"{name}_state_final"][-1])
     return np.rint(r).astype(int)
 
 
 def logic_summary(t, r, r0=1):
+    """Switches of the logic state ``r`` (N,) over times ``t`` (N,) s, starting from ``r0``: their
+    number, times and levels, the highest and final r and the shortest dwell (s)."""
     jumps = np.nonzero(np.diff(np.concatenate([[r0], r])))[0]
     dwell = np.diff(t[jumps]) if len(jumps) > 1 else np.array([np.inf])
     return {"r_max_reached": int(r.max()), "r_final": int(r[-1]), "switches": int(len(jumps)),
@@ -121,7 +131,8 @@ def logic_summary(t, r, r0=1):
 def example1(reference=False, noisy=True, mass_scale=1.0, T=T_OPEN, dt=DT, seed=1, hold="zoh"):
     """Open loop (18): reduced-order and Nicosia–Tomei (K_D = k0 I, K_P = 500 I) on the nominal
     model; plant masses x mass_scale; ``hold`` of the observers' measurements (codegen.discretize).
-    Returns (Result, summary)."""
+    Observers in C or the numpy ``reference``; ``noisy``: Example 1a's sensor with ``seed``;
+    horizon ``T`` and sample period ``dt`` in s. Returns (Result, summary)."""
     from ...observers import build
     nominal = robot()
     obs = {f: observer(build(f, nominal, eta=ETA, v_max=VMAX, design=PAPER), reference, dt, hold=hold)
@@ -145,7 +156,8 @@ def _ex1_figures(res, out, tag):
 def ex1a(reference=False, out=Path("build/sim/seed000-ex1a"), T=T_OPEN):
     """Example 1a: noisy, quantised measurement; plus noise-free baselines at 1 kHz and, to
     expose the O(dt) zero-order-hold bias of the reduced-order observer, at 10 kHz and at 1 kHz
-    with the first-order hold (which removes most of that bias)."""
+    with the first-order hold (which removes most of that bias).
+    ``reference``: numpy reference observers instead of C; ``out``: folder written; ``T``: horizon, s."""
     out = Path(out)
     res, s = example1(reference, noisy=True, T=T)
     res.write_csv(out / "run.csv")
@@ -159,7 +171,8 @@ def ex1a(reference=False, out=Path("build/sim/seed000-ex1a"), T=T_OPEN):
 
 
 def ex1b(reference=False, out=Path("build/sim/seed000-ex1b"), T=T_OPEN):
-    """Example 1b: plant masses +10 %, no noise."""
+    """Example 1b: plant masses +10 %, no noise.
+    ``reference``: numpy reference observers instead of C; ``out``: folder written; ``T``: horizon, s."""
     out = Path(out)
     res, s = example1(reference, noisy=False, mass_scale=1.1, T=T)
     res.write_csv(out / "run.csv")
@@ -172,7 +185,9 @@ def ex1b(reference=False, out=Path("build/sim/seed000-ex1b"), T=T_OPEN):
 # ----------------------------------------------------------------------------- Example 2
 def example2(reference=False, T=T_OPEN, dt=DT, seed=2, fixed=None, delta=None):
     """Open loop (19), high noise: the hybrid observer and fixed-gain reduced-order observers
-    with k = k_r for r in ``fixed`` (default 2..r_max). Returns (Result, summary, gains)."""
+    with k = k_r for r in ``fixed`` (default 2..r_max), down-jump tolerance ``delta`` (default
+    DELTA_HIGH_NOISE) [SPEC §1.3]. C or numpy ``reference`` observers; sensor NOISE_HIGH with ``seed``;
+    horizon ``T`` and period ``dt`` in s. Returns (Result, summary, gains k_r)."""
     from ...observers import build
     nominal = robot()
     hyb = build("reduced_order_hybrid", nominal, eta=ETA, vbar=VBAR, design=PAPER,
@@ -200,6 +215,8 @@ def example2(reference=False, T=T_OPEN, dt=DT, seed=2, fixed=None, delta=None):
 
 
 def ex2(reference=False, out=Path("build/sim/seed000-ex2"), T=T_OPEN):
+    """Example 2: hybrid vs fixed high gain under high noise, figures and the delta study (DELTA_WHY).
+    ``reference``: numpy reference observers instead of C; ``out``: folder written; ``T``: horizon, s."""
     out = Path(out)
     res, s, gains = example2(reference, T=T)
     res.write_csv(out / "run.csv")
@@ -239,7 +256,8 @@ def example3(reference=False, T=T_CLOSED, dt=DT, seed=3, setpoint=True):
     """Output feedback (SPEC §1.4) using the hybrid observer's estimate, noise as in 1a.
 
     Reference: with ``setpoint`` (main run, EX3_ASSUMPTION) the constant q_d = qbar, else the
-    quintic q(0) -> qbar of SPEC §12.1. Returns (Result, summary)."""
+    quintic q(0) -> qbar of SPEC §12.1. C or numpy ``reference`` observer; sensor as in 1a with
+    ``seed``; horizon ``T`` and period ``dt`` in s. Returns (Result, summary)."""
     from ...controllers.seed000 import Q_GOAL, T_MOVE, quintic
     from ...observers import build
     hyb = build("reduced_order_hybrid", robot(), eta=ETA, vbar=VBAR, delta=DELTA_SPEC, design=PAPER)
@@ -281,7 +299,8 @@ def _ex3_figures(res, out, tag, what):
 
 def ex3(reference=False, out=Path("build/sim/seed000-ex3"), T=T_CLOSED):
     """Example 3: the main run from an initial tracking error (set-point qbar; run.csv, fig6_*,
-    fig7_*) and the SPEC quintic from q(0) as a variant (run_quintic.csv, *_quintic.png)."""
+    fig7_*) and the SPEC quintic from q(0) as a variant (run_quintic.csv, *_quintic.png).
+    ``reference``: numpy reference observers instead of C; ``out``: folder written; ``T``: horizon, s."""
     out = Path(out)
     res, s = example3(reference, T=T)
     res.write_csv(out / "run.csv")

@@ -38,7 +38,8 @@ def designs(robot):
 def example1_both(reference=False, noisy=False, T=S.T_OPEN, dt=S.DT, seed=1, hold="foh"):
     """Example 1's open-loop run (18) with both observers, first-order hold by default (the
     zero-order hold's O(k dt) bias, README "Sampling", would otherwise set the error level);
-    returns (Result, summary)."""
+    C or numpy ``reference`` observers, Example 1a's sensor with ``seed`` if ``noisy``, horizon ``T``
+    and period ``dt`` in s; returns (Result, summary)."""
     from ...observers import build
     nominal = S.robot()
     obs = {f: S.observer(build(f, nominal, eta=S.ETA, v_max=S.VMAX), reference, dt, hold=hold) for f in FAMILIES}
@@ -48,7 +49,8 @@ def example1_both(reference=False, noisy=False, T=S.T_OPEN, dt=S.DT, seed=1, hol
 
 
 def section6(reference=False, out=Path("build/sim/seed000-section6"), T=S.T_OPEN):
-    """The comparison table of the README (see the module docstring)."""
+    """The comparison table of the README (see the module docstring): C or numpy ``reference``
+    observers, horizon ``T`` s; writes run.csv and error_norms.png to ``out``, returns the summary."""
     from models import load_robot
     out = Path(out)
     clean, s_clean = example1_both(reference, noisy=False, T=T)

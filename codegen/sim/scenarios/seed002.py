@@ -49,7 +49,9 @@ def seed002_reference(t):
 
 
 def sinusoid_reference(robot, amplitude=0.6, omega=1.5, seed=3):
-    """q_d = q_c + A sin(w_i t + phi_i) per joint, inside the joint ranges (ur5 run)."""
+    """q_d = q_c + A sin(w_i t + phi_i) per joint, inside the joint ranges of ``robot`` (ur5 run):
+    A = ``amplitude`` rad, w_i = ``omega`` (1 + 0.3 i) rad/s, q_c and phi_i drawn with ``seed``.
+    Returns ref(t) -> (q_d, qd_d, qdd_d), each (n,)."""
     rng = np.random.default_rng(seed)
     n = robot.n
     lo, hi = np.maximum(robot.q_lower, -np.pi), np.minimum(robot.q_upper, np.pi)
@@ -64,7 +66,9 @@ def sinusoid_reference(robot, amplitude=0.6, omega=1.5, seed=3):
 
 
 def track(robot, reference, T, dt, substeps=1):
-    """Closed-loop tracking with the true state; returns t, Q, QD, TAU (N rows)."""
+    """Closed-loop computed-torque tracking (module docstring, KP, KD) of ``robot`` with the true
+    state, from q_d(0): ``reference(t)`` -> (q_d, qd_d, qdd_d), horizon ``T`` and sample period ``dt``
+    in s, ``substeps`` plant RK4 steps per sample. Returns t (N,) s, Q, QD, TAU (N, n) rad, rad/s, N m."""
     N = int(round(T / dt)) + 1
     plant = Plant(robot, dt, substeps=substeps)
     ct = inverse_dynamics_function(robot)          # computed torque: M a + C qd + F qd + g
@@ -84,7 +88,8 @@ def track(robot, reference, T, dt, substeps=1):
 
 
 def noisy(Q, std, dt, rate=1e3, seed=0):
-    """q_s = q + n, n ~ N(0, std^2) drawn at ``rate`` Hz and held (A2-3)."""
+    """q_s = q + n for ``Q`` (N, n) rad sampled every ``dt`` s, n ~ N(0, std^2) (``std`` scalar or
+    (n,) rad) drawn at ``rate`` Hz with ``seed`` and held (A2-3). Returns (N, n)."""
     std = np.broadcast_to(np.asarray(std, float), (Q.shape[1],))
     if not np.any(std > 0):
         return Q.copy()
@@ -96,8 +101,9 @@ def noisy(Q, std, dt, rate=1e3, seed=0):
 
 # ---------------------------------------------------------------------------- observers
 def run_observer(spec, Y, U, dt, reference=False, est0=None):
-    """EST (N, nest) of ``spec`` over the samples (C, or the numpy reference), RK4 with y held
-    over each step (zero-order hold: the sign of (35) integrated literally, SPEC §3.3)."""
+    """EST (N, nest) of ``spec`` over the samples ``Y`` (N, ny), ``U`` (N, nu) (C, or the numpy
+    reference if ``reference``), from ``est0`` (None: zeros), RK4 with step ``dt`` s and y held over
+    each step (zero-order hold: the sign of (35) integrated literally, SPEC §3.3)."""
     obs = block(spec, Discretization(dt=dt, method="rk4", hold="zoh"), reference=reference)
     obs.reset(Y[0], est0=est0)
     return obs.run(Y, U)
@@ -119,7 +125,13 @@ def experiment(robot_name="seed002_2r", T=5.0, dt=1e-4, noise=0.0, reference=Fal
                su_est0=None):
     """Run the plant and the observers; returns a dict of arrays (see ``summarize``).
 
-    noise    0 (none), "rms30" (std = 0.3 RMS(q_i), A2-3) or a std in rad
+    robot_name      a models.load_robot name; seed002_2r tracks seed002_reference, others a
+                    sinusoid_reference unless ``reference_traj`` (t -> q_d, qd_d, qdd_d) is given
+    T, dt, T_ss     horizon, step and steady-state window [T - T_ss, T], s
+    noise    0 (none), "rms30" (std = 0.3 RMS(q_i), A2-3) or a std in rad; ``seed`` of the draws
+    reference       numpy reference observers instead of the compiled C
+    su              also run the non-smooth observer (35) [S002 (35)]
+    substeps        plant RK4 steps per sample;  rows: the non-minimal model's rows [S002 (2)-(11)]
     gains    keyword arguments of the adaptive observer's ``build`` (alpha, lam, gamma,
              thetahat0, zhat1_from_y0); None: Table II
     su_est0  initial [qd_hat, qhat] of (35); None: the seed's [2, 2, -1, -1] on the 2R arm"""
@@ -167,8 +179,8 @@ def experiment(robot_name="seed002_2r", T=5.0, dt=1e-4, noise=0.0, reference=Fal
 
 
 def summarize(d):
-    """Figures of merit: thetahat at the end, nu and qd errors at the end and their RMS over
-    the steady-state window [T - T_ss, T]."""
+    """Figures of merit of the ``experiment`` dict ``d``: thetahat at the end, nu and qd errors at
+    the end and their RMS over the steady-state window [T - T_ss, T]."""
     t, J = d["t"], d["joints"]
     ss = _window(t, d["T_ss"])
     e_qd = d["qd_hat"] - d["qd"][:, J]
@@ -207,7 +219,8 @@ TRANSIENT_CASES = {   # name -> (adaptive gains, (35)'s initial estimate); None 
 
 def windowed_rms(d, windows=WINDOWS):
     """RMS over each window [a, b) of ||qd_hat - qd|| for the adaptive observer and (35), and of
-    ||nuhat - nu|| (rad/s, m/s): {"adaptive": [...], "su": [...], "nu": [...]}."""
+    ||nuhat - nu|| (rad/s, m/s) in the ``experiment`` dict ``d`` (run with su=True), ``windows`` in s:
+    {"adaptive": [...], "su": [...], "nu": [...]}."""
     t, J = d["t"], d["joints"]
     errs = {"adaptive": d["qd_hat"] - d["qd"][:, J], "su": d["qd_hat_su"] - d["qd"], "nu": d["nu_hat"] - d["nu"]}
     return {k: [_rms(E[(t >= a) & (t < b)]) for a, b in windows] for k, E in errs.items()}
@@ -216,7 +229,8 @@ def windowed_rms(d, windows=WINDOWS):
 def transient_study(T=2.0, cases=TRANSIENT_CASES):
     """Issue 15, 4a: the noise-free transient of the adaptive observer (13) against (35) per
     window WINDOWS, for the paper's setting and one change at a time (thetahat(0), gamma, alpha,
-    lambda, zhat(0), (35)'s initial estimate); plus the conditioning of J_n along the run."""
+    lambda, zhat(0), (35)'s initial estimate); plus the conditioning of J_n along the run.
+    ``cases``: name -> (adaptive gains, (35)'s est0), see TRANSIENT_CASES; runs of ``T`` s."""
     rows = {}
     for name, (gains, su0) in cases.items():
         d = experiment(T=T, gains=gains, su_est0=su0)
@@ -228,7 +242,7 @@ def transient_study(T=2.0, cases=TRANSIENT_CASES):
 
 def ordering(std, T=5.0, seed=0):
     """log(RMS_adaptive / RMS_(35)) of the steady-state joint-velocity error (last 1 s of T) at
-    noise std (rad): < 0 while the adaptive observer is the quieter one."""
+    noise std (rad) drawn with ``seed``: < 0 while the adaptive observer is the quieter one."""
     s = summarize(experiment(T=T, noise=float(std), seed=seed))
     return float(np.log(s["qd_err_rms_ss_adaptive"] / s["qd_err_rms_ss_su"]))
 
@@ -236,7 +250,8 @@ def ordering(std, T=5.0, seed=0):
 def flip_noise(lo=0.03, hi=0.3, rel_tol=0.02, T=5.0, seed=0):
     """Issue 15, 4b: the noise std (rad, 1 kHz, held) at which the steady-state ordering of the
     adaptive observer and (35) flips, by bisection on log(std) between lo (adaptive quieter) and
-    hi (adaptive noisier). Returns {"std_rad", "bracket", "evaluations"}."""
+    hi (adaptive noisier), until hi / lo <= 1 + ``rel_tol``; runs of ``T`` s, noise drawn with ``seed``.
+    Returns {"std_rad", "bracket", "evaluations"}."""
     f_lo, f_hi = ordering(lo, T, seed), ordering(hi, T, seed)
     if not (f_lo < 0 < f_hi):
         raise ValueError(f"no flip between lo={lo} ({f_lo:+.3f}) and hi={hi} ({f_hi:+.3f})")
@@ -255,7 +270,8 @@ FLIP_SEEDS = (0, 1, 2)                 # noise realisations of the flip search
 
 def claims(reference=False, out=Path("build/sim") / "seed002-claims"):
     """Scenario seed002-claims: the transient study (4a) and the flip noise level (4b), the
-    latter per noise realisation FLIP_SEEDS (it moves with the realisation), 5 s runs."""
+    latter per noise realisation FLIP_SEEDS (it moves with the realisation), 5 s runs. Compiled
+    observers only (``reference`` must be False); ``out`` is accepted for the scenario interface."""
     if reference:
         raise ValueError("seed002-claims runs the compiled observers only (reference=False)")
     flips = {seed: flip_noise(seed=seed, rel_tol=0.05) for seed in FLIP_SEEDS}
@@ -270,7 +286,8 @@ def claims(reference=False, out=Path("build/sim") / "seed002-claims"):
 
 
 def plot(d, out, tag):
-    """Figures in the spirit of [S002 Figs. 1–4]."""
+    """Figures in the spirit of [S002 Figs. 1–4] of the ``experiment`` dict ``d``, written to the
+    folder ``out``, titles prefixed by ``tag``."""
     out = Path(out)
     t, J, names = d["t"], d["joints"], d["row_names"]
     e_nu = d["nu_hat"] - d["nu"]

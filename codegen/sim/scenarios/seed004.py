@@ -63,7 +63,10 @@ def _robot(name):
 
 
 def observer(robot, kind, eigenvalues=None, reference=False, dt=DT, hold=OBSERVER_HOLD, substeps=None):
-    """A stepped observer: kind 'tomei' or 'O1'..'O4' (C, or the numpy reference)."""
+    """A stepped observer of ``robot``: kind 'tomei' [SPEC §7] or 'O1'..'O4' [SPEC §8] with the
+    given ``eigenvalues`` (CG only; None: its default), C or the numpy ``reference``; RK4 with
+    ``substeps`` (None: OBSERVER_SUBSTEPS) per sample of ``dt`` s, measurement ``hold``.
+    Returns (spec, block)."""
     from ...observers import ciccarella_germani, tomei
     spec = tomei.build(robot) if kind == "tomei" else \
         ciccarella_germani.build(robot, kind, eigenvalues=eigenvalues)
@@ -73,7 +76,8 @@ def observer(robot, kind, eigenvalues=None, reference=False, dt=DT, hold=OBSERVE
 
 
 def measurement(spec, X):
-    """The observer's measurement rows for true states X (N, 4n)."""
+    """The measurement rows (N, ny) of the observer ``spec`` for true states X (N, 4n),
+    x = [q1; q1'; q2; q2'] [SPEC §6]."""
     n = X.shape[1] // 4
     x1, x2, x3 = X[:, :n], X[:, n:2 * n], X[:, 2 * n:3 * n]
     names = spec.y_names
@@ -93,7 +97,8 @@ def measurement(spec, X):
 
 def controller(robot, kind, dt=DT):
     """Spong's controller, kind 'fl' (feedback linearisation) or 'manifold' (fast poles
-    FAST_POLES_2R / FAST_POLES_3R), compiled; evaluated once per sample (u held)."""
+    FAST_POLES_2R / FAST_POLES_3R) of ``robot`` [SPEC §9, §10], compiled; evaluated once per
+    sample of ``dt`` s (u held)."""
     from ...controllers import spong
     if kind == "fl":
         spec = spong.feedback_linearization(robot)
@@ -103,7 +108,8 @@ def controller(robot, kind, dt=DT):
 
 
 def reference_table(t, q0, qf, T=T_TRAJ):
-    """Rows [q_d and its derivatives 1..4] (5n) of spong.cubic_reference at the times t."""
+    """Rows [q_d and its derivatives 1..4] (N, 5n) of spong.cubic_reference at the times t (N,) s:
+    cubic rest-to-rest from ``q0`` to ``qf`` (n,) rad in ``T`` s, then held [SPEC §12.4]."""
     q0, qf = np.asarray(q0, float), np.asarray(qf, float)
     t = np.asarray(t, float)[:, None]
     s = np.clip(t / T, 0.0, 1.0)
@@ -115,9 +121,12 @@ def reference_table(t, q0, qf, T=T_TRAJ):
 
 
 def closed_loop(robot, ctrl, x0, qf, T=T_SIM, dt=DT, est_observer=None, est0=None):
-    """Plant + controller (+ observer feeding the controller). Returns t, X, U (and EST).
-    The loop runs in Python over bound C calls (no per-call checks; a non-zero C status
-    still raises)."""
+    """Plant ``robot`` + compiled controller ``ctrl`` (+ observer feeding the controller). Returns
+    t (N,) s, X (N, 4n), U (N, n) N m (and EST (N, 4n)). The loop runs in Python over bound C calls
+    (no per-call checks; a non-zero C status still raises).
+
+    x0 (4n,) initial state; qf (n,) final link position (rad) of reference_table; T, dt in s;
+    est_observer: (spec, block) of :func:`observer` whose estimate, from ``est0``, replaces x."""
     plant = ElasticPlant(robot, dt, substeps=PLANT_SUBSTEPS)
     x0 = np.asarray(x0, dtype=float)
     plant.reset(x0)
@@ -156,7 +165,8 @@ def closed_loop(robot, ctrl, x0, qf, T=T_SIM, dt=DT, est_observer=None, est0=Non
 
 
 def run_observer(spec, obs, X, U, est0):
-    """Observer over recorded true states/inputs: EST (N, 4n), estimate at each sample."""
+    """Observer ``obs`` (of ``spec``) over recorded true states ``X`` (N, 4n) and inputs ``U`` (N, n),
+    from the initial estimate ``est0`` (4n,): EST (N, 4n), the estimate at each sample."""
     Y = measurement(spec, X)
     obs.reset(Y[0], est0)
     return obs.run(Y, U)
@@ -193,8 +203,9 @@ def _run_until_failure(spec, obs, X, U, est0):
 
 
 def sign_changes(t, E, t_end, floor=1e-3):
-    """Oscillation measure: sign changes of the error components over t <= t_end, summed over
-    components, ignoring samples where |e_j| < floor * max_t |e_j| (no flicker around zero)."""
+    """Oscillation measure: sign changes of the error components of ``E`` (N, m) over t <= t_end
+    (t (N,) s), summed over components, ignoring samples where |e_j| < floor * max_t |e_j|
+    (no flicker around zero)."""
     E = E[t <= t_end]
     total = 0
     for e in E.T:
@@ -216,7 +227,8 @@ def _window(t, span):
 
 def error_figure(out, fig, name, t, E, title):
     """[S004 Fig. fig]: the per-component errors E (N, 4n) over the paper's span FIG_SPAN[fig]
-    (or as far as E goes) as <out>/figNN_<name>.png and .csv. Returns {"png", "csv", "span_s"}."""
+    (or as far as E goes) against t (N,) s as <out>/figNN_<name>.png and .csv, with ``title``.
+    Returns {"png", "csv", "span_s"}."""
     w = _window(t, FIG_SPAN[fig])
     t, E = t[w][:len(E)], E[w][:len(t[w])]
     stem = Path(out) / f"fig{fig:02d}_{name}"
@@ -228,7 +240,9 @@ def error_figure(out, fig, name, t, E, title):
 
 
 def trajectory_figure(out, fig, name, t, R, n, title):
-    """[S004 Figs. 2, 7]: the desired trajectory (q_d and derivatives 1..3) as PNG and CSV."""
+    """[S004 Figs. 2, 7]: the desired trajectory (q_d and derivatives 1..3) as PNG and CSV
+    <out>/figNN_<name> for paper figure ``fig``, with ``title``: t (N,) s, R (N, >= 4n) rows of
+    reference_table, n joints. Returns {"png", "csv"}."""
     stem = Path(out) / f"fig{fig:02d}_{name}"
     png = plots.joint_trajectory(stem.with_suffix(".png"), t, R, n, title=f"Fig. {fig}: {title}")
     k = slice(None, None, _stride(t[-1]))
@@ -239,7 +253,8 @@ def trajectory_figure(out, fig, name, t, R, n, title):
 
 def tracking_figure(out, fig, name, t, errors, title):
     """[S004 Figs. 5, 6]: one panel per controller, the link tracking errors q_d - q1 (N, n) of
-    ``errors`` (label -> array, or None when the run failed), 0-10 s, as PNG and CSV."""
+    ``errors`` (label -> array, or None when the run failed) against t (N,) s, 0-10 s, as PNG and
+    CSV <out>/figNN_<name> for paper figure ``fig``, with ``title``. Returns {"png", "csv", "failed"}."""
     stem = Path(out) / f"fig{fig:02d}_{name}"
     done = {k: e for k, e in errors.items() if e is not None}
     rows = [plots.Panel({f"Link {i + 1} tracking error": e[:, i] for i in range(e.shape[1])},
@@ -253,7 +268,8 @@ def tracking_figure(out, fig, name, t, errors, title):
 
 def write_run(out, t, X, U, estimates, name="run.csv"):
     """<out>/<name>: t, true state, input and each observer's estimate, every CSV_EVERY-th
-    sample (1 kHz); an estimate shorter than t (an observer that failed) is padded with NaN."""
+    sample (1 kHz); an estimate shorter than t (an observer that failed) is padded with NaN.
+    X (N, 4n), U (N, n); ``estimates`` name -> (<= N, 4n). Returns the path as str."""
     n = X.shape[1] // 4
     k = slice(None, None, CSV_EVERY)
     cols = {"t": t[k], **{k_: X[k, i * n:(i + 1) * n] for i, k_ in enumerate(STATE_BLOCKS)}, "u": U[k]}
@@ -273,7 +289,10 @@ O1_2R = -100.0 * np.arange(3, 11)                 # [S004 Sim. 1] sigma(A - KC) 
 
 def sim1(reference=False, out="build/sim/seed004-sim1", T=T_SIM, dt=DT, dt_check=True):
     """2R: Tomei (A = K2 = Q = 2000 I, Ka_eff = 10000 I) vs CG O1 (-100{3..10}); true-state FL
-    controller (A4-10) on the swing-up reference. Figs. 2-4, run.csv."""
+    controller (A4-10) on the swing-up reference. Figs. 2-4, run.csv.
+    C or numpy ``reference`` observers; figures and CSVs in the folder ``out``; horizon ``T`` and
+    sample period ``dt`` in s. Returns the summary dict.
+    ``dt_check``: rerun O1 over 0.2 s at dt / 2 (its convergence time must not move)."""
     robot = _robot("seed004_2r")
     t0 = time.perf_counter()
     t, X, U = closed_loop(robot, controller(robot, "fl"), SIM1_X0, QF_2R, T=T, dt=dt)
@@ -311,7 +330,9 @@ def _ref_path(t, q0, qf):
 # ---------------------------------------------------------------------------- Sim 2
 def sim2(reference=False, out="build/sim/seed004-sim2", T=T_SIM, dt=DT):
     """2R: FL vs integral-manifold controller, each with the true state (Fig. 5) and with the
-    CG-O1 estimate (Fig. 6; initial estimate as Sim 1). run.csv holds the estimated-state runs."""
+    CG-O1 estimate (Fig. 6; initial estimate as Sim 1). run.csv holds the estimated-state runs.
+    C or numpy ``reference`` observers; figures and CSVs in the folder ``out``; horizon ``T`` and
+    sample period ``dt`` in s. Returns the summary dict."""
     robot = _robot("seed004_2r")
     t0 = time.perf_counter()
     summary = {"dt": dt, "manifold_fast_poles": FAST_POLES_2R.tolist()}
@@ -370,7 +391,10 @@ STUDIES = {
 
 def study_3r(k, reference=False, out=None, T=T_SIM, dt=DT):
     """3R study k (SPEC §12.4 table): manifold controller (fast poles FAST_POLES_3R) on the true
-    state to [pi/2, pi, 0]; the paper's error figures (and Fig. 7 for Sim 3), run.csv."""
+    state to [pi/2, pi, 0]; the paper's error figures (and Fig. 7 for Sim 3), run.csv.
+    C or numpy ``reference`` observers; figures and CSVs in the folder ``out``; horizon ``T`` and
+    sample period ``dt`` in s. Returns the summary dict.
+    ``out`` None: no files."""
     observers_, x0, xhat0, (e0, e1) = STUDIES[k]
     robot = _robot("seed004_3r")
     t0 = time.perf_counter()
