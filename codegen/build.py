@@ -68,13 +68,14 @@ def _probe(name):
 
 
 def c_flags(native=False, strict=False, shared=False, extra=()):
-    """C flags: C_FLAGS [+ SHARED_FLAGS] [+ -march=native] [+ -Werror] + ``extra`` (last, so they win)."""
+    """C flags: C_FLAGS [+ SHARED_FLAGS if ``shared``] [+ -march=native if ``native``] [+ -Werror if
+    ``strict``] + the list ``extra`` (last, so they win)."""
     return C_FLAGS + (SHARED_FLAGS if shared else []) + (NATIVE_FLAGS if native else []) \
         + (STRICT_FLAGS if strict else []) + list(extra)
 
 
 def digest(data):
-    """sha256 hex digest of bytes (for ``cached_build`` keys)."""
+    """sha256 hex digest of the bytes ``data`` (for ``cached_build`` keys)."""
     return hashlib.sha256(data).hexdigest()
 
 
@@ -252,6 +253,7 @@ def read_target(target_dir, suffixes=(".c", ".h", ".json")):
     Read through one directory descriptor, then checked to still be the folder at that path:
     ``emit`` swaps a new version in and deletes the old one, so a read that raced with it is
     done again (what is read is what is compiled, and the metadata is the one it was built from).
+    ``target_dir``: the folder (path); ``suffixes``: the file name endings read (others skipped).
     """
     for _ in range(20):
         try:
@@ -274,4 +276,5 @@ def read_target(target_dir, suffixes=(".c", ".h", ".json")):
 
 
 def clear_cache():
+    """Delete the compiled-library cache (``cache_dir()``) and all it holds; a missing one is fine."""
     shutil.rmtree(cache_dir(), ignore_errors=True)

@@ -178,13 +178,23 @@ def discretize(spec, disc, inline="auto"):
 
 def estimate(spec, disc, inline="auto"):
     """The estimate of ``discretize(spec, disc)`` as its own Function (same inputs), without
-    advancing the state."""
+    advancing the state; ``spec`` the observer, ``disc`` its Discretization, ``inline``: True
+    (SX), False (MX calls) or "auto" (SX when the unrolled step is small)."""
     ins, _, est, _ = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
     return ca.Function("estimate", ins, [est], _NAMES_IN, ["est"])
 
 
 def step_jacobians(spec, disc, inline="auto"):
     """Linearisations of the step and of the flow, with the sample time as an input.
+
+    Parameters
+    ----------
+    spec : ObserverSpec
+        The observer.
+    disc : Discretization
+        Method, hold and substeps of the step (its dt is replaced by the input dt).
+    inline : bool or "auto"
+        SX (inlined) or MX expressions; "auto": SX when the unrolled step is small.
 
     Returns
     -------

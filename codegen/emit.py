@@ -286,7 +286,7 @@ def render(template, values):
 
 
 def template_values(meta):
-    """The placeholders of the templates, from the metadata alone (dict name -> value); the blocks
+    """The placeholders of the templates, from the metadata ``meta`` alone (dict name -> value); the blocks
     repeated per slot (slot macros, status codes) are made here, the templates only substitute."""
     prefix, s, d, k = meta["prefix"], meta["sizes"], meta["discretization"], meta["kernels"]
     P, precision = prefix.upper(), meta.get("precision", "double")

@@ -9,7 +9,8 @@ import numpy as np
 
 def measurements(spec, count, seed, rng):
     """Random (Y (N, ny), U (N, nu)) as ``random_inputs`` draws them (also the working points of
-    codegen.stability)."""
+    codegen.stability): N = ``count`` samples for the observer ``spec``, configurations drawn
+    with ``seed``, the rest (jitter, extra slots, torques) from the numpy Generator ``rng``."""
     ir, robot = spec.inputs, spec.robot
     Q = (robot.sample_configurations(count, seed) if ir.y_jitter is None else
          robot.sample_configurations(count, 0) + ir.y_jitter * rng.normal(size=(count, robot.n)))
@@ -20,7 +21,8 @@ def measurements(spec, count, seed, rng):
 
 
 def torques(ir, G, nu, rng):
-    """u (N, nu) of ``ir.u`` from the gravity torques G (N, n)."""
+    """u (N, nu) of ``ir.u`` (``ir``: the InputRanges) from the gravity torques G (N, n) N m, noise
+    drawn from the numpy Generator ``rng``."""
     W = ir.u_scale * rng.normal(size=(G.shape[0], nu))
     if ir.u == "gravity":
         return G[:, :nu] + W
@@ -30,7 +32,7 @@ def torques(ir, G, nu, rng):
 
 
 def slot_index(spec, names, name):
-    """Index of slot ``name`` in ``names`` (ValueError naming the family and slot)."""
+    """Index of slot ``name`` in ``names`` (ValueError naming the family of ``spec`` and the slot)."""
     if name not in names:
         raise ValueError(f"{spec.family}: inputs name slot {name!r}, not one of {list(names)}")
     return names.index(name)
@@ -38,8 +40,9 @@ def slot_index(spec, names, name):
 
 def declared_slots(spec, Y, rng, about_y_spread=None):
     """The state slots ``spec.inputs`` declares (about a measurement, uniform, normal, integer):
-    {state index: (N,) values}. ``about_y_spread``: {state index: std (scalar or (N,))} of the
-    about-y slots around their measurement, or None: exactly on it."""
+    {state index: (N,) values}, from the measurements Y (N, ny) and the numpy Generator ``rng``.
+    ``about_y_spread``: {state index: std (scalar or (N,))} of the about-y slots around their
+    measurement, or None: exactly on it."""
     ir, count, out = spec.inputs, len(Y), {}
     for xs, ys in ir.x_about_y:
         i, j = slot_index(spec, spec.x_names, xs), slot_index(spec, spec.y_names, ys)

@@ -152,9 +152,10 @@ def real_number(name, value):
 
 
 def checked_args(args, name=None):
-    """The keyword arguments of a family's build, every number in them (also in lists, arrays
-    and dicts) checked by ``real_number`` under its name (k0, K1[2], bounds['m']); text and
-    other objects are left to the family."""
+    """The keyword arguments ``args`` (dict) of a family's build, every number in them (also in
+    lists, arrays and dicts) checked by ``real_number`` under its name (k0, K1[2], bounds['m']);
+    text and other objects are left to the family. ``name``: the name of ``args`` when it is one
+    value (recursion), None for the top-level dict."""
     if name is None:
         for k, v in args.items():
             checked_args(v, k)

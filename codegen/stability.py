@@ -88,10 +88,12 @@ class StabilityReport:
     evaluable: bool = True     # False: the step is not finite at the working points (not judged)
 
     def as_dict(self):
+        """The report as a JSON-ready dict (``dataclasses.asdict``)."""
         return asdict(self)
 
     def message(self, family):
-        """One line: the gain(s), dt, method, spectral radius and the fixes."""
+        """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius
+        and the fixes."""
         where = f"at dt = {self.dt:g} with {self.method} ({self.hold} hold, {self.substeps} substep(s))"
         gains = ", ".join(f"{g} = {v['value']:.6g}" for g, v in self.gains.items()) or family
         why = (f"spectral radius {self.spectral_radius:.4g} > 1 (the continuous-time observer: "
@@ -300,7 +302,8 @@ def check(spec, disc, p=None, cache=True, bounds=True):
 
 
 def require_stable(spec, disc, p=None):
-    """``check``, raising UnstableDiscretization (its message) when unstable."""
+    """``check(spec, disc, p)`` (p: parameters (np,) or None for the spec's defaults), raising
+    UnstableDiscretization (its message) when unstable."""
     report = check(spec, disc, p)
     if not report.stable:
         raise UnstableDiscretization(f"{spec.family}: " + report.message(spec.family))
@@ -309,6 +312,16 @@ def require_stable(spec, disc, p=None):
 
 def auto_substeps(spec, disc, p=None, limit=64):
     """The discretisation with the smallest substeps (>= disc.substeps, <= limit) that is stable.
+
+    Parameters
+    ----------
+    spec : ObserverSpec
+    disc : codegen.target.Discretization
+        The requested one (dt, method, hold, substeps).
+    p : (np,) array or None
+        Parameters; None: the spec's defaults.
+    limit : int
+        Largest substeps tried.
 
     Returns
     -------

@@ -71,7 +71,7 @@ class Discretization:
 
     @classmethod
     def from_dict(cls, d):
-        """Inverse of ``to_dict``; unknown keys are refused."""
+        """Inverse of ``to_dict``: the Discretization of the dict ``d``; unknown keys are refused."""
         unknown = set(d) - {"dt", "method", "hold", "substeps"}
         if unknown:
             raise ValueError(f"discretization: unknown keys {sorted(unknown)}")
@@ -103,14 +103,15 @@ def _jsonable(value, what):
 
 
 def sanitize(text):
-    """A C identifier made from user data: lowercase, [a-z0-9_], not starting with a digit."""
+    """A C identifier made from user data ``text``: lowercase, [a-z0-9_], not starting with a digit."""
     s = re.sub(r"[^0-9a-zA-Z_]", "_", str(text)).lower()
     s = re.sub(r"_+", "_", s).strip("_") or "x"
     return s if not s[0].isdigit() else "t_" + s
 
 
 def default_name(robot, family, variant=None, precision="double"):
-    """``<robot>_<family>[_<variant>][_float]``, sanitized (the default prefix of a Target)."""
+    """``<robot>_<family>[_<variant>][_float]`` (``_float`` when ``precision`` is "float"),
+    sanitized (the default prefix of a Target)."""
     parts = [robot, family] + ([variant] if variant else []) + ([precision] if precision != "double" else [])
     return sanitize("_".join(parts))
 
@@ -186,7 +187,8 @@ class Target:
         return default_name(self.robot_name, self.family, self.variant, self.precision)
 
     def with_discretization(self, value=None, **overrides):
-        """A copy with another discretisation (see ``discretization``)."""
+        """A copy with another discretisation: ``discretization(value, **overrides)``, ``value``
+        (Discretization, dict, or None: the current one) with the fields in ``overrides`` replaced."""
         return replace(self, discretization=discretization(value or self.discretization, **overrides))
 
     def to_dict(self):
@@ -197,7 +199,7 @@ class Target:
 
     @classmethod
     def from_dict(cls, d):
-        """Inverse of ``to_dict``; unknown keys are refused."""
+        """Inverse of ``to_dict``: the Target of the dict ``d``; unknown keys are refused."""
         known = {f for f in cls.__dataclass_fields__}
         unknown = set(d) - known
         if unknown:

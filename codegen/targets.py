@@ -66,7 +66,8 @@ def _builder(family):
 def family_info(family, where=""):
     """(variants, default variant or None, design input names or None for any, needs elastic).
 
-    Raises TargetError naming the known families when ``family`` is not one."""
+    Raises TargetError naming the known families when ``family`` is not one; ``where`` prefixes
+    the message (which target of a file)."""
     if family not in families():
         _fail(where, f"unknown family {family!r}; families: {', '.join(families())}")
     build, variants, elastic = _builder(family)
@@ -250,7 +251,7 @@ def load_targets(path):
 
 
 def check_unique(targets):
-    """TargetError if two (Target, out) pairs would write the same folder."""
+    """TargetError if two of the (Target, out folder) pairs ``targets`` would write the same folder."""
     seen = {}
     for i, (target, out) in enumerate(targets, 1):
         folder = out / target.prefix

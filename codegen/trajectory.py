@@ -17,14 +17,16 @@ import numpy as np
 
 
 def inverse_dynamics_function(robot):
-    """Function (q, v, a) -> tau = M a + C v + F v + g (the model of [S000 (1)])."""
+    """Function (q, v, a) -> tau = M a + C v + F v + g (the model of [S000 (1)]) of ``robot``."""
     q, v, a = ca.SX.sym("q", robot.n), ca.SX.sym("v", robot.n), ca.SX.sym("a", robot.n)
     tau = ca.mtimes(robot.mass_matrix(q), a) + robot.nle(q, v) + ca.mtimes(ca.DM(robot.F), v)
     return ca.Function("id", [q, v, a], [tau])
 
 
 def demo_trajectory(robot, T=2.0, dt=1e-3, amplitude=0.3, omega=2.0, seed=0):
-    """Samples t, Q, QD, TAU (each (N, n), N = round(T/dt) + 1) of a smooth motion.
+    """Samples t, Q, QD, TAU (each (N, n), N = round(T/dt) + 1) of a smooth motion of ``robot``:
+    sines of ``amplitude`` (rad) and frequency ``omega`` (rad/s, spread over the joints) about
+    mid-range, phases drawn with ``seed``; T, dt in s.
 
     Speeds stay below amplitude*omega (0.6 rad/s by default), inside the observers'
     design bound v_max = 2 rad/s."""
@@ -50,7 +52,8 @@ def elastic_trajectory(robot, T=2.0, dt=1e-3, amplitude=0.2, omega=2.0, seed=0, 
 
     From rest at mid-range links, q2 = q1 + K^-1 g(q1) (the static equilibrium), under
     u(t) = g(q1(0)) + amplitude max(1, |g|) sin(w t + phi); RK4 with ``substeps`` sub-steps per
-    sample, u held over each sample."""
+    sample, u held over each sample. ``robot``: the ElasticRobot; T, dt in s; ``omega`` (rad/s, spread
+    over the joints) and ``seed`` (the phases phi) of the input."""
     rng = np.random.default_rng(seed)
     n, rigid = robot.n, robot.rigid
     q1 = np.clip(0.5 * (robot.q_lower + robot.q_upper), -np.pi, np.pi)

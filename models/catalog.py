@@ -45,7 +45,8 @@ def names():
 
 
 def load_robot(name=None, *, urdf=None, locked_joints=None, **kwargs):
-    """A RobotModel by catalog name, or from a URDF file.
+    """A RobotModel by catalog ``name``, or from the ``urdf`` file with ``locked_joints`` (joint
+    name -> fixed value, rad or m); ``kwargs`` go to the catalog entry's constructor or ``load_urdf``.
 
     >>> load_robot("ur5")
     >>> load_robot(urdf="path.urdf", locked_joints={"panda_finger_joint1": 0.0})

@@ -83,6 +83,17 @@ def trajectory_inputs(spec, count, dt, seed=0):
     y = q and u = tau: the built-in smooth motion (``demo_trajectory``), truth qd (estimate
     slots ``qd_hat_<joint>``). Otherwise the family's random inputs (``random_inputs``), no truth.
 
+    Parameters
+    ----------
+    spec : ObserverSpec
+        The observer (its robot, slots and input recipe).
+    count : int
+        Number of samples N.
+    dt : float
+        Sample time, s.
+    seed : int
+        Seed of the motion (phases) or of the random inputs.
+
     Returns
     -------
     Run

@@ -170,7 +170,8 @@ class ConfigurationStats:
 
     def at(self, pts, starts=None, c0=True, tol=1e-13):
         """(lambda_min, lambda_max, c0, c0's maximiser v) at each row of pts, c0 from
-        ``starts`` (default: unit vectors and random ones; None, None when ``c0`` is False)."""
+        ``starts`` (default: unit vectors and random ones; None, None when ``c0`` is False) to
+        relative tolerance ``tol``; pts (m, n) rad, results (m,) each and v (m, n)."""
         lam = np.linalg.eigvalsh(self._eval(self._M, pts, self.robot.n))
         if not c0:
             return lam[:, 0], lam[:, -1], None, None
@@ -180,7 +181,8 @@ class ConfigurationStats:
     def maximise(self, fun, refine=3, c0=True, starts=None):
         """max_q fun(lmin, lmax, c0) (vectorised): best samples (and ``starts``, configurations),
         then a pattern search from each, c0 (when ``c0``: fun uses it) started from the
-        maximisers v of those samples and resolved to 1e-10 relative during the search.
+        maximisers v of those samples and resolved to 1e-10 relative during the search; ``refine``
+        best samples are refined.
 
         Returns (max value, maximiser (n,))."""
         vals = fun(self.lmin, self.lmax, self.c0s)
@@ -189,7 +191,8 @@ class ConfigurationStats:
                           vals, refine, starts)
 
     def extremes(self, refine=3):
-        """(min_q lambda_min(M(q)), max_q lambda_max(M(q)), max_q c0(q)), each refined."""
+        """(min_q lambda_min(M(q)), max_q lambda_max(M(q)), max_q c0(q)), each refined from its
+        ``refine`` best samples (``maximise``)."""
         return (-self.maximise(lambda lmin, lmax, c0: -lmin, refine, c0=False)[0],
                 self.maximise(lambda lmin, lmax, c0: lmax, refine, c0=False)[0],
                 self.maximise(lambda lmin, lmax, c0: c0, refine)[0])

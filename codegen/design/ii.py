@@ -52,6 +52,7 @@ class IISpeedDesign:
         return k1 * self.dy_k1 + np.einsum("jim,m->ji", self.dy_sx, np.abs(np.asarray(s_x, float)))
 
     def as_dict(self):
+        """The fields as a JSON-ready dict (arrays as lists)."""
         d = dict(self.__dict__)
         d["dy_k1"], d["dy_sx"] = self.dy_k1.tolist(), self.dy_sx.tolist()
         return d
@@ -79,6 +80,7 @@ class IIAovDesign:
     refined: bool
 
     def as_dict(self):
+        """The fields as a JSON-ready dict (arrays as lists)."""
         d = dict(self.__dict__)
         d["dq_k1"], d["dq_p"] = self.dq_k1.tolist(), self.dq_p.tolist()
         return d

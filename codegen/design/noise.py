@@ -69,6 +69,7 @@ def sensor_sigma(noise=None, quantization=None):
 
 
 def check_uncertainty(uncertainty):
+    """``uncertainty`` as a float; ValueError naming it unless a relative model error in [0, 1)."""
     if not (isinstance(uncertainty, (int, float)) and math.isfinite(uncertainty) and 0 <= uncertainty < 1):
         raise ValueError(f"uncertainty must be a relative error in [0, 1), got {uncertainty!r}")
     return float(uncertainty)
@@ -82,7 +83,8 @@ def convergence_floor(eps0, t_conv, tol=TOL):
 
 
 def smoother_noise(k0, dt, sigma):
-    """Std of w = the exponential smoother of the backward difference (module docstring)."""
+    """Std (rad/s) of w = the exponential smoother of the backward difference (module docstring) at
+    gain ``k0`` (1/s), sample time ``dt`` (s) and sensor std ``sigma`` (rad)."""
     E = math.exp(-k0 * dt)
     return sigma * (1 - E) / dt * math.sqrt(2 / (1 + E))
 
@@ -121,6 +123,7 @@ class NoiseAwareDesign:
     guarantee: dict            # the (12) design report
 
     def as_dict(self):
+        """The fields as a JSON-ready dict (arrays as lists)."""
         return dict(self.__dict__)
 
     def __str__(self):
@@ -141,7 +144,26 @@ def reduced_order_noise_gain(n, dt, sigma, e_rms, G, floor, guarantee):
     floor; without noise the guarantee gain (12) (a higher gain only lowers the bias), raised to
     the floor. (The families then keep it inside the stable region, codegen.stability.)
 
-    Returns (k0, choice, why, k0_noise, predicted errors dict)."""
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+    dt : float
+        Sample time, s.
+    sigma : float
+        Sensor std sigma_e, rad.
+    e_rms : float
+        RMS model acceleration error d rms_q |M^-1 g|, rad/s^2.
+    G : float
+        Gravity stiffness rms_q ||M^-1 dg/dq||_F, 1/s^2.
+    floor : float
+        Convergence floor on k0, 1/s.
+    guarantee : float
+        Gain of the guarantee (12), 1/s.
+
+    Returns
+    -------
+    (k0, choice, why, k0_noise, predicted errors dict)."""
     def err(k):
         return reduced_order_error(k, dt, n, sigma, e_rms, G)
     if sigma > 0 and (e_rms > 0 or G > 0):

@@ -47,6 +47,7 @@ class ReducedOrderDesign:
     samples: int
 
     def as_dict(self):
+        """The fields as a JSON-ready dict (arrays as lists)."""
         d = dict(self.__dict__)
         d["q_k0"] = [float(x) for x in self.q_k0]
         return d
@@ -76,7 +77,8 @@ def _gain_objective(lamF, speed):
 
 
 def robot_key(robot):
-    """What a design depends on: the content of M(q) and g(q), F and the joint ranges."""
+    """Cache key of what a design for ``robot`` depends on: the content of M(q) and g(q), F and the
+    joint ranges."""
     return key_digest([robot.M.serialize(), robot.g.serialize(), np.asarray(robot.F).tolist(),
                        np.asarray(robot.q_lower).tolist(), np.asarray(robot.q_upper).tolist()])
 
@@ -154,7 +156,8 @@ def scheduled_gains(robot, eta=1.0, vbar=2.0, r_max=6, samples=SAMPLES, seed=0):
 
 @lru_cache(maxsize=32)
 def model_statistics(robot, samples=SAMPLES, seed=0):
-    """``noise.gravity_statistics`` of ``robot`` over the design's sampled configurations."""
+    """``noise.gravity_statistics`` of ``robot`` over ``samples`` configurations drawn with ``seed``
+    (the design's sample points)."""
     q = ca.SX.sym("q", robot.n)
     dg = ca.Function("dg", [q], [ca.jacobian(robot.gravity(q), q)])
     return gravity_statistics(robot.M, robot.g, dg, sample_points(robot, samples, seed))

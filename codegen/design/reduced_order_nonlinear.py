@@ -40,6 +40,7 @@ def features(y):
 
 
 def feature_count(n):
+    """nb = 5n + 2n(n - 1), the number of features phi(y) for ``n`` joints."""
     return 5 * n + 2 * n * (n - 1)
 
 
@@ -59,6 +60,7 @@ class NonlinearGainDesign:
     checks: dict = field(default_factory=dict)
 
     def as_dict(self):
+        """The fields as a JSON-ready dict (arrays as lists)."""
         d = dict(self.__dict__)
         d["C"] = np.asarray(self.C).tolist()
         d["q_k0"] = [float(x) for x in self.q_k0]
@@ -153,7 +155,9 @@ def nonlinear_gain(robot, eta=1.0, v_max=2.0, fit_samples=300, samples=2000, see
 
 def gain_for(g, C, eta, v_max):
     """(k0, maximiser) of (12') for K1 = C phi(y): sampled on g.stats' points, then refined
-    (c0 from every start of the power method at each refined point, not a warm start)."""
+    (c0 from every start of the power method at each refined point, not a warm start).
+    ``g``: the sampled _Gain of the robot; ``C``: (n, nb), K1 = C phi(y); ``eta``, ``v_max``: rad/s
+    (SPEC §0 (12))."""
     lamF = _lambda_min_F(g.stats.robot)
 
     def need(c0, lmin_q):
@@ -170,6 +174,16 @@ def verify(robot, design, samples=5000, seed=7):
     """The convergence condition (12') on fresh configurations: the margin
     k0/2 lambda_min(Q1(y)) + lambda_min(F) - c0(y)(v_max + eta) (>= 0 everywhere: V' <= -0 on
     the region), lambda_min(Q1) > 0, the spread of Q1 and the noise gain max ||k0 dK1/dy||_2.
+
+    Parameters
+    ----------
+    robot : RobotModel
+    design : NonlinearGainDesign
+        k0, C (n, nb), eta and v_max (rad/s) to check.
+    samples : int
+        Number of fresh configurations.
+    seed : int
+        Seed of those configurations (not the design's).
 
     Returns
     -------

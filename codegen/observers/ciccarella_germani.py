@@ -49,6 +49,7 @@ def default_eigenvalues(n):
 def variant_structure(robot, variant, x):
     """(generators, degrees, row_names, H, y_names, row_error) of a variant (module table).
 
+    ``robot``: the ElasticRobot; ``variant``: "O1".."O4"; ``x``: the symbolic state (4n,) SX.
     row_error[j] = index of the measurement-error component that drives Phi row j."""
     n, names = robot.n, robot.joint_names
     x1, x2, x3, _ = robot.split(x)
@@ -78,7 +79,10 @@ def variant_structure(robot, variant, x):
 def correction(Phi, x, v, degrees, rcond_min):
     """(Q^{-1} v, structured?) with Q = dPhi/dx: block forward substitution over derivative
     levels (symbolic.block_forward_substitution_jvp) when Phi, rows reordered level-major, has a
-    block lower-triangular Jacobian in the natural state order; ca.solve (general) otherwise."""
+    block lower-triangular Jacobian in the natural state order; ca.solve (general) otherwise.
+    ``Phi``: the rows of Phi(x) (SX), ``x``: the state (SX), ``v``: the vector solved for (SX),
+    ``degrees``: relative degree r_i per generator, ``rcond_min``: the pivot guard (module
+    docstring; SX parameter or float)."""
     offsets = np.cumsum([0] + list(degrees))
     perm, blocks = [], []
     for level in range(max(degrees)):
@@ -95,8 +99,10 @@ def correction(Phi, x, v, degrees, rcond_min):
 
 
 def build(robot, variant="O1", eigenvalues=None, gains=None, rcond_min=1e-12):
-    """CG observer ``variant`` for an ElasticRobot; gains from ``eigenvalues`` (4n, taken in
-    order per joint/output, SPEC §8.3) unless the flat per-row ``gains`` are given."""
+    """CG observer ``variant`` [S004 (3.10)] for the ElasticRobot ``robot``; gains from
+    ``eigenvalues`` (4n, taken in order per joint/output, SPEC §8.3) unless the flat per-row
+    ``gains`` (4n,) are given; ``rcond_min``: default of the runtime pivot guard (module
+    docstring)."""
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
     n, nx = robot.n, robot.nx

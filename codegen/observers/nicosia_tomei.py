@@ -26,7 +26,10 @@ KP_DEFAULT = 500.0   # [ASSUMPTION SPEC §2, A0-4], the "guarantee" design's k_P
 
 
 def design_gains(robot, design, eta, v_max, noise, quantization, uncertainty, dt, t_conv):
-    """(kd, kp, report) of the default design (module docstring)."""
+    """(kd, kp, report) of the default design (module docstring) for ``robot``: ``design`` "noise"
+    or "guarantee"; ``eta``, ``v_max`` (rad/s) of (12); sensor ``noise`` std and encoder
+    ``quantization`` step (rad, or None); relative model ``uncertainty``; sample time ``dt`` (s);
+    ``t_conv`` (s) to fall below 1e-2 rad/s from v_max."""
     guarantee = reduced_order_gain(robot, eta=eta, v_max=v_max)
     if check_design(design) == "guarantee":
         return guarantee.k0, KP_DEFAULT, {"design": design, "reduced_order": guarantee.as_dict()}
@@ -45,8 +48,8 @@ def design_gains(robot, design, eta, v_max, noise, quantization, uncertainty, dt
 def build(robot, kd=None, kp=None, eta=1.0, v_max=2.0, noise=None, quantization=None, uncertainty=0.0,
           design="noise", dt=None, t_conv=1.0):
     """Nicosia–Tomei observer for ``robot``; (kd, kp) designed unless both are given (a given
-    one overrides its designed value). noise, quantization, uncertainty, dt: as in
-    ``reduced_order.build``; t_conv: the time (s) to fall below 1e-2 rad/s from v_max."""
+    one overrides its designed value). eta, v_max, noise, quantization, uncertainty, design, dt:
+    as in ``reduced_order.build``; t_conv: the time (s) to fall below 1e-2 rad/s from v_max."""
     report = None
     if kd is None or kp is None:
         disc = design_discretization(dt)

@@ -16,7 +16,8 @@ from ._design import check_design, design_discretization, stable_report
 
 
 def flow(robot, z, y, tau, k):
-    """(x2hat, z') of the observer with gain k(y) = k y, k a scalar SX  [S000 (6),(9)].
+    """(x2hat, z') of the observer with gain k(y) = k y, k a scalar SX  [S000 (6),(9)], for ``robot``
+    at state z, measurement y = q and torque ``tau`` (SX vectors (n,)).
 
     Shared by the hybrid family (reduced_order_hybrid), where k is the scheduled k_r."""
     x2hat = z + k * y                                                # [S000 (9)]

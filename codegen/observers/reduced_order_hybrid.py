@@ -33,7 +33,8 @@ def gain_names(r_max):
 
 
 def logic_index(r, r_max):
-    """r as an exact integer 1..r_max: 1 + #{i in 2..r_max : r >= i - 1/2} (clamps bad values)."""
+    """r as an exact integer 1..r_max: 1 + #{i in 2..r_max : r >= i - 1/2} (clamps bad values);
+    ``r`` SX, ``r_max`` the number of gains."""
     return 1 + sum(ca.if_else(r >= i - 0.5, 1, 0) for i in range(2, r_max + 1))
 
 
@@ -46,7 +47,8 @@ def scheduled_gain(r, k):
 
 
 def switch(r, speed, eta, vbar, delta, r_max):
-    """Logic state after the jumps of SPEC §1.3 at estimated speed ||x2hat|| = ``speed``.
+    """Logic state after the jumps of SPEC §1.3 at estimated speed ||x2hat|| = ``speed``, from ``r``
+    (1..r_max), with ``eta``, ``vbar`` and the down-jump tolerance ``delta`` (rad/s).
 
     Each test is unrolled r_max - 1 times ("repeat the test"); after the up-jumps the
     down-test cannot fire (speed >= (r-1) vbar - eta there), so the order is immaterial."""

@@ -20,7 +20,8 @@ from ..spec import ObserverSpec
 
 def build(robot, k0=None, C=None, eta=1.0, v_max=2.0):
     """Reduced-order observer with k(y) = k0 C phi(y) for ``robot``; K1 and k0 designed by
-    deformation reduction and (12') unless both are given (C: (n, nb) array)."""
+    deformation reduction and (12') unless both are given (C: (n, nb) array); ``eta``, ``v_max``
+    (rad/s): the error radius and speed bound of (12')."""
     n, nb = robot.n, feature_count(robot.n)
     if (k0 is None) != (C is None):
         raise ValueError("give both k0 and C, or neither (then both are designed)")

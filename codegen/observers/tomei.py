@@ -24,8 +24,9 @@ ROBOT = "elastic"   # needs an ElasticRobot (codegen.targets checks it before bu
 
 
 def build(robot, A=2000.0, K2=2000.0, Ka=10000.0, Q_lyap=2000.0, K1=None):
-    """Tomei observer for an ElasticRobot; defaults: the seed's Sim-1 gains (SPEC §7), K1 from
-    the Lyapunov equation (0.5 I)."""
+    """Tomei observer (SPEC §7) for the ElasticRobot ``robot``; gains A, K2, Ka, Q_lyap (each a
+    scalar or (n,), > 0) default to the seed's Sim-1 gains, K1 ((n,)) to the solution of the
+    Lyapunov equation with A and Q_lyap (0.5 I)."""
     n = robot.n
     d = lambda v: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy()  # noqa: E731
     A, K2, Ka, Q_lyap = d(A), d(K2), d(Ka), d(Q_lyap)

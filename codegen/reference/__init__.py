@@ -172,7 +172,7 @@ class ReferenceObserver:
 
     @params.setter
     def params(self, p):
-        """New parameters, refused (ValueError) when a declared gain is negative or the step is
+        """New parameters ``p`` (np,), refused (ValueError) when a declared gain is negative or the step is
         unstable at the current state (``check_params``); the state is then transformed
         (``retune`` of the family, if any) so that the estimate at the last measurement is
         unchanged (bumpless retuning)."""
@@ -263,6 +263,7 @@ class ReferenceObserver:
 
     @state.setter
     def state(self, x):
+        """Set the state to ``x`` (nx,) (ValueError naming x on a bad size or value)."""
         self._x = _vector(x, self.nx, "x")
 
     def reset(self, y0, est0=None, p=None):

@@ -37,7 +37,7 @@ def euler_step(f, t, x, h):
 
 
 def rk4_step(f, t, x, h):
-    """Classical Runge-Kutta: x + h/6 (k1 + 2 k2 + 2 k3 + k4); arguments as ``euler_step``."""
+    """Classical Runge-Kutta: x + h/6 (k1 + 2 k2 + 2 k3 + k4); f, t, x, h as in ``euler_step``."""
     k1 = f(t, x)
     k2 = f(t + 0.5 * h, x + 0.5 * h * k1)
     k3 = f(t + 0.5 * h, x + 0.5 * h * k2)
@@ -63,7 +63,8 @@ def phi(z):
 
 
 def etdrk4_step(f, t, x, h, a, mask):
-    """One ETD-RK4 step of x' = f(t, x) whose linear part is -a x on the states of ``mask``."""
+    """One ETD-RK4 step of length h (s) of x' = f(t, x) whose linear part is -a x on the states of
+    ``mask``; f, t, x as in ``euler_step``, a (1/s) a scalar, mask (m,) 0/1."""
     D = np.asarray(mask, dtype=float)
     E, p1h = phi(-0.5 * a * h)[:2]
     E2, p1, p2, p3 = phi(-a * h)

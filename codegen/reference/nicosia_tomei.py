@@ -38,7 +38,7 @@ def output(robot, x, y, u, p):
 
 def rhs(robot, x, y, u, p):
     """[x1hat' (rad/s); x2hat' (rad/s^2)] (2n,) of SPEC §2, the K_P x1tilde term entering as a
-    torque; arguments as in ``output``."""
+    torque; robot, x, y, u, p as in ``output``."""
     n = robot.n
     x1hat, x2hat = x[:n], x[n:]
     kd, kp = p
@@ -48,21 +48,23 @@ def rhs(robot, x, y, u, p):
 
 
 def rate(robot, x, p):
-    """The gain rate kd of x1hat' = [x2hat + kd y] - kd x1hat (integrated exactly by etdrk4)."""
+    """The gain rate kd = p[0] of x1hat' = [x2hat + kd y] - kd x1hat (integrated exactly by etdrk4);
+    robot, x as in ``output`` (unused)."""
     return float(p[0])
 
 
 def rate_states(robot):
-    """0/1 per state: the linear term -kd x1hat acts on x1hat."""
+    """0/1 per state (2n,) of ``robot``: the linear term -kd x1hat acts on x1hat."""
     return np.concatenate([np.ones(robot.n), np.zeros(robot.n)])
 
 
 def init(robot, y0, est0, p):
-    """x(0) = [x1hat(0) = y0; x2hat(0) = est0] (2n,)  [CODE-KUKA]; y0 (n,) rad, est0 (n,) rad/s."""
+    """x(0) = [x1hat(0) = y0; x2hat(0) = est0] (2n,)  [CODE-KUKA]; y0 (n,) rad, est0 (n,) rad/s;
+    robot, p as in ``output`` (unused)."""
     return np.concatenate([np.asarray(y0, float), np.asarray(est0, float)])
 
 
 def sizes(robot):
-    """{"nx": 2n, "ny": n, "nu": n, "nest": n}."""
+    """{"nx": 2n, "ny": n, "nu": n, "nest": n} for ``robot`` (n joints)."""
     n = robot.n
     return {"nx": 2 * n, "ny": n, "nu": n, "nest": n}

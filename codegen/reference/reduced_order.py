@@ -38,34 +38,36 @@ def output(robot, x, y, u, p):
 
 def rhs(robot, x, y, u, p):
     """z' = forward_dynamics(y, x2hat, tau) - k0 x2hat  [S000 (6)] (n,), rad/s^2
-    (M^{-1} k0 M x2hat = k0 x2hat, so the M(y) dk/dy term leaves the solve); arguments as in
-    ``output``."""
+    (M^{-1} k0 M x2hat = k0 x2hat, so the M(y) dk/dy term leaves the solve); robot, x, y, u, p
+    as in ``output``."""
     x2hat = output(robot, x, y, u, p)
     return robot.forward_dynamics(y, x2hat, u) - p[0] * x2hat
 
 
 def rate(robot, x, p):
-    """The gain rate a = k0 of z' = [FD - k0^2 y] - k0 z, on every state (integrated exactly by etdrk4)."""
+    """The gain rate a = k0 = p[0] of z' = [FD - k0^2 y] - k0 z, on every state (integrated exactly
+    by etdrk4); robot, x as in ``output`` (unused)."""
     return float(p[0])
 
 
 def rate_states(robot):
-    """0/1 per state: the linear gain term acts on all of z."""
+    """0/1 per state (n,) of ``robot``: the linear gain term acts on all of z."""
     return np.ones(robot.n)
 
 
 def retune(robot, x, y, p_old, p_new):
-    """z+ = z + (k0_old - k0_new) y: x2hat = z + k0 y continuous at a change of k0."""
+    """z+ = z + (k0_old - k0_new) y: x2hat = z + k0 y continuous at a change of k0 from p_old to
+    p_new; robot, x = z, y as in ``output``."""
     return np.asarray(x, dtype=float) + (p_old[0] - p_new[0]) * np.asarray(y, dtype=float)
 
 
 def init(robot, y0, est0, p):
     """z(0) = x2hat(0) - k0 y(0)  [CODE-KUKA] (n,), rad/s; y0 = q(0) (n,) rad, est0 = x2hat(0)
-    (n,) rad/s, p as in ``output``."""
+    (n,) rad/s, robot, p as in ``output``."""
     return np.asarray(est0, dtype=float) - p[0] * np.asarray(y0, dtype=float)
 
 
 def sizes(robot):
-    """{"nx", "ny", "nu", "nest"}: n each."""
+    """{"nx", "ny", "nu", "nest"}: n each, n the joints of ``robot``."""
     n = robot.n
     return {"nx": n, "ny": n, "nu": n, "nest": n}

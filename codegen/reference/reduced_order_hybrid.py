@@ -69,7 +69,7 @@ def output(robot, x, y, u, p):
 
 
 def rhs(robot, x, y, u, p):
-    """[z'; r'] = [FD(y, x2hat, tau) - k_r x2hat; 0]  [S000 (6)] (n + 1,); arguments as in
+    """[z'; r'] = [FD(y, x2hat, tau) - k_r x2hat; 0]  [S000 (6)] (n + 1,); robot, x, y, u, p as in
     ``output``."""
     zdot = reduced_order.rhs(robot, x[:-1], y, u, [gain(x, p)])
     return np.append(zdot, 0.0)
@@ -77,7 +77,7 @@ def rhs(robot, x, y, u, p):
 
 def jump(robot, x, y, p):
     """[z+; r+] (n + 1,): the switching rule of SPEC §1.3 (up- then down-jumps, repeated) with
-    the z reset that keeps x2hat continuous [DERIVED]; arguments as in ``output``."""
+    the z reset that keeps x2hat continuous [DERIVED]; robot, x, y, p as in ``output``."""
     k, eta, vbar, delta = _split(p)
     r_max = len(k)
     z = np.asarray(x[:-1], dtype=float)
@@ -93,29 +93,31 @@ def jump(robot, x, y, p):
 
 
 def rate(robot, x, p):
-    """The gain rate k_r of the flow on z (r' = 0, so constant along it)."""
+    """The gain rate k_r of the flow on z (r' = 0, so constant along it); robot, x, p as in
+    ``output``."""
     return float(gain(x, p))
 
 
 def rate_states(robot):
-    """0/1 per state: the linear gain term acts on z, not on r."""
+    """0/1 per state (n + 1,) of ``robot``: the linear gain term acts on z, not on r."""
     return np.append(np.ones(robot.n), 0.0)
 
 
 def retune(robot, x, y, p_old, p_new):
-    """z+ = z + (k_r(p_old) - k_r(p_new)) y, r unchanged: x2hat continuous at a change of gains."""
+    """z+ = z + (k_r(p_old) - k_r(p_new)) y, r unchanged: x2hat continuous at a change of gains;
+    robot, x, y as in ``output``."""
     x = np.asarray(x, dtype=float)
     return np.append(x[:-1] + (gain(x, p_old) - gain(x, p_new)) * np.asarray(y, float), x[-1])
 
 
 def init(robot, y0, est0, p):
     """x(0) = [x2hat(0) - k_1 y(0); 1] (n + 1,)  [S000 §V, CODE-KUKA]; y0 = q(0) (n,) rad,
-    est0 = x2hat(0) (n,) rad/s, p as in ``output``."""
+    est0 = x2hat(0) (n,) rad/s, robot, p as in ``output``."""
     k = _split(p)[0]
     return np.append(np.asarray(est0, float) - k[0] * np.asarray(y0, float), 1.0)
 
 
 def sizes(robot):
-    """{"nx": n + 1, "ny": n, "nu": n, "nest": n}."""
+    """{"nx": n + 1, "ny": n, "nu": n, "nest": n}, n the joints of ``robot``."""
     n = robot.n
     return {"nx": n + 1, "ny": n, "nu": n, "nest": n}

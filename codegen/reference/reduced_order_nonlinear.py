@@ -26,7 +26,7 @@ def phi(y):
 
 
 def dphi(y):
-    """dphi/dy (nb, n), written out entry by entry."""
+    """dphi/dy (nb, n) at y = q (n,) rad, written out entry by entry."""
     y = np.asarray(y, dtype=float)
     n = len(y)
     pr = _pairs(n)
@@ -47,7 +47,7 @@ def _gain(robot, p):
 
 
 def output(robot, x, y, u, p):
-    """x2hat = z + k0 C phi(y) (n,), rad/s  [S000 §VI]; x = z (n,) rad/s, y = q (n,) rad,
+    """x2hat = z + k0 C phi(y) (n,), rad/s  [S000 §VI]; robot, x = z (n,) rad/s, y = q (n,) rad,
     u = tau (n,) N m (unused), p = [k0, C row-major]."""
     k0, C = _gain(robot, p)
     return np.asarray(x, dtype=float) + k0 * C @ phi(y)
@@ -55,19 +55,20 @@ def output(robot, x, y, u, p):
 
 def rhs(robot, x, y, u, p):
     """z' = forward_dynamics(y, x2hat, tau) - k0 C dphi/dy x2hat  [S000 (6)] (n,), rad/s^2;
-    arguments as in ``output``."""
+    robot, x, y, u, p as in ``output``."""
     k0, C = _gain(robot, p)
     x2hat = output(robot, x, y, u, p)
     return robot.forward_dynamics(y, x2hat, u) - k0 * (C @ dphi(y)) @ x2hat
 
 
 def init(robot, y0, est0, p):
-    """z(0) = x2hat(0) - k0 C phi(y(0)) (n,), rad/s."""
+    """z(0) = x2hat(0) - k0 C phi(y(0)) (n,), rad/s; y0 = q(0) (n,) rad, est0 = x2hat(0) (n,) rad/s,
+    robot, p as in ``output``."""
     k0, C = _gain(robot, p)
     return np.asarray(est0, dtype=float) - k0 * C @ phi(y0)
 
 
 def sizes(robot):
-    """{"nx", "ny", "nu", "nest"}: n each."""
+    """{"nx", "ny", "nu", "nest"}: n each, n the joints of ``robot``."""
     n = robot.n
     return {"nx": n, "ny": n, "nu": n, "nest": n}
