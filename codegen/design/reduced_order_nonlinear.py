@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .configurations import ConfigurationStats, c0_batch, refine_max, sample_points
+from .configurations import ConfigurationStats, refine_max, sample_points
 from .reduced_order import _lambda_min_F
 
 
@@ -163,8 +163,9 @@ def gain_for(g, C, eta, v_max):
     def need(c0, lmin_q):
         return (c0 * (v_max + eta) - lamF) / (0.5 * lmin_q)
 
-    def at(q):
-        return need(c0_batch(g.stats._eval(np.atleast_2d(q))[1], g.n)[0][0], g.q_eigs(C, q)[0][0])
+    def at(Q):                       # batched: (K, n) -> (K,), c0 from every start (no warm start)
+        Q = np.atleast_2d(Q)
+        return need(g.stats.at(Q)[2], g.q_eigs(C, Q)[0])
 
     vals = need(g.stats.c0s, g.q_eigs(C, g.stats.points)[0])
     return refine_max(at, g.stats.robot, g.stats.points, vals, refine=10)
