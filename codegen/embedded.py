@@ -40,7 +40,9 @@ CPUS = {"m4f": ("cortex-m4f", "float"), "m7": ("cortex-m7", "double")}
 # Debian package -> how to tell it is installed
 PACKAGES = {"gcc-arm-none-eabi": "arm-none-eabi-gcc", "libnewlib-arm-none-eabi": "libc.a",
             "qemu-system-arm": "qemu-system-arm"}
-TOLERANCE = {"double": 1e-15, "float": 1e-4}   # relative to the host build over the run
+# relative to the host build over the run; double: newlib and glibc round sin/cos of some arguments
+# differently (ur5 at the default gains: 1.1e-15 over 300 steps), arithmetic is the same (no contraction)
+TOLERANCE = {"double": 1e-14, "float": 1e-4}
 # double-precision routines (soft-float helpers, double libm; gcc fuses sin and cos into sincos):
 # a single-precision firmware links none
 DOUBLE_ROUTINES = re.compile(rf"^(?:__aeabi_(?:c?d\w+|\w*2d)|{MATH_FUNCTIONS}|sincos)$")
