@@ -8,6 +8,7 @@ from conftest import DEFAULT
 TOL = 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", DEFAULT)
 def test_emitted_c_equals_reference(name, spec_of):
     """>= 1000 random inputs per default target: single steps (estimate and next state), the RHS,
@@ -33,6 +34,7 @@ def test_other_discretizations_match_reference(name, method, substeps, hold, spe
                                           ("su_nonsmooth", "seed002_2r"),
                                           ("ii_speed", "seed003_2r_abs"),
                                           ("ii_aov", "seed003_2r_abs")])
+@pytest.mark.slow
 def test_cli_check_works_for_every_rigid_family(family, robot):
     """`python -m codegen check ROBOT --family F` (the generic cross-check with the family's own
     random inputs where it has them) for every rigid-robot family; elastic families are

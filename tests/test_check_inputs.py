@@ -94,6 +94,7 @@ def test_jittered_configurations_are_one_fixed_draw():
     assert np.abs(Y1 - Y2).max() <= 2 * SIGMAS * spec.inputs.y_jitter
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(CASES))
 def test_c_equals_reference_on_drawn_inputs(case):
     """At the default discretisation with the fewest stable sub-steps (the tanh-smoothed Su

@@ -61,6 +61,7 @@ def test_urdf_with_locked_gripper_to_c_and_cross_check(capsys, workdir):
 ELASTIC_RUNS = [("ciccarella_germani", "O2", 0.1, 4), ("tomei", None, 2.0, 100)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("family, variant, T, count", ELASTIC_RUNS)
 def test_elastic_observers_from_cli(capsys, workdir, family, variant, T, count):
     """Must show: an elastic robot's Ciccarella-Germani O2 and Tomei, generated (C harness ==

@@ -96,6 +96,7 @@ def _elastic_inputs(n, rng, count):
     return ys
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("law", ["fl", "manifold"])
 @pytest.mark.parametrize("robot", ["seed004_2r", "seed004_3r"])
 def test_spong_laws_match_reference(law, robot):

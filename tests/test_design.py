@@ -118,6 +118,7 @@ def test_noise_aware_choices():
         reduced_order_design(robot, 1e-3, uncertainty=1.5)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,uncertainty", [("ur5", 0.1), ("panda", 0.1), ("ur5", 0.0)])
 def test_predicted_error_matches_simulation(name, uncertainty):
     """The prediction of codegen.design.noise against the compiled observer on the built-in

@@ -21,6 +21,7 @@ def _rk4_stability(z):
     return 1 + z + z ** 2 / 2 + z ** 3 / 6 + z ** 4 / 24
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["ur5", "panda"])
 def test_default_is_unbiased_whatever_k0_dt(name, tmp_path):
     """At the guarantee gain (12) (ur5 k0 dt ~ 0.48, panda ~ 2.1): the default (ETD-RK4, first-
@@ -62,6 +63,7 @@ def test_etdrk4_phi_functions_and_exactness():
     assert etdrk4_step(flow, 0.0, np.array([x0]), h, a, [1])[0] == pytest.approx(exact, rel=1e-13)
 
 
+@pytest.mark.slow
 def test_rk4_calling_a_shared_rhs_equals_the_inlined_one(spec_of, tmp_path):
     """inline=False (the stages call one RHS routine, for big observers) gives the same numbers
     and strict C99."""

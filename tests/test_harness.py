@@ -257,6 +257,7 @@ def test_csv_helpers_round_trip(tmp_path):
 PIN_MISSING = harness.pin_bench_missing()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(PIN_MISSING is not None, reason=f"pin_aba cannot be built: {PIN_MISSING}")
 def test_pin_bench():
     exe = harness.build_pin_bench()

@@ -19,6 +19,7 @@ def robot():
     return seed000_2r()
 
 
+@pytest.mark.slow
 def test_plant_matches_dop853(robot):
     """Compiled RK4 plant (h = dt/substeps = 1e-4 s) vs solve_ivp DOP853 (rtol = atol = 1e-12), same
     torque held over each 10 ms sample, 2 s of Example-1 motion: max |x - x_ref| <= 1e-10."""

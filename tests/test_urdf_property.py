@@ -115,6 +115,7 @@ def _slots_are_unique_identifiers(robot):
 
 @settings(max_examples=60, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@pytest.mark.slow
 @given(joints=chains())
 def test_random_urdf_loads_and_matches_pinocchio_or_is_refused_naming_an_element(joints, tmp_path):
     path = write_chain(tmp_path / "random.urdf", joints)

@@ -203,6 +203,7 @@ def test_example1b_reduced_order_tight_under_mass_mismatch():
     assert ro["rms_after_transient"] < 0.5 * nt["rms_after_transient"]
 
 
+@pytest.mark.slow
 def test_example2_switching():
     res, s, gains = S.example2()
     h = s["hybrid"]

@@ -144,6 +144,7 @@ def _cross_check(spec, count, dt=1e-4):
     return worst
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(CASES))
 def test_emitted_c_equals_reference(case):
     name, family, kw = CASES[case]
@@ -213,6 +214,7 @@ def test_scenario_c_equals_reference():
         assert relative_error(c[key], r[key]) <= 1e-8, key
 
 
+@pytest.mark.slow
 def test_ur5_tracking_run_converges():
     """Beyond the paper: ur5 (m = 3, 15 CoM rows, joints 1-4 observable), 10 s of sinusoidal
     tracking: the joint-velocity error falls from O(1) rad/s to below 0.02 rad/s."""

@@ -91,6 +91,7 @@ def test_lemma2_coefficients_match_closed_form():
     np.testing.assert_allclose(d.dy_k1, want, rtol=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("family", ["ii_speed", "ii_aov"])
 def test_emitted_c_equals_reference_2dof(family):
     """RHS, init, estimate, single steps and a run: C against numpy reference, <= 1e-9 relative."""
@@ -144,6 +145,7 @@ def test_symbolic_equals_reference_ur5():
                               ref.family.init(ref.robot, y, e, spec.p_default)) <= TOL
 
 
+@pytest.mark.slow
 def test_emitted_c_equals_reference_ur5():
     """ur5: emitted C RHS against the reference on random inputs, <= 1e-9 relative, with the
     interval reduction (wrap="auto": all six joints revolute). N = 4 keeps the cold compile
@@ -163,6 +165,7 @@ def test_emitted_c_equals_reference_ur5():
         assert relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)) <= TOL
 
 
+@pytest.mark.slow
 def test_seed003_scenario_converges():
     """SPEC §12.3 (0.6 s): s_y -> y, xhat and s_x -> x, r bounded, for the I&I observer; the
     AOV comparison is in the same summary."""

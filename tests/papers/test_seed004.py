@@ -172,6 +172,7 @@ def _random_case(spec, rng, xs):
     return x, y, 50 * rng.normal(size=n)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("robot,kind", CASES)
 def test_observer_rhs_against_reference(robot, kind):
     """Symbolic spec rhs and emitted C rhs against the numpy reference at random states,
@@ -243,6 +244,7 @@ def test_ill_conditioned_pivot_gives_nonfinite_status():
 
 
 # ---------------------------------------------------------------- Sim 1, short horizon
+@pytest.mark.slow
 def test_sim1_o1_converges_within_50ms():
     """Sim 1 (2R, CG O1 with -100{3..10}, true-state FL): ||x - xhat|| < 2 % of its initial
     value from t = 0.05 s on (0.1 s horizon); Tomei has not converged by then."""
@@ -281,6 +283,7 @@ def test_sim1_figures_one_per_paper_figure(tmp_path):
         assert np.allclose(fig4[f"e_{b}{i}"][rows], (true - est)[:len(rows)], rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_3r_manifold_uses_spec_fast_poles():
     """SPEC §10: the 3R integral-manifold controller the scenarios compile places the fast poles
     at the authors' 70 [-1, -1.2, ..., -1.6] (its compiled gains are those of these poles)."""
