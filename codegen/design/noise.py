@@ -253,3 +253,46 @@ def gravity_statistics(M, g, dg, points):
             "g_rms": float(np.sqrt(np.mean(np.sum(gs ** 2, axis=1)))),
             "trace_minv2": float(np.mean(np.sum(lam ** -2.0, axis=1))),
             "mu_min": float(1 / lam[:, -1].max()), "mu_max": float(1 / lam[:, 0].min())}
+
+
+def switched_gains(nd, n, t_settle=2.0):
+    """The time-switched gain of the reduced_order_switched family from a noise-aware design.
+
+    The gain nd.k0 (>= the convergence floor) runs until the initial error has decayed to the
+    predicted error at that gain, then the gain switches (bumplessly) to the noise-aware optimum
+    nd.k0_noise, kept at or above the gain that still brings an error of v_max below 1e-2 rad/s
+    within ``t_settle`` (so a model error or a disturbance the design did not foresee still
+    settles in seconds) and at or below nd.k0 [DERIVED]:
+
+        k0_final = min(k0, max(k0_noise, ln(v_max / tol) / t_settle))
+        t_switch = max(t_conv, ln(v_max / E(k0)) / k0),   E the predicted RMS error
+
+    Parameters
+    ----------
+    nd : NoiseAwareDesign
+        The design of the initial gain (its sensor, uncertainty, dt, v_max, t_conv).
+    n : int
+        Number of joints.
+    t_settle : float
+        Time (s) the final gain takes to bring an error of v_max below 1e-2 rad/s.
+
+    Returns
+    -------
+    dict
+        k0, k0_final (1/s), t_switch (s), k0_settle (the floor of k0_final, 1/s), t_settle and
+        the predicted RMS error at k0 and at k0_final (rad/s); k0_final = k0 (no switch) without
+        sensor noise or when the optimum is the convergence-floor gain or above.
+    """
+    if not (isinstance(t_settle, (int, float)) and math.isfinite(t_settle) and t_settle > 0):
+        raise ValueError(f"t_settle must be a positive time (s), got {t_settle!r}")
+    k_settle = convergence_floor(nd.v_max, t_settle)
+    k0 = nd.k0
+    k_final = min(k0, max(nd.k0_noise, k_settle)) if math.isfinite(nd.k0_noise) else k0
+
+    def err(k):
+        return reduced_order_error(k, nd.dt, n, nd.sigma, nd.e_rms, nd.G)
+    e0 = err(k0)
+    t_switch = max(nd.t_conv, math.log(nd.v_max / e0) / k0) if (k_final < k0 and e0 > 0) else 0.0
+    return {"k0": float(k0), "k0_final": float(k_final), "t_switch": float(t_switch),
+            "k0_settle": float(k_settle), "t_settle": float(t_settle),
+            "predicted_error": {"k0": e0, "k0_final": err(k_final)}}
