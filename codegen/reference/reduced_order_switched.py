@@ -19,12 +19,13 @@ P_NAMES = ("k0", "k0_final", "t_switch")
 
 
 def running(x, p):
-    """True while the switch is not done (clock below t_switch + 1/2)."""
+    """True while the switch is not done: the clock x[-1] (s) below t_switch + 1/2, p as in
+    ``output``."""
     return x[-1] < p[2] + 0.5
 
 
 def gain(x, p):
-    """The gain in force (1/s) at state x (n + 1,), parameters p (3,)."""
+    """The gain in force (1/s) at state x (n + 1,) and parameters p (3,) as in ``output``."""
     return float(p[0] if running(x, p) else p[1])
 
 
