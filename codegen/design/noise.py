@@ -296,3 +296,79 @@ def switched_gains(nd, n, t_settle=2.0):
     return {"k0": float(k0), "k0_final": float(k_final), "t_switch": float(t_switch),
             "k0_settle": float(k_settle), "t_settle": float(t_settle),
             "predicted_error": {"k0": e0, "k0_final": err(k_final)}}
+
+
+# ------------------------------------------------------------ extended-state observer (per joint)
+# e = y - q_hat:  q_hat' = v_hat + l1 e,  v_hat' = a_model + d_hat + l2 e,  d_hat' = l3 e, with the
+# triple pole (s + w)^3: l1, l2, l3 = 3 w, 3 w^2, w^3.  Error (q, v, d) per joint: x' = A x + ...,
+# A = [[-l1, 1, 0], [-l2, 0, 1], [-l3, 0, 0]].  [DERIVED]
+
+def extended_state_gains(omega):
+    """(l1, l2, l3) = (3 w, 3 w^2, w^3) of the triple pole at -``omega`` (1/s)."""
+    return 3 * omega, 3 * omega ** 2, omega ** 3
+
+
+def _eso_matrix(omega):
+    l1, l2, l3 = extended_state_gains(omega)
+    return np.array([[-l1, 1.0, 0.0], [-l2, 0.0, 1.0], [-l3, 0.0, 0.0]]), np.array([l1, l2, l3])
+
+
+def extended_state_noise(omega, dt, sigma):
+    """Std (rad/s) of v_hat from white measurement noise of std ``sigma`` (rad) sampled every
+    ``dt`` (s) (PSD sigma^2 dt), per joint: the stationary covariance of the error dynamics
+    (continuous Lyapunov equation A P + P A^T + b b^T sigma^2 dt = 0), its v entry."""
+    from scipy.linalg import solve_continuous_lyapunov
+    A, b = _eso_matrix(omega)
+    P = solve_continuous_lyapunov(A, -np.outer(b, b) * sigma ** 2 * dt)
+    return math.sqrt(max(P[1, 1], 0.0))
+
+
+def extended_state_floor(v_max, t_conv, tol=TOL):
+    """The smallest omega (1/s) with which an initial velocity error v_max (rad/s) stays below
+    tol after t_conv (s): the response scales with omega t, so omega = c / t_conv with c the
+    last time the unit-omega response |v(c)| exceeds tol / v_max."""
+    from scipy.linalg import expm
+    A, _ = _eso_matrix(1.0)
+    ts = np.linspace(0.0, 60.0, 24001)
+    step = expm(A * (ts[1] - ts[0]))
+    x, above = np.array([0.0, 1.0, 0.0]), 0.0
+    for t in ts[1:]:
+        x = step @ x
+        if abs(x[1]) > tol / v_max:
+            above = t
+    return above / t_conv
+
+
+def extended_state_noise_gain(n, dt, sigma, e_dot, floor):
+    """omega minimising the predicted RMS error norm of the extended-state observer,
+    sqrt(n s(w)^2 + (3 e_dot / w^2)^2), at or above the convergence ``floor`` (1/s).
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+    dt : float
+        Sample time, s.
+    sigma : float
+        Sensor std, rad.
+    e_dot : float
+        RMS norm of the rate of the model's acceleration error (rad/s^3): a ramp disturbance
+        leaves a velocity error 3 e_dot / w^2 (final value theorem on the error dynamics).
+    floor : float
+        Convergence floor on omega (extended_state_floor), 1/s.
+
+    Returns
+    -------
+    (omega, predicted RMS error at omega (rad/s), unconstrained optimum (1/s; 0 when only the
+    floor bounds it)).
+    """
+    def err(w):
+        return math.sqrt(n * extended_state_noise(w, dt, sigma) ** 2 + (3 * e_dot / w ** 2) ** 2)
+    if sigma > 0 and e_dot > 0:
+        res = minimize_scalar(lambda lw: err(math.exp(lw)), method="bounded",
+                              bounds=(math.log(0.1), math.log(0.5 / dt)))
+        w_opt = math.exp(res.x)
+    else:
+        w_opt = 0.0 if sigma > 0 else math.inf
+    omega = max(floor, w_opt) if math.isfinite(w_opt) else max(floor, 0.1 / dt)
+    return omega, err(omega), w_opt
