@@ -402,7 +402,8 @@ def parser():
     cp.add_argument("source", help="mujoco-ur5, mujoco-panda, or a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>])")
     cp.add_argument("--robot", help="robot of a CSV: catalog name or a .urdf path")
     cp.add_argument("--observers", help="comma-separated families, each optionally with gains "
-                    "(family:name=value:...); default reduced_order_switched,reduced_order,nicosia_tomei")
+                    "(family:name=value:...); default reduced_order_switched,reduced_order,extended_state,"
+                    "nicosia_tomei")
     cp.add_argument("--baselines", help="comma-separated (default: all of codegen.baselines)")
     cp.add_argument("--quantization", type=float,
                     help="encoder step (rad); scenario: of its sensor (default 0); both this and --noise "

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import baselines, metrics
 
-DEFAULT_FAMILIES = ("reduced_order_switched", "reduced_order", "nicosia_tomei")
+DEFAULT_FAMILIES = ("reduced_order_switched", "reduced_order", "extended_state", "nicosia_tomei")
 
 
 @dataclass

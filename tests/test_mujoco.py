@@ -173,6 +173,27 @@ def test_switched_gain_is_a_third_of_the_best_baseline_on_mujoco(ur5_quantised):
     assert abs(obs["gain"] - 1) < 0.01 and abs(obs["lag"]) < 1e-3
 
 
+@pytest.fixture(scope="module")
+def ur5_mismatched():
+    """3 s of MuJoCo ur5, 1e-4 rad encoder, plant masses and inertias 10 % above the model's,
+    the uncertainty given to the design (as `compare --mismatch 0.1` does)."""
+    from codegen.compare import compare, design_inputs
+    from codegen.sim.scenarios import mujoco
+    rec = mujoco.recording("ur5", T=3.0, quantization=1e-4, mismatch=0.1)
+    return compare(rec, load_robot("ur5"), families=("reduced_order", "extended_state"), t_ss=1.0,
+                   design=design_inputs(quantization=1e-4, uncertainty=0.1))
+
+
+def test_extended_state_within_1_5_of_the_best_baseline_when_the_model_is_off(ur5_mismatched):
+    """With 10 % mass error the reduced-order observer keeps a bias ~ e / k0 (8x the best tuned
+    baseline on the 20 s run); the extended-state observer estimates the model error and stays
+    within 1.5x of the best tuned baseline (issue 11; 0.86 on ur5, 1.29 on panda over 20 s)."""
+    eso, best = ur5_mismatched["extended_state"].metrics, ur5_mismatched.best_baseline()
+    assert eso["rms"] <= 1.5 * best.metrics["rms"]
+    assert eso["rms"] < ur5_mismatched["reduced_order"].metrics["rms"] / 3
+    assert eso["t_conv"] < 0.3 and abs(eso["gain"] - 1) < 0.01 and abs(eso["lag"]) < 1e-3
+
+
 def test_baselines_tuned_and_ordered(ur5_quantised):
     m = {e.name: e.metrics for e in ur5_quantised.entries}
     assert m["kalman"]["rms"] < 0.2 * m["butterworth"]["rms"]       # 2.6e-3 vs 1.5e-2

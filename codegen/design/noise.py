@@ -314,7 +314,7 @@ def _eso_matrix(omega):
 
 
 def extended_state_noise(omega, dt, sigma):
-    """Std (rad/s) of v_hat from white measurement noise of std ``sigma`` (rad) sampled every
+    """Std (rad/s) of v_hat at poles -``omega`` (1/s) from white measurement noise of std ``sigma`` (rad) sampled every
     ``dt`` (s) (PSD sigma^2 dt), per joint: the stationary covariance of the error dynamics
     (continuous Lyapunov equation A P + P A^T + b b^T sigma^2 dt = 0), its v entry."""
     from scipy.linalg import solve_continuous_lyapunov
