@@ -68,7 +68,8 @@ def unavailable():
     arch = platform.machine()
     if arch not in ARCH_FLAGS:
         return f"host {arch}: only x86_64 and aarch64 are set up"
-    if arch == "x86_64" and " fma" not in Path("/proc/cpuinfo").read_text():
+    cpuinfo = Path("/proc/cpuinfo")
+    if arch == "x86_64" and not (cpuinfo.exists() and re.search(r"^flags\s*:.* fma\b", cpuinfo.read_text(), re.M)):
         return "host CPU has no fused multiply-add (the Cortex-M build of libm uses it)"
     return None
 
