@@ -160,17 +160,28 @@ def test_observer_beats_the_tuned_baselines_on_mujoco(ur5_quantised):
 
 
 def test_switched_gain_is_a_third_of_the_best_baseline_on_mujoco(ur5_quantised):
-    """The time-switched observer designed for the encoder (k0 = 26.5 until ~0.26 s, then 2.65):
+    """The time-switched observer designed for the encoder (k0 = 29.4 until 0.23 s, then 2.65):
     the convergence of the fixed gain, and an RMS error at most 1/3 of the best tuned baseline's
     (issue 11; 0.07 on the 20 s run of the README), unbiased."""
     entry = ur5_quantised["reduced_order_switched"]
-    assert entry.params["k0"] == pytest.approx(np.log(200) / 0.2)
+    assert entry.params["k0"] == pytest.approx(np.log(200) / 0.18)
     assert entry.params["k0_final"] < entry.params["k0"] / 5
     obs, best = entry.metrics, ur5_quantised.best_baseline()
     assert obs["rms"] < best.metrics["rms"] / 3
     assert obs["rms"] < ur5_quantised["reduced_order"].metrics["rms"] / 3
-    assert obs["t_conv"] < 0.3
+    assert obs["t_conv"] < 0.2
     assert abs(obs["gain"] - 1) < 0.01 and abs(obs["lag"]) < 1e-3
+
+
+def test_switched_gain_converges_within_0_2_s_on_panda():
+    """The panda's Coriolis coupling slows the start-up decay (0.214 s at ln(200)/0.2): the
+    switched family's k0 (for 0.18 s) converges below 1e-2 rad/s within 0.2 s."""
+    from codegen.compare import compare, design_inputs
+    from codegen.sim.scenarios import mujoco
+    rec = mujoco.recording("panda", T=1.0, quantization=1e-4)
+    cmp = compare(rec, load_robot("panda"), families=("reduced_order_switched",), t_ss=0.5,
+                  design=design_inputs(quantization=1e-4), baseline_names=("backward",))
+    assert cmp["reduced_order_switched"].metrics["t_conv"] < 0.2
 
 
 @pytest.fixture(scope="module")
