@@ -120,12 +120,18 @@ def rate_mask(spec):
     return [1 if name in spec.rate_states else 0 for name in spec.x_names]
 
 
-def _advance(spec, x, y_of_t, u, p, dt, method, substeps):
+def _advance(spec, x, y_of_t, u, p, dt, method, substeps, midpoint=False):
+    """x advanced over dt; ``midpoint``: a family's model (``spec.rhs_split``) at the configuration
+    y(t_i + h/2) of each sub-step i, its output injection at y(t)."""
     h = dt / substeps
     rate = spec.rate(x, p) if (spec.rate is not None and method == "etdrk4") else None
     mask = rate_mask(spec)
+    split = midpoint and spec.rhs_split is not None
     for i in range(substeps):
-        x = integrator_step(lambda t, s: spec.rhs(s, y_of_t(t), u, p), x, i * h, h, method, rate, mask)
+        y_cfg = y_of_t((i + 0.5) * h)
+        flow = ((lambda t, s: spec.rhs_split(s, y_cfg, y_of_t(t), u, p)) if split else
+                (lambda t, s: spec.rhs(s, y_of_t(t), u, p)))
+        x = integrator_step(flow, x, i * h, h, method, rate, mask)
     return x
 
 
@@ -146,7 +152,8 @@ def _pieces(spec, dt, method, substeps, hold, inline, syms=None):
         flow = (xj, xn)
     else:
         # linear y over the last interval; active = 0 collapses it to no step at all
-        xa = _advance(spec, x, lambda t: yp + (t / dt) * (y - yp), up, p, active * dt, method, substeps)
+        xa = _advance(spec, x, lambda t: yp + (t / dt) * (y - yp), up, p, active * dt, method, substeps,
+                      midpoint=True)
         xn = spec.jump(xa, y, p) if spec.jump is not None else xa
         est = spec.output(xn, y, u, p)
         flow = (x, xa)
