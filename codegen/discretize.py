@@ -12,6 +12,13 @@
 from t_k-1 to t_k with y interpolated linearly between y_prev and y and u_prev held (the input
 that was applied over that interval), then jump and output at t_k. Causal: it only uses samples
 already received. ``active`` = 0 on the first sample after init (nothing to integrate yet).
+A family that splits its flow's use of y (``spec.rhs_split(x, y_cfg, y, u, p)``: the model M, C,
+g, F at the configuration y_cfg, the output-injection gain terms at y) has its model evaluated
+once per sub-step, at the midpoint configuration y_cfg = y(t_i + h/2), while the gain terms see
+y(t) linear: one configuration per sub-step instead of the three (t_i, t_i + h/2, t_i + h) of the
+four RK4 stages, as cheap as the zero-order hold. The midpoint rule keeps the model's error at
+O(h^3) per step, and with the gain terms exact (below) a ramp is still followed without bias.
+Families without ``rhs_split`` see y(t) everywhere.
 
 Methods: explicit Euler, classical RK4, and ``"etdrk4"`` (the default): exponential time
 differencing RK4 [Cox & Matthews, J. Comput. Phys. 176 (2002), eq. (26)] for a family that
@@ -28,10 +35,11 @@ phi_1..3 the phi-functions of z = -a h (phi_1(z) = (e^z - 1)/z, ...):
 equilibrium of the flow (RK4 does, integrating-factor "Lawson" RK4 does not: at rest it leaves
 z off -k0 y by the Simpson error of the forcing k0^2 y, 0.36 rad/s for ur5 at q = 1), and is
 exact for forcing linear in t, so under the first-order hold a ramp y = v t gives est = v for
-any k0 dt. Why the first-order hold: an observer with output injection through a gain k0
-(x2hat = z + k0 y) sampled with y held settles at a/(1 - R(-a)) qd with a = k0 dt and R the
-method's stability function (RK4: R(-a) = 1 - a + a^2/2 - a^3/6 + a^4/24; exact: e^-a), a bias
-the linear hold removes for every method.
+any k0 dt (the model at the midpoint configuration is constant over the sub-step). Why the
+first-order hold: an observer with output injection through a gain k0 (x2hat = z + k0 y)
+sampled with y held settles at a/(1 - R(-a)) qd with a = k0 dt and R the method's stability
+function (RK4: R(-a) = 1 - a + a^2/2 - a^3/6 + a^4/24; exact: e^-a), a bias the linear hold
+removes for every method.
 """
 from __future__ import annotations
 
@@ -208,7 +216,8 @@ def step_jacobians(spec, disc, inline="auto"):
     casadi.Function
         ``(x, y, u, p, dt) -> (dx_next/dx, J(x_a), J(x_b))``: the step of ``disc`` (its
         method, hold, substeps; its dt replaced by the input dt) at y_prev = y, u_prev = u,
-        active = 1 (the measurement held over the sample), and the continuous-time Jacobian
+        active = 1 (the measurement held over the sample, so a split flow's midpoint
+        configuration is y too: the step the observer takes there), and the continuous-time Jacobian
         J = drhs/dx of the flow at both ends x_a, x_b of the step's flow (a hybrid jump, before
         or after it, is not part of the flow).
     """
