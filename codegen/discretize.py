@@ -58,23 +58,31 @@ INLINE_LIMIT = 15000
 _SERIES_TERMS = 17     # phi_k by its Taylor series for |z| < 1: remainder < 1/20! relative
 
 
-def phi_functions(z):
-    """(e^z, phi_1(z), phi_2(z), phi_3(z)), phi_k(z) = sum_j z^j / (j + k)!  (scalar SX/MX).
+def etd_coefficients(z):
+    """(e^(z/2), phi_1(z/2), e^z, phi_1(z), phi_2(z), phi_3(z)) of one ETD-RK4 step, z = -a h
+    (scalar SX/MX), phi_k(z) = sum_j z^j / (j + k)!, with a single exp:
 
-    Taylor series (Horner) for |z| < 1, closed forms (expm1) elsewhere: no cancellation at
-    z = 0 (a family whose rate is 0 gets exactly RK4's 1, 1/2, 1/6)."""
+        |z| < 1: phi_3 by its Taylor series (Horner), phi_2 = 1/2 + z phi_3, phi_1 = 1 + z phi_2
+        else:    the closed forms of e^z - 1 (no cancellation there: e^z <= 1/e or >= e)
+        phi_1(z/2) = 2 phi_1(z) / (1 + e^(z/2)),   e^z = (e^(z/2))^2
+
+    No cancellation at z = 0 (a family whose rate is 0 gets exactly RK4's 1, 1/2, 1/6)."""
     small = ca.fabs(z) < 1
     zs = ca.if_else(small, 1, z)             # the closed forms never see z = 0
-    em1 = ca.expm1(zs)
-    closed = (em1 / zs, (em1 - zs) / zs ** 2, (em1 - zs - zs ** 2 / 2) / zs ** 3)
-    series = []
-    for k in (1, 2, 3):
-        s = 1.0 / math.factorial(_SERIES_TERMS + k)
-        for j in range(_SERIES_TERMS - 1, -1, -1):
-            s = s * z + 1.0 / math.factorial(j + k)
-        series.append(s)
-    phis = [ca.if_else(small, s, c) for s, c in zip(series, closed)]
-    return (ca.exp(z), *phis)
+    E = ca.exp(z / 2)
+    em1 = E * E - 1
+    s = 1.0 / math.factorial(_SERIES_TERMS + 3)
+    for j in range(_SERIES_TERMS - 1, -1, -1):
+        s = s * z + 1.0 / math.factorial(j + 3)
+    p3 = ca.if_else(small, s, (em1 - zs - zs ** 2 / 2) / zs ** 3)
+    p2 = ca.if_else(small, 0.5 + z * p3, (em1 - zs) / zs ** 2)
+    p1 = ca.if_else(small, 1 + z * p2, em1 / zs)
+    return E, 2 * p1 / (1 + E), E * E, p1, p2, p3
+
+
+def phi_functions(z):
+    """(e^z, phi_1(z), phi_2(z), phi_3(z)) (scalar SX/MX z), as ``etd_coefficients``."""
+    return etd_coefficients(z)[2:]
 
 
 def integrator_step(f, x, t, h, method, rate=None, mask=None):
@@ -101,8 +109,7 @@ def _etdrk4_step(f, x, t, h, a, mask):
     def pick(etd, rk4):
         return D * etd + (1 - D) * rk4 if 0 < sum(mask) < len(mask) else (etd if sum(mask) else rk4)
     z = -a * h
-    E, p1h = phi_functions(z / 2)[:2]
-    E2, p1, p2, p3 = phi_functions(z)
+    E, p1h, E2, p1, p2, p3 = etd_coefficients(z)
     f1, f2, f3 = p1 - 3 * p2 + 4 * p3, p2 - 2 * p3, 4 * p3 - p2
 
     def N(s, xs):
@@ -171,6 +178,13 @@ def _pieces(spec, dt, method, substeps, hold, inline, syms=None):
 _NAMES_IN = ["x", "y_prev", "y", "u_prev", "u", "p", "active"]
 
 
+def _shared(outs):
+    """SX outputs with every repeated subexpression computed once (``casadi.cse``): the stages of
+    a step that see one configuration (zero-order hold, or a split flow's midpoint) share its
+    model, trigonometry included, which the C compiler cannot merge (libm calls may set errno)."""
+    return ca.cse(outs) if isinstance(outs[0], ca.SX) else outs
+
+
 def discretize(spec, disc, inline="auto"):
     """The step Function of a spec under a discretisation (see the module docstring).
 
@@ -188,7 +202,7 @@ def discretize(spec, disc, inline="auto"):
         ``step(x, y_prev, y, u_prev, u, p, active) -> (x_next, est)``.
     """
     ins, xn, est, _ = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
-    return ca.Function("step", ins, [xn, est], _NAMES_IN, ["x_next", "est"])
+    return ca.Function("step", ins, _shared([xn, est]), _NAMES_IN, ["x_next", "est"])
 
 
 def estimate(spec, disc, inline="auto"):
@@ -196,7 +210,7 @@ def estimate(spec, disc, inline="auto"):
     advancing the state; ``spec`` the observer, ``disc`` its Discretization, ``inline``: True
     (SX), False (MX calls) or "auto" (SX when the unrolled step is small)."""
     ins, _, est, _ = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
-    return ca.Function("estimate", ins, [est], _NAMES_IN, ["est"])
+    return ca.Function("estimate", ins, _shared([est]), _NAMES_IN, ["est"])
 
 
 def step_jacobians(spec, disc, inline="auto"):
