@@ -1,7 +1,9 @@
 """Fixed-step integrators of the reference (DESIGN §4).
 
 ``f(t, x)`` is the flow with p fixed; t is the time since the start of the interval, so a
-first-order hold can interpolate y inside the step (zero-order hold simply ignores t).
+first-order hold can interpolate y inside the step (zero-order hold simply ignores t); with
+``integrate(..., midpoint=True)`` f also receives the midpoint time of its sub-step, where a split
+flow's model is evaluated.
 ``etdrk4`` integrates a flow f(t, x) = N(t, x) - a D x (a scalar rate a >= 0 on the states of
 the 0/1 mask D) by exponential time differencing RK4 [Cox & Matthews 2002, eq. (26)]; RK4 on the
 states outside the mask and for a flow without a rate.
