@@ -45,7 +45,8 @@ def rhs_split(robot, x, y_cfg, y, u, p):
 
 
 def rhs(robot, x, y, u, p):
-    """The flow z' of the observer: ``rhs_split`` with the model at y itself."""
+    """The flow z' of the observer: ``rhs_split`` with the model at y itself;
+    robot, x, y, u, p as in ``rhs_split``."""
     return rhs_split(robot, x, y, y, u, p)
 
 
