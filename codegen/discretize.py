@@ -16,7 +16,7 @@ A family that splits its flow's use of y (``spec.rhs_split(x, y_cfg, y, u, p)``:
 g, F at the configuration y_cfg, the output-injection gain terms at y) has its model evaluated
 once per sub-step, at the midpoint configuration y_cfg = y(t_i + h/2), while the gain terms see
 y(t) linear: one configuration per sub-step instead of the three (t_i, t_i + h/2, t_i + h) of the
-four RK4 stages, as cheap as the zero-order hold. The midpoint rule keeps the model's error at
+four RK4 stages, like the zero-order hold. The midpoint rule keeps the model's error at
 O(h^3) per step, and with the gain terms exact (below) a ramp is still followed without bias.
 Families without ``rhs_split`` see y(t) everywhere.
 
@@ -181,7 +181,8 @@ _NAMES_IN = ["x", "y_prev", "y", "u_prev", "u", "p", "active"]
 def _shared(outs):
     """SX outputs with every repeated subexpression computed once (``casadi.cse``): the stages of
     a step that see one configuration (zero-order hold, or a split flow's midpoint) share its
-    model, trigonometry included, which the C compiler cannot merge (libm calls may set errno)."""
+    model, trigonometry included, in the emitted C itself rather than by the C compiler's grace
+    (gcc -O3 on x86-64 merges them too; the kernel files are ~20 % smaller)."""
     return ca.cse(outs) if isinstance(outs[0], ca.SX) else outs
 
 

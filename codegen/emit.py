@@ -301,7 +301,8 @@ def template_values(meta):
         "real": REAL_TYPES[precision], "precision": precision,
         "method": d["method"], "dt": _num(d["dt"], precision), "dt_text": _num(d["dt"]),
         "substeps": d["substeps"],
-        "hold_text": HOLD_TEXT[d["hold"]] + (SPLIT_TEXT if d["hold"] == "foh" and meta.get("rhs_split") else ""),
+        "hold_text": HOLD_TEXT[d["hold"]] + (SPLIT_TEXT if d["hold"] == "foh" and meta.get("rhs_split")
+                                             else ""),
         "hold_foh": int(d["hold"] == "foh"),
         "hybrid_text": HYBRID_TEXT if d["hybrid"] else "",
         **{n: s[n] for n in ("nx", "ny", "nu", "np", "nest")},

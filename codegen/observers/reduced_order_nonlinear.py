@@ -39,7 +39,8 @@ def build(robot, k0=None, C=None, eta=1.0, v_max=2.0):
     phi = features(y)
     x2hat = z + pk * ca.mtimes(Cm, phi)                                    # [S000 §VI]
     # (6), the model at y_cfg (ObserverSpec.rhs_split), the gain's dk/dy at y
-    zdot = robot.forward_dynamics(y_cfg, x2hat, tau) - pk * ca.mtimes(ca.mtimes(Cm, ca.jacobian(phi, y)), x2hat)
+    dk_dy = pk * ca.mtimes(Cm, ca.jacobian(phi, y))
+    zdot = robot.forward_dynamics(y_cfg, x2hat, tau) - ca.mtimes(dk_dy, x2hat)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     p = ca.vertcat(pk, pC)
     rhs, rhs_split = split_flow(z, y_cfg, y, tau, p, zdot)

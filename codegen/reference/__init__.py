@@ -16,8 +16,8 @@ A family module gives ``rhs(robot, x, y, u, p)``, ``output(robot, x, y, u, p)``,
 ``init(robot, y0, est0, p)``, ``sizes(robot)``, optionally ``P_NAMES``, for hybrid
 observers ``jump(robot, x, y, p)``, for a flow split like the spec's (``rhs_split`` in its
 description) ``rhs_split(robot, x, y_cfg, y, u, p)`` (the model at y_cfg, which the first-order
-hold puts at each sub-step's midpoint configuration), and, when it needs the spec's declared options,
-``configure(robot, options) -> family`` (options: the typed value of codegen.options): the
+hold puts at each sub-step's midpoint configuration), and, when it needs the spec's declared
+options, ``configure(robot, options) -> family`` (options: the typed value of codegen.options): the
 module's functions with those options bound as keyword arguments (reference/_family.py),
 never state stored on the robot.
 
