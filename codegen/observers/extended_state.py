@@ -27,7 +27,7 @@ from ..design import model_statistics, sensor_sigma
 from ..design.noise import (check_uncertainty, extended_state_floor, extended_state_gains,
                             extended_state_noise_gain)
 from ..options import InputRanges
-from ..spec import ObserverSpec
+from ..spec import ObserverSpec, split_flow
 from ._design import design_discretization, stable_report
 
 
@@ -72,11 +72,13 @@ def build(robot, omega=None, v_max=2.0, noise=None, quantization=None, uncertain
         omega, report = design_omega(robot, disc.dt, noise, quantization, uncertainty, v_max, t_conv)
     n = robot.n
     qh, vh, dh = ca.SX.sym("q_hat", n), ca.SX.sym("v_hat", n), ca.SX.sym("d_hat", n)
-    y, tau, w = ca.SX.sym("y", n), ca.SX.sym("tau", n), ca.SX.sym("omega")
+    y, y_cfg, tau, w = ca.SX.sym("y", n), ca.SX.sym("y_cfg", n), ca.SX.sym("tau", n), ca.SX.sym("omega")
     l1, l2, l3 = extended_state_gains(w)
     x = ca.vertcat(qh, vh, dh)
     e = y - qh
-    xdot = ca.vertcat(vh + l1 * e, robot.forward_dynamics(y, vh, tau) + dh + l2 * e, l3 * e)
+    # the model at y_cfg (y itself in continuous time; the midpoint under the first-order hold)
+    xdot = ca.vertcat(vh + l1 * e, robot.forward_dynamics(y_cfg, vh, tau) + dh + l2 * e, l3 * e)
+    rhs, rhs_split = split_flow(x, y_cfg, y, tau, w, xdot)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     joints = robot.joint_names
     spec = ObserverSpec(
@@ -84,7 +86,7 @@ def build(robot, omega=None, v_max=2.0, noise=None, quantization=None, uncertain
         x_names=[f"q_hat_{j}" for j in joints] + [f"qd_hat_{j}" for j in joints] + [f"d_hat_{j}" for j in joints],
         y_names=[f"q_{j}" for j in joints], u_names=[f"tau_{j}" for j in joints], p_names=["omega"],
         est_names=[f"qd_hat_{j}" for j in joints], p_default=[omega],
-        rhs=ca.Function("rhs", [x, y, tau, w], [xdot]),
+        rhs=rhs, rhs_split=rhs_split,
         output=ca.Function("output", [x, y, tau, w], [vh]),
         init=ca.Function("init", [y0, est0, w], [ca.vertcat(y0, est0, ca.DM.zeros(n))]),
         # q_hat' = [v_hat + l1 y] - l1 q_hat: the rate l1 = 3 omega on q_hat, integrated exactly

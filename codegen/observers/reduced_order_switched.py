@@ -24,7 +24,7 @@ import casadi as ca
 
 from ..design import reduced_order_design, switched_gains
 from ..options import InputRanges
-from ..spec import ObserverSpec
+from ..spec import ObserverSpec, split_flow
 from ._design import design_discretization, stable_report
 from . import reduced_order
 from .reduced_order import flow
@@ -84,11 +84,13 @@ def build(robot, k0=None, k0_final=None, t_switch=None, eta=1.0, v_max=2.0, nois
 def _spec(robot, p_default, report):
     n = robot.n
     z, s, y, tau = ca.SX.sym("z", n), ca.SX.sym("s"), ca.SX.sym("y", n), ca.SX.sym("tau", n)
+    y_cfg = ca.SX.sym("y_cfg", n)
     p, p_new = ca.SX.sym("p", 3), ca.SX.sym("p_new", 3)
     x = ca.vertcat(z, s)
     k = active_gain(s, p)
-    x2hat, zdot = flow(robot, z, y, tau, k)                       # [S000 (6),(9)] with the gain k
+    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k)                # [S000 (6),(9)] with the gain k
     running = s < p[2] + 0.5
+    rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, ca.vertcat(zdot, ca.if_else(running, 1, 0)))
     switching = ca.logic_and(s >= p[2], running)
     z_plus = z + ca.if_else(switching, p[0] - p[1], 0) * y        # x2hat continuous at the switch
     s_plus = ca.if_else(switching, p[2] + 1, s)
@@ -103,7 +105,7 @@ def _spec(robot, p_default, report):
         x_names=[f"z_{j}" for j in joints] + ["s"], y_names=[f"q_{j}" for j in joints],
         u_names=[f"tau_{j}" for j in joints], p_names=list(P_NAMES),
         est_names=[f"qd_hat_{j}" for j in joints], p_default=list(p_default),
-        rhs=ca.Function("rhs", [x, y, tau, p], [ca.vertcat(zdot, ca.if_else(running, 1, 0))]),
+        rhs=rhs, rhs_split=rhs_split,
         output=ca.Function("output", [x, y, tau, p], [x2hat]),
         init=ca.Function("init", [y0, est0, p], [ca.vertcat(est0 - p[0] * y0, 0)]),   # [CODE-KUKA]
         jump=ca.Function("jump", [x, y, p], [ca.vertcat(z_plus, s_plus)]),

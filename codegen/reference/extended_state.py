@@ -42,13 +42,20 @@ def output(robot, x, y, u, p):
     return _split(x, robot.n)[1].copy()
 
 
-def rhs(robot, x, y, u, p):
-    """[q_hat'; v_hat'; d_hat'] (3n,) of the module docstring; robot, x, y, u, p as in ``output``."""
+def rhs_split(robot, x, y_cfg, y, u, p):
+    """[q_hat'; v_hat'; d_hat'] (3n,) of the module docstring with the model at the configuration
+    y_cfg (n,) rad; robot, x, y, u, p as in ``output``."""
     qh, vh, dh = _split(x, robot.n)
     w = float(p[0])
     e = np.asarray(y, float) - qh
-    return np.concatenate([vh + 3 * w * e, robot.forward_dynamics(y, vh, u) + dh + 3 * w ** 2 * e,
+    return np.concatenate([vh + 3 * w * e, robot.forward_dynamics(y_cfg, vh, u) + dh + 3 * w ** 2 * e,
                            w ** 3 * e])
+
+
+def rhs(robot, x, y, u, p):
+    """The flow of the observer: ``rhs_split`` with the model at y itself; robot, x, y, u, p as
+    in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p)
 
 
 def rate(robot, x, p):

@@ -52,11 +52,17 @@ def output(robot, x, y, u, p):
     return reduced_order.output(robot, x[:-1], y, u, [gain(x, p)])
 
 
-def rhs(robot, x, y, u, p):
-    """[z'; s'] = [FD(y, x2hat, tau) - k x2hat; 1 before the switch, else 0]  [S000 (6)] (n + 1,);
-    robot, x, y, u, p as in ``output``."""
-    zdot = reduced_order.rhs(robot, x[:-1], y, u, [gain(x, p)])
+def rhs_split(robot, x, y_cfg, y, u, p):
+    """[z'; s'] = [FD(y_cfg, x2hat, tau) - k x2hat; 1 before the switch, else 0]  [S000 (6)]
+    (n + 1,), the model at the configuration y_cfg (n,) rad; robot, x, y, u, p as in ``output``."""
+    zdot = reduced_order.rhs_split(robot, x[:-1], y_cfg, y, u, [gain(x, p)])
     return np.append(zdot, 1.0 if running(x, p) else 0.0)
+
+
+def rhs(robot, x, y, u, p):
+    """The flow [z'; s'] of the observer: ``rhs_split`` with the model at y itself; robot, x, y,
+    u, p as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p)
 
 
 def jump(robot, x, y, p):
