@@ -182,8 +182,11 @@ def emit(target, out_dir, spec=None, force=True):
         cg = ca.CodeGenerator(f"{prefix}_kernels.c", {"with_header": True, "casadi_int": "int",
                                                       "casadi_real": REAL_TYPES[target.precision],
                                                       "verbose": False})
+        # a step that calls the spec's functions (MX, discretize.INLINE_LIMIT) shares their
+        # bodies with the rhs and init kernels, which then call them rather than copy them
+        calls = not fns["step"].is_a("SXFunction")
         for key, f in fns.items():
-            ins = f.mx_in() if f.is_a("MXFunction") else f.sx_in()
+            ins = f.mx_in() if calls or f.is_a("MXFunction") else f.sx_in()
             named = ca.Function(f"{prefix}_k_{key}", ins, f.call(ins))
             cg.add(named)
             kernels[key] = {"name": named.name(), "n_instructions": int(named.n_instructions()),

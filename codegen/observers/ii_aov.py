@@ -46,7 +46,7 @@ def p_names(n):
 
 
 def hbar_column(robot, q, v, k1, e):
-    """Hbar(q, v) e = k1 T^{-1} e - T^T M (dT/dq e) v - T^T C(q, e) T v  [DERIVED, SPEC §5]: at
+    """Hbar(q, v) e = k1 T^{-1} e - T^{-1} (dT/dq e) v - T^T C(q, e) T v  [DERIVED, SPEC §5]: at
     e = e_i, column i of the ideal Jacobian Hbar(q, v) = (k1 I + Cbar(q, v)) T^{-1}.
 
     Parameters
@@ -59,9 +59,9 @@ def hbar_column(robot, q, v, k1, e):
     Returns
     -------
     SX (n,)"""
-    Mq, T, Tinv = cholesky_velocity(robot, q)
+    _, T, Tinv = cholesky_velocity(robot, q)
     dT = ca.jtimes(T, q, e)
-    return (k1 * ca.mtimes(Tinv, e) - ca.mtimes(ca.mtimes(T.T, Mq), ca.mtimes(dT, v))
+    return (k1 * ca.mtimes(Tinv, e) - ca.mtimes(Tinv, ca.mtimes(dT, v))
             - ca.mtimes(T.T, ca.mtimes(robot.coriolis(q, e), ca.mtimes(T, v))))
 
 
