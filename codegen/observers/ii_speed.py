@@ -17,8 +17,8 @@ the seed; a robot with friction keeps its F [ASSUMPTION]).
 
 Implementation choices:
 - H_i(q, x) = M(q)^{-1}(k1 e_i - C(q, e_i) x) (symmetry P2): one Christoffel matrix and one
-  unpivoted LDL^T solve per quadrature node, no symbolic inverse; one routine for every column in the
-  C (H e at e = e_i), called at every node (_ii_common.column_routines).
+  unpivoted LDL^T solve per quadrature node, no symbolic inverse; one routine per column in the
+  C (H e_i: C(q, e_i) costs half the general C(q, e)), called at every node (_ii_common.column_routines).
 - beta by N-node Gauss-Legendre (``N``, a generation parameter), the intervals of 2 pi-periodic
   joints reduced to |rho| <= pi plus whole periods (``wrap``, ``N_period``; _ii_common and
   docs/quadrature.md; declared as ``spec.options`` (codegen.options.QuadratureOptions), which the
@@ -127,7 +127,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     s, a, b = split_params(p, n, SCALARS)
     K1 = s["k1"]
 
-    cols = column_routines(robot, h_column, "h")
+    cols = column_routines(robot, h_column, "h", specialise=True)   # H e_i costs half of H e
     beta, dbdy = quadrature_beta(cols, K1, y, s_y, s_x, N, periodic, N_period)   # [S003 (12),(13)]
     xhat = xi + beta                                                    # [S003 (3b)]
     e_y, e_x = s_y - y, s_x - xhat                                      # [S003 (17),(18)]
