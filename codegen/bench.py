@@ -177,14 +177,16 @@ def seed003_ii_ur5(family="ii_speed", robot="ur5", N=8, native=False, wrap="auto
     t0 = time.perf_counter()
     lib = build(target, native=native, extra_flags=[opt])
     t_cc = time.perf_counter() - t0
-    ref = reference_observer(spec, disc)
     rng = np.random.default_rng(0)
     y = rb.sample_configurations(1, 1)[0]
     r = spec.p_default[spec.p_names.index("r0")]
     x = np.concatenate([rng.normal(size=rb.n), y + 0.1, rng.normal(size=rb.n), [r]])
     u = np.zeros(rb.n)
-    reps = 20
-    t_ref = min(timeit.repeat(lambda: ref.rhs(x, y, u), number=reps, repeat=3)) / reps
+    ref, reps = reference_observer(spec, disc), 20
+    try:
+        t_ref = min(timeit.repeat(lambda: ref.rhs(x, y, u), number=reps, repeat=3)) / reps
+    except NotImplementedError:      # the AOV reference needs closed-form M, C (not ur5's URDF)
+        t_ref = None
     obs = load(target, lib)
     ns_rhs = _time_rhs(obs.rhs, (x, y, u), repeat=2000)
     obs.state = x
@@ -195,7 +197,7 @@ def seed003_ii_ur5(family="ii_speed", robot="ur5", N=8, native=False, wrap="auto
             "c_bytes": c_bytes, "kernels_compile_wall_s": cc_wall, "kernels_compile_cpu_s": cc_cpu,
             "gate_1MB_30s": c_bytes <= 1e6 and cc_cpu <= 30.0,
             "ns_per_rhs_ctypes": ns_rhs, "ns_per_step_ctypes": ns_step,
-            "ns_per_rhs_reference": t_ref * 1e9, "speedup": t_ref * 1e9 / ns_rhs,
+            "ns_per_rhs_reference": t_ref and t_ref * 1e9, "speedup": t_ref and t_ref * 1e9 / ns_rhs,
             "gate_1ms": ns_rhs <= 1e6}
 
 
