@@ -3,8 +3,9 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 
-# the Cortex-M flow (`make embedded`): Debian's cross compiler, its C library and QEMU
-ARM_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
+# the Cortex-M flow (`make embedded`): Debian's cross compiler, its C library, QEMU, and newlib's
+# sources (its libm rebuilt for the host: the firmware's math on both sides of the comparison)
+ARM_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm newlib-source
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
 .PHONY: generate test sanitize c-tools bench clean check embedded arm-toolchain
@@ -37,7 +38,7 @@ check: $(VENV)/.installed
 	$(PY) -m codegen check -c targets.toml
 
 embedded: $(VENV)/.installed arm-toolchain
-	$(PY) -m codegen embedded ur5 panda seed000_2r seed002_2r seed003_2r_abs   # the reduced-order targets verified on Cortex-M
+	$(PY) -m codegen embedded -c targets.toml   # every default target: float on a Cortex-M4F, double on a Cortex-M7
 
 # apt-get installs what is missing of $(ARM_PACKAGES)
 arm-toolchain:
@@ -45,6 +46,7 @@ arm-toolchain:
 	command -v arm-none-eabi-gcc >/dev/null || missing="$$missing gcc-arm-none-eabi"; \
 	test -f "$$(arm-none-eabi-gcc -print-file-name=libc.a 2>/dev/null)" || missing="$$missing libnewlib-arm-none-eabi"; \
 	command -v qemu-system-arm >/dev/null || missing="$$missing qemu-system-arm"; \
+	ls /usr/src/newlib/newlib-*.tar.xz >/dev/null 2>&1 || missing="$$missing newlib-source"; \
 	if [ -n "$$missing" ]; then \
 	  echo "installing$$missing"; \
 	  $(SUDO) apt-get update -qq && \

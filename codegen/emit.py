@@ -37,6 +37,8 @@ HOLD_TEXT = {
 }
 
 HYBRID_TEXT = " Hybrid: the jump map is applied at each sample before the estimate."
+SPLIT_TEXT = ("\n * The model (M, C, g, F) is evaluated once per sub-step, at the configuration y of\n"
+              " * the sub-step's midpoint; the gain terms see y linear in time.")
 
 TEMPLATES = {"observer.h.in": "{prefix}.h", "observer.c.in": "{prefix}.c", "Makefile.in": "Makefile",
              "CMakeLists.txt.in": "CMakeLists.txt"}   # template -> file of the target folder
@@ -130,6 +132,7 @@ def metadata(spec, target, kernels, stability=None):
         "options": spec.options.to_dict(),
         "discretization": {**d.to_dict(), "hybrid": spec.jump is not None},
         "rate_states": list(spec.rate_states),
+        "rhs_split": spec.rhs_split is not None,
         "gains": {g: list(slots) for g, slots in spec.gains.items()},
         "stability": stability,
         "kernels": kernels,
@@ -305,7 +308,9 @@ def template_values(meta):
         "real": REAL_TYPES[precision], "precision": precision,
         "method": d["method"], "dt": _num(d["dt"], precision), "dt_text": _num(d["dt"]),
         "substeps": d["substeps"],
-        "hold_text": HOLD_TEXT[d["hold"]], "hold_foh": int(d["hold"] == "foh"),
+        "hold_text": HOLD_TEXT[d["hold"]] + (SPLIT_TEXT if d["hold"] == "foh" and meta.get("rhs_split")
+                                             else ""),
+        "hold_foh": int(d["hold"] == "foh"),
         "hybrid_text": HYBRID_TEXT if d["hybrid"] else "",
         **{n: s[n] for n in ("nx", "ny", "nu", "np", "nest")},
         **{f"{v}_len": max(1, s["n" + v]) for v in ("x", "y", "u", "p", "est")},  # C: no empty arrays

@@ -27,6 +27,12 @@ class ObserverSpec:
 
     Functions (casadi.Function):
       rhs(x, y, u, p)    -> xdot            the flow
+      rhs_split(x, y_cfg, y, u, p) -> xdot  (or None)  the flow with its use of y split into the
+                                            configuration of the model (M, C, g, F at y_cfg) and
+                                            the output injection (the gain terms, at y);
+                                            rhs(x, y, u, p) = rhs_split(x, y, y, u, p). The
+                                            first-order hold freezes y_cfg at the sub-step's
+                                            midpoint (codegen.discretize)
       output(x, y, u, p) -> est             the estimate at the current sample
       init(y0, est0, p)  -> x0              state from a first measurement and an initial estimate
       jump(x, y, p)      -> x+   (or None)  hybrid jump map, applied before each step
@@ -62,6 +68,7 @@ class ObserverSpec:
     output: ca.Function
     init: ca.Function
     jump: ca.Function | None = None
+    rhs_split: ca.Function | None = None
     rate: ca.Function | None = None
     retune: ca.Function | None = None
     measurement: ca.Function | None = None
@@ -83,7 +90,9 @@ class ObserverSpec:
                                  f"parameters must be finite")
         for f, ins, outs in ((self.rhs, (self.nx, self.ny, self.nu, self.np), (self.nx,)),
                              (self.output, (self.nx, self.ny, self.nu, self.np), (self.nest,)),
-                             (self.init, (self.ny, self.nest, self.np), (self.nx,))):
+                             (self.init, (self.ny, self.nest, self.np), (self.nx,))) + \
+                (() if self.rhs_split is None else
+                 ((self.rhs_split, (self.nx, self.ny, self.ny, self.nu, self.np), (self.nx,)),)):
             got_in = tuple(f.size1_in(i) * f.size2_in(i) for i in range(f.n_in()))
             got_out = tuple(f.size1_out(i) * f.size2_out(i) for i in range(f.n_out()))
             if got_in != ins or got_out != outs:
@@ -127,13 +136,23 @@ class ObserverSpec:
 
     def describe(self):
         """Plain data (JSON-able) the reference rebuilds this observer from: family, variant,
-        robot source, slot names, default parameters, options, and whether it is hybrid."""
+        robot source, slot names, default parameters, options, whether it is hybrid, its rate states
+        and whether it splits its flow's y (``rhs_split``)."""
         return {"family": self.family, "variant": self.variant, "robot": self.robot_source,
                 "names": {"x": list(self.x_names), "y": list(self.y_names), "u": list(self.u_names),
                           "p": list(self.p_names), "est": list(self.est_names)},
                 "p_default": [float(v) for v in self.p_default], "options": self.options.to_dict(),
                 "hybrid": self.jump is not None, "rate_states": list(self.rate_states),
+                "rhs_split": self.rhs_split is not None,
                 "gains": {g: list(slots) for g, slots in self.gains.items()}}
+
+
+def split_flow(x, y_cfg, y, u, p, xdot):
+    """(rhs, rhs_split) of a flow ``xdot`` (SX) written with its model at the configuration
+    ``y_cfg`` and its output injection at the measurement ``y`` (ObserverSpec.rhs_split);
+    rhs(x, y, u, p) is it at y_cfg = y. x, y_cfg, y, u, p: the SX symbols it depends on."""
+    return (ca.Function("rhs", [x, y, u, p], [ca.substitute(xdot, y_cfg, y)]),
+            ca.Function("rhs_split", [x, y_cfg, y, u, p], [xdot]))
 
 
 def real_number(name, value):

@@ -257,7 +257,7 @@ def _compute(spec, disc, p, gains, bounds=True):
 def _digest(spec):
     """Digests of the spec's functions: the check depends on nothing else of the spec."""
     from .cache import key_digest
-    fns = [spec.rhs, spec.output, spec.init, spec.jump, spec.rate, spec.measurement]
+    fns = [spec.rhs, spec.rhs_split, spec.output, spec.init, spec.jump, spec.rate, spec.measurement]
     return key_digest([f.serialize() if f is not None else None for f in fns]
                       + [list(spec.rate_states), spec.inputs.to_dict()])
 

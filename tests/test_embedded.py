@@ -10,7 +10,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from codegen import compile_observer, embedded
+from codegen import compile_observer, embedded, embedded_libm
 from codegen.build import build
 from codegen.emit import emit
 
@@ -168,6 +168,7 @@ def test_firmware_runs_float_on_m4f_and_double_on_m7(arm, seed000, spec_of, tmp_
     for cpu, rec in recs.items():
         assert rec["ok"] and rec["steps"] == 200
         assert rec["rel_diff_host"] <= rec["tolerance"]
+        assert rec["bit_identical_newlib"] is (None if embedded_libm.unavailable() else True)
         assert abs(rec["instructions_per_tick"] - 40.0) < 0.4     # -icount shift=0 at 25 MHz
         assert 100 < rec["instructions_per_step"] <= rec["instructions_per_step_max"] < 5000
         assert 0 < rec["stack_peak_bytes"] < rec["stack_size_bytes"]
@@ -181,6 +182,36 @@ def test_firmware_runs_float_on_m4f_and_double_on_m7(arm, seed000, spec_of, tmp_
     assert not re.search(r"\bv\w+\.f64\b", dis)                     # no double FPU instruction
     with pytest.raises(ValueError, match="cpu: m4f runs float targets"):
         embedded.verify(seed000["double"], "m4f", Y, U, build_dir=tmp_path)
+
+
+def test_host_build_with_newlibs_math_is_the_m7_bit_for_bit(arm, tmp_path):
+    """The libm.a members the firmware linked, rebuilt for the host and linked into its build:
+    the M7's estimates bit for bit over 300 steps, where the host build with glibc's math differs
+    in the last bits (newlib's sin and cos round some arguments differently)."""
+    from codegen.check import run_inputs
+    from codegen.targets import build_spec, make_target
+    reason = embedded_libm.unavailable()
+    if reason:
+        pytest.skip(reason)
+    target, _ = make_target({"robot": "seed000_2r", "family": "nicosia_tomei"})
+    spec = build_spec(target)
+    folder = emit(target, tmp_path / "gen", spec=spec)
+    Y, U = run_inputs(spec, 300, target.discretization.dt)
+    rec = embedded.verify(folder, "m7", Y, U, build_dir=tmp_path / "fw")
+    assert {"s_sin", "k_sin", "s_cos", "k_cos", "e_rem_pio2"} <= set(rec["libm_members"])
+    assert rec["bit_identical_newlib"] and rec["rel_diff_host_newlib"] == 0.0 and rec["ok"]
+    assert not rec["bit_identical"] and 0 < rec["rel_diff_host"] <= embedded.TOLERANCE["double"]
+    fw = embedded.firmware(folder, "m7", tmp_path / "fw")
+    lib = build(folder, extra_flags=[str(embedded_libm.host_libm(fw))])
+    assert embedded_libm.glibc_calls(lib) == [] and embedded_libm.glibc_calls(build(folder)) != []
+
+
+def test_newlib_settings_follow_the_multilib(arm):
+    """The M7's multilib (double-precision FPU) has newlib's new math, the M4F's the old fdlibm
+    single-precision code; both FPUs fuse multiply-adds."""
+    m7 = "-mthumb -mcpu=cortex-m7 -mfpu=fpv5-d16 -mfloat-abi=hard"
+    assert embedded_libm.arm_config(m7) == ["-D__OBSOLETE_MATH=0", "-DHAVE_FAST_FMA=1"]
+    assert embedded_libm.arm_config(ARM_CFLAGS) == ["-D__OBSOLETE_MATH=1", "-DHAVE_FAST_FMA=1"]
 
 
 def test_firmware_reports_an_observer_failure(arm, seed000, tmp_path):
@@ -210,10 +241,11 @@ def test_cli_embedded_prints_a_table_and_records_both_cpus(arm, tmp_path, capsys
     from codegen.cli import main
     assert main(["embedded", "seed002_2r", "--out", str(tmp_path), "--steps", "50"]) == 0
     out = capsys.readouterr().out
-    assert "insn/step" in out and "cortex-m4f" in out and "cortex-m7" in out
+    assert "insn/step" in out and "vs newlib" in out and "cortex-m4f" in out and "cortex-m7" in out
     for name, cpu in (("seed002_2r_reduced_order", "cortex-m7"), ("seed002_2r_reduced_order_float", "cortex-m4f")):
         rec = json.loads((tmp_path / name / f"{name}.json").read_text())["embedded"][cpu]
         assert rec["ok"] and rec["steps"] == 50 and rec["bit_identical"] in (True, False)
+        assert rec["bit_identical_newlib"] is (None if embedded_libm.unavailable() else True)
 
 
 # ------------------------------------------------------------------ generated build files

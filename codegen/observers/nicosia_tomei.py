@@ -19,7 +19,7 @@ import casadi as ca
 from ..design import model_statistics, nicosia_tomei_noise_gains, reduced_order_gain, sensor_sigma
 from ..design.noise import check_uncertainty, convergence_floor
 from ..options import InputRanges
-from ..spec import ObserverSpec
+from ..spec import ObserverSpec, split_flow
 from ._design import check_design, design_discretization, stable_report
 
 KP_DEFAULT = 500.0   # [ASSUMPTION SPEC §2, A0-4], the "guarantee" design's k_P
@@ -58,12 +58,13 @@ def build(robot, kd=None, kp=None, eta=1.0, v_max=2.0, noise=None, quantization=
         kd, kp = kd_d if kd is None else kd, kp_d if kp is None else kp
     n = robot.n
     x1hat, x2hat = ca.SX.sym("x1hat", n), ca.SX.sym("x2hat", n)
-    y, tau = ca.SX.sym("y", n), ca.SX.sym("tau", n)
+    y, y_cfg, tau = ca.SX.sym("y", n), ca.SX.sym("y_cfg", n), ca.SX.sym("tau", n)
     kd_s, kp_s = ca.SX.sym("kd"), ca.SX.sym("kp")
     x, p = ca.vertcat(x1hat, x2hat), ca.vertcat(kd_s, kp_s)
     x1tilde = y - x1hat
     x1hat_dot = x2hat + kd_s * x1tilde
-    x2hat_dot = robot.forward_dynamics(y, x1hat_dot, tau + kp_s * x1tilde)
+    x2hat_dot = robot.forward_dynamics(y_cfg, x1hat_dot, tau + kp_s * x1tilde)   # the model at y_cfg
+    rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, ca.vertcat(x1hat_dot, x2hat_dot))
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     joints = robot.joint_names
     spec = ObserverSpec(
@@ -71,7 +72,7 @@ def build(robot, kd=None, kp=None, eta=1.0, v_max=2.0, noise=None, quantization=
         x_names=[f"q_hat_{j}" for j in joints] + [f"qd_hat_{j}" for j in joints],
         y_names=[f"q_{j}" for j in joints], u_names=[f"tau_{j}" for j in joints],
         p_names=["kd", "kp"], est_names=[f"qd_hat_{j}" for j in joints], p_default=[kd, kp],
-        rhs=ca.Function("rhs", [x, y, tau, p], [ca.vertcat(x1hat_dot, x2hat_dot)]),
+        rhs=rhs, rhs_split=rhs_split,
         output=ca.Function("output", [x, y, tau, p], [x2hat]),
         init=ca.Function("init", [y0, est0, p], [ca.vertcat(y0, est0)]),   # [CODE-KUKA] x1hat(0) = y(0)
         # x1hat' = [x2hat + kd y] - kd x1hat: the rate kd on x1hat, integrated exactly

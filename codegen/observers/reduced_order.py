@@ -11,17 +11,18 @@ from __future__ import annotations
 import casadi as ca
 
 from ..design import reduced_order_design, reduced_order_gain
-from ..spec import ObserverSpec
+from ..spec import ObserverSpec, split_flow
 from ._design import check_design, design_discretization, stable_report
 
 
-def flow(robot, z, y, tau, k):
+def flow(robot, z, y_cfg, y, tau, k):
     """(x2hat, z') of the observer with gain k(y) = k y, k a scalar SX  [S000 (6),(9)], for ``robot``
-    at state z, measurement y = q and torque ``tau`` (SX vectors (n,)).
+    at state z, measurement y = q and torque ``tau`` (SX vectors (n,)), the model (M, C, g, F)
+    at the configuration ``y_cfg`` (y itself in the continuous-time observer; ObserverSpec.rhs_split).
 
     Shared by the hybrid family (reduced_order_hybrid), where k is the scheduled k_r."""
     x2hat = z + k * y                                                # [S000 (9)]
-    zdot = robot.forward_dynamics(y, x2hat, tau) - k * x2hat         # [S000 (6)] with dk/dy = k I
+    zdot = robot.forward_dynamics(y_cfg, x2hat, tau) - k * x2hat     # [S000 (6)] with dk/dy = k I
     return x2hat, zdot
 
 
@@ -65,9 +66,10 @@ def build(robot, k0=None, eta=1.0, v_max=2.0, noise=None, quantization=None, unc
 
 def _spec(robot, k0, report):
     n = robot.n
-    z, y, tau = ca.SX.sym("z", n), ca.SX.sym("y", n), ca.SX.sym("tau", n)
+    z, y, y_cfg, tau = ca.SX.sym("z", n), ca.SX.sym("y", n), ca.SX.sym("y_cfg", n), ca.SX.sym("tau", n)
     k, k_new = ca.SX.sym("k0"), ca.SX.sym("k0_new")
-    x2hat, zdot = flow(robot, z, y, tau, k)
+    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k)
+    rhs, rhs_split = split_flow(z, y_cfg, y, tau, k, zdot)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     q = [f"q_{j}" for j in robot.joint_names]
     return ObserverSpec(
@@ -75,7 +77,7 @@ def _spec(robot, k0, report):
         x_names=[f"z_{j}" for j in robot.joint_names], y_names=q,
         u_names=[f"tau_{j}" for j in robot.joint_names], p_names=["k0"],
         est_names=[f"qd_hat_{j}" for j in robot.joint_names], p_default=[k0],
-        rhs=ca.Function("rhs", [z, y, tau, k], [zdot]),
+        rhs=rhs, rhs_split=rhs_split,
         output=ca.Function("output", [z, y, tau, k], [x2hat]),
         init=ca.Function("init", [y0, est0, k], [est0 - k * y0]),  # [CODE-KUKA] z(0) = x2hat(0) - k0 y(0)
         # z' = [FD(y, x2hat) - k0^2 y] - k0 z: the gain rate k0 on every z, integrated exactly

@@ -22,7 +22,7 @@ import casadi as ca
 
 from ..design import reduced_order_design, scheduled_gains
 from ..options import HybridOptions, InputRanges
-from ..spec import ObserverSpec
+from ..spec import ObserverSpec, split_flow
 from ._design import check_design, design_discretization, stable_report
 from .reduced_order import flow
 
@@ -97,14 +97,15 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, 
         raise ValueError(f"gains: expected {r_max} values k_1..k_{r_max}, got {len(gains)}")
     n = robot.n
     z, r = ca.SX.sym("z", n), ca.SX.sym("r")
-    y, tau = ca.SX.sym("y", n), ca.SX.sym("tau", n)
+    y, y_cfg, tau = ca.SX.sym("y", n), ca.SX.sym("y_cfg", n), ca.SX.sym("tau", n)
     k = ca.SX.sym("k", r_max)
     eta_s, vbar_s, delta_s = ca.SX.sym("eta"), ca.SX.sym("vbar"), ca.SX.sym("delta")
     p = ca.vertcat(k, eta_s, vbar_s, delta_s)
     x = ca.vertcat(z, r)
 
     k_r = scheduled_gain(r, ca.vertsplit(k))
-    x2hat, zdot = flow(robot, z, y, tau, k_r)                         # [S000 (6)] with k_r of (16)
+    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k_r)                  # [S000 (6)] with k_r of (16)
+    rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, ca.vertcat(zdot, 0))
     r_plus = switch(logic_index(r, r_max), ca.norm_2(x2hat), eta_s, vbar_s, delta_s, r_max)
     z_plus = z + (k_r - scheduled_gain(r_plus, ca.vertsplit(k))) * y  # [DERIVED] x2hat continuous
     p_new = ca.SX.sym("p_new", p.numel())
@@ -117,7 +118,7 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, 
         x_names=[f"z_{j}" for j in joints] + ["r"], y_names=[f"q_{j}" for j in joints],
         u_names=[f"tau_{j}" for j in joints], p_names=gain_names(r_max) + ["eta", "vbar", "delta"],
         est_names=[f"qd_hat_{j}" for j in joints], p_default=gains + [eta, vbar, delta],
-        rhs=ca.Function("rhs", [x, y, tau, p], [ca.vertcat(zdot, 0)]),
+        rhs=rhs, rhs_split=rhs_split,
         output=ca.Function("output", [x, y, tau, p], [x2hat]),
         # [S000 §V] r(0) = 1; [CODE-KUKA] z(0) = x2hat(0) - k_1 y(0); the first jump raises r if needed
         init=ca.Function("init", [y0, est0, p], [ca.vertcat(est0 - k[0] * y0, 1)]),

@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 
 from ..design.reduced_order_nonlinear import feature_count, features, nonlinear_gain
-from ..spec import ObserverSpec
+from ..spec import ObserverSpec, split_flow
 
 
 def build(robot, k0=None, C=None, eta=1.0, v_max=2.0):
@@ -33,14 +33,17 @@ def build(robot, k0=None, C=None, eta=1.0, v_max=2.0):
     C = np.asarray(C, dtype=float)
     if C.shape != (n, nb):
         raise ValueError(f"C must have shape ({n}, {nb}), got {C.shape}")
-    z, y, tau = ca.SX.sym("z", n), ca.SX.sym("y", n), ca.SX.sym("tau", n)
+    z, y, y_cfg, tau = ca.SX.sym("z", n), ca.SX.sym("y", n), ca.SX.sym("y_cfg", n), ca.SX.sym("tau", n)
     pk, pC = ca.SX.sym("k0"), ca.SX.sym("C", n * nb)
     Cm = ca.reshape(pC, nb, n).T                                           # row-major p -> (n, nb)
     phi = features(y)
     x2hat = z + pk * ca.mtimes(Cm, phi)                                    # [S000 §VI]
-    zdot = robot.forward_dynamics(y, x2hat, tau) - pk * ca.mtimes(ca.mtimes(Cm, ca.jacobian(phi, y)), x2hat)  # (6)
+    # (6), the model at y_cfg (ObserverSpec.rhs_split), the gain's dk/dy at y
+    dk_dy = pk * ca.mtimes(Cm, ca.jacobian(phi, y))
+    zdot = robot.forward_dynamics(y_cfg, x2hat, tau) - ca.mtimes(dk_dy, x2hat)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     p = ca.vertcat(pk, pC)
+    rhs, rhs_split = split_flow(z, y_cfg, y, tau, p, zdot)
     names = robot.joint_names
     return ObserverSpec(
         family="reduced_order_nonlinear", robot=robot,
@@ -48,7 +51,7 @@ def build(robot, k0=None, C=None, eta=1.0, v_max=2.0):
         u_names=[f"tau_{j}" for j in names], est_names=[f"qd_hat_{j}" for j in names],
         p_names=["k0"] + [f"C_{i}_{b}" for i in range(n) for b in range(nb)],
         p_default=np.r_[k0, C.ravel()],
-        rhs=ca.Function("rhs", [z, y, tau, p], [zdot]),
+        rhs=rhs, rhs_split=rhs_split,
         output=ca.Function("output", [z, y, tau, p], [x2hat]),
         init=ca.Function("init", [y0, est0, p], [est0 - pk * ca.mtimes(Cm, ca.substitute(phi, y, y0))]),
         design=report,

@@ -14,8 +14,10 @@ target's metadata JSON, and a ``codegen.target.Discretization`` (plain data too)
 
 A family module gives ``rhs(robot, x, y, u, p)``, ``output(robot, x, y, u, p)``,
 ``init(robot, y0, est0, p)``, ``sizes(robot)``, optionally ``P_NAMES``, for hybrid
-observers ``jump(robot, x, y, p)``, and, when it needs the spec's declared options,
-``configure(robot, options) -> family`` (options: the typed value of codegen.options): the
+observers ``jump(robot, x, y, p)``, for a flow split like the spec's (``rhs_split`` in its
+description) ``rhs_split(robot, x, y_cfg, y, u, p)`` (the model at y_cfg, which the first-order
+hold puts at each sub-step's midpoint configuration), and, when it needs the spec's declared
+options, ``configure(robot, options) -> family`` (options: the typed value of codegen.options): the
 module's functions with those options bound as keyword arguments (reference/_family.py),
 never state stored on the robot.
 
@@ -157,6 +159,10 @@ class ReferenceObserver:
             raise ValueError(f"{family_name}: the spec {'declares' if has_rate else 'has no'} a gain rate "
                              f"but the reference family {'has none' if has_rate else 'does'}")
         self._mask = self.family.rate_states(self.robot) if has_rate else None
+        self.split = bool(desc.get("rhs_split"))     # the model at the sub-step's midpoint (foh)
+        if self.split and not hasattr(self.family, "rhs_split"):
+            raise ValueError(f"{family_name}: the spec splits its flow's y (rhs_split) but the "
+                             f"reference family does not")
 
         self.gains = {g: list(slots) for g, slots in (desc.get("gains") or {}).items()}
         self.p_default = _vector(desc["p_default"], self.np, "p_default")
@@ -292,10 +298,16 @@ class ReferenceObserver:
         self._p, self._x, self._prev, self._y_last = p, x0, None, y0
         return self.state
 
-    def _flow(self, x, y_of_t, u, dt):
-        p = self._p
-        rate = self.family.rate(self.robot, x, p) if self._mask is not None else None
-        return discretize.integrate(lambda t, xi: self.family.rhs(self.robot, xi, y_of_t(t), u, p),
+    def _flow(self, x, y_of_t, u, dt, midpoint=False):
+        """x advanced over dt with y = y_of_t(t) and u held; ``midpoint`` (first-order hold of a
+        family with ``rhs_split``): its model at y of each sub-step's midpoint, the rest at y(t)."""
+        p, robot, family = self._p, self.robot, self.family
+        rate = family.rate(robot, x, p) if self._mask is not None else None
+        if midpoint and self.split:
+            return discretize.integrate(
+                lambda t, xi, tm: family.rhs_split(robot, xi, y_of_t(tm), y_of_t(t), u, p),
+                x, dt, self.method, self.substeps, rate, self._mask, midpoint=True)
+        return discretize.integrate(lambda t, xi: family.rhs(robot, xi, y_of_t(t), u, p),
                                     x, dt, self.method, self.substeps, rate, self._mask)
 
     def _advance(self, x, prev, y, u):
@@ -303,7 +315,7 @@ class ReferenceObserver:
         p = self._p
         if self.hold == "foh" and prev is not None:
             yp, up = prev
-            x = self._flow(x, lambda t: yp + (t / self.dt) * (y - yp), up, self.dt)
+            x = self._flow(x, lambda t: yp + (t / self.dt) * (y - yp), up, self.dt, midpoint=True)
         if self.hybrid:
             x = self.family.jump(self.robot, x, y, p)
         est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)

@@ -1,7 +1,9 @@
 """Fixed-step integrators of the reference (DESIGN §4).
 
 ``f(t, x)`` is the flow with p fixed; t is the time since the start of the interval, so a
-first-order hold can interpolate y inside the step (zero-order hold simply ignores t).
+first-order hold can interpolate y inside the step (zero-order hold simply ignores t); with
+``integrate(..., midpoint=True)`` f also receives the midpoint time of its sub-step, where a split
+flow's model is evaluated.
 ``etdrk4`` integrates a flow f(t, x) = N(t, x) - a D x (a scalar rate a >= 0 on the states of
 the 0/1 mask D) by exponential time differencing RK4 [Cox & Matthews 2002, eq. (26)]; RK4 on the
 states outside the mask and for a flow without a rate.
@@ -87,13 +89,15 @@ def etdrk4_step(f, t, x, h, a, mask):
 _STEPS = {"euler": euler_step, "rk4": rk4_step}
 
 
-def integrate(f, x, dt, method="rk4", substeps=1, rate=None, mask=None):
+def integrate(f, x, dt, method="rk4", substeps=1, rate=None, mask=None, midpoint=False):
     """Advance x over dt by ``substeps`` equal steps h = dt / substeps of ``method``.
 
     Parameters
     ----------
     f : callable
-        (t, x) -> x' (m,), t in [0, dt] the time since the start of the interval (s).
+        (t, x) -> x' (m,), t in [0, dt] the time since the start of the interval (s);
+        with ``midpoint``, (t, x, t_mid) -> x', t_mid = (i + 1/2) h the midpoint of sub-step i
+        (where a first-order hold freezes the model's configuration).
     x : (m,) array
     dt : float
         Sample time, s.
@@ -104,6 +108,8 @@ def integrate(f, x, dt, method="rk4", substeps=1, rate=None, mask=None):
         The family's gain rate a (1/s) of x' = g - a x.
     mask : sequence of int or None
         State slots the rate applies to.
+    midpoint : bool
+        Pass each sub-step's midpoint time to f (see f).
 
     Returns
     -------
@@ -112,8 +118,9 @@ def integrate(f, x, dt, method="rk4", substeps=1, rate=None, mask=None):
     """
     h = dt / substeps
     for i in range(substeps):
+        fi = (lambda t, xi, tm=(i + 0.5) * h: f(t, xi, tm)) if midpoint else f
         if method == "etdrk4" and rate is not None:
-            x = etdrk4_step(f, i * h, x, h, rate, mask)
+            x = etdrk4_step(fi, i * h, x, h, rate, mask)
         else:
-            x = _STEPS["rk4" if method == "etdrk4" else method](f, i * h, x, h)
+            x = _STEPS["rk4" if method == "etdrk4" else method](fi, i * h, x, h)
     return x

@@ -36,15 +36,22 @@ def output(robot, x, y, u, p):
     return np.asarray(x[robot.n:], dtype=float)
 
 
-def rhs(robot, x, y, u, p):
+def rhs_split(robot, x, y_cfg, y, u, p):
     """[x1hat' (rad/s); x2hat' (rad/s^2)] (2n,) of SPEC §2, the K_P x1tilde term entering as a
-    torque; robot, x, y, u, p as in ``output``."""
+    torque, the model M, C, g, F at the configuration y_cfg (n,) rad and x1tilde = y - x1hat at the
+    measurement; robot, x, y, u, p as in ``output``."""
     n = robot.n
     x1hat, x2hat = x[:n], x[n:]
     kd, kp = p
     x1tilde = y - x1hat
     v = x2hat + kd * x1tilde
-    return np.concatenate([v, robot.forward_dynamics(y, v, u + kp * x1tilde)])
+    return np.concatenate([v, robot.forward_dynamics(y_cfg, v, u + kp * x1tilde)])
+
+
+def rhs(robot, x, y, u, p):
+    """The flow of the observer: ``rhs_split`` with the model at y itself;
+    robot, x, y, u, p as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p)
 
 
 def rate(robot, x, p):

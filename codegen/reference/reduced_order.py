@@ -36,12 +36,18 @@ def output(robot, x, y, u, p):
     return x + p[0] * y
 
 
-def rhs(robot, x, y, u, p):
-    """z' = forward_dynamics(y, x2hat, tau) - k0 x2hat  [S000 (6)] (n,), rad/s^2
-    (M^{-1} k0 M x2hat = k0 x2hat, so the M(y) dk/dy term leaves the solve); robot, x, y, u, p
-    as in ``output``."""
+def rhs_split(robot, x, y_cfg, y, u, p):
+    """z' = forward_dynamics(y_cfg, x2hat, tau) - k0 x2hat  [S000 (6)] (n,), rad/s^2, the model at
+    the configuration y_cfg (n,) rad, x2hat = z + k0 y at the measurement (M^{-1} k0 M x2hat =
+    k0 x2hat, so the M dk/dy term leaves the solve); robot, x, y, u, p as in ``output``."""
     x2hat = output(robot, x, y, u, p)
-    return robot.forward_dynamics(y, x2hat, u) - p[0] * x2hat
+    return robot.forward_dynamics(y_cfg, x2hat, u) - p[0] * x2hat
+
+
+def rhs(robot, x, y, u, p):
+    """The flow z' of the observer: ``rhs_split`` with the model at y itself;
+    robot, x, y, u, p as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p)
 
 
 def rate(robot, x, p):

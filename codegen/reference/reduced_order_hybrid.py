@@ -68,11 +68,17 @@ def output(robot, x, y, u, p):
     return reduced_order.output(robot, x[:-1], y, u, [gain(x, p)])
 
 
-def rhs(robot, x, y, u, p):
-    """[z'; r'] = [FD(y, x2hat, tau) - k_r x2hat; 0]  [S000 (6)] (n + 1,); robot, x, y, u, p as in
-    ``output``."""
-    zdot = reduced_order.rhs(robot, x[:-1], y, u, [gain(x, p)])
+def rhs_split(robot, x, y_cfg, y, u, p):
+    """[z'; r'] = [FD(y_cfg, x2hat, tau) - k_r x2hat; 0]  [S000 (6)] (n + 1,), the model at the
+    configuration y_cfg (n,) rad; robot, x, y, u, p as in ``output``."""
+    zdot = reduced_order.rhs_split(robot, x[:-1], y_cfg, y, u, [gain(x, p)])
     return np.append(zdot, 0.0)
+
+
+def rhs(robot, x, y, u, p):
+    """The flow [z'; r'] of the observer: ``rhs_split`` with the model at y itself;
+    robot, x, y, u, p as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p)
 
 
 def jump(robot, x, y, p):

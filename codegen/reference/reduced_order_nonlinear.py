@@ -53,12 +53,19 @@ def output(robot, x, y, u, p):
     return np.asarray(x, dtype=float) + k0 * C @ phi(y)
 
 
-def rhs(robot, x, y, u, p):
-    """z' = forward_dynamics(y, x2hat, tau) - k0 C dphi/dy x2hat  [S000 (6)] (n,), rad/s^2;
-    robot, x, y, u, p as in ``output``."""
+def rhs_split(robot, x, y_cfg, y, u, p):
+    """z' = forward_dynamics(y_cfg, x2hat, tau) - k0 C dphi/dy(y) x2hat  [S000 (6)] (n,), rad/s^2:
+    the model at the configuration y_cfg (n,) rad, the gain terms at the measurement y; robot, x,
+    y, u, p as in ``output``."""
     k0, C = _gain(robot, p)
     x2hat = output(robot, x, y, u, p)
-    return robot.forward_dynamics(y, x2hat, u) - k0 * (C @ dphi(y)) @ x2hat
+    return robot.forward_dynamics(y_cfg, x2hat, u) - k0 * (C @ dphi(y)) @ x2hat
+
+
+def rhs(robot, x, y, u, p):
+    """The flow z' of the observer: ``rhs_split`` with the model at y itself;
+    robot, x, y, u, p as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p)
 
 
 def init(robot, y0, est0, p):
