@@ -52,8 +52,11 @@ from .target import HOLDS, METHODS, Discretization  # noqa: F401  (re-exported)
 # Above this many inlined RHS instructions (RHS size x stages x substeps) the stages call one
 # shared RHS routine in the C instead: a big observer (I&I on a 6-DoF arm, an elastic 3R) stays
 # small and quick to compile. Below it, inlining lets common subexpressions (sin/cos of a held y)
-# be shared across stages.
-INLINE_LIMIT = 15000
+# be shared across stages. An inlined instruction is ~28 bytes of C, and under the first-order
+# hold the estimate kernel holds the unrolled stages too: 10000 keeps both under ~300 KB each
+# (the largest inlined default, panda reduced-order, has 7188; I&I AOV on ur5, 13320, was 0.74 MB
+# of C for the two kernels at 15000).
+INLINE_LIMIT = 10000
 
 _SERIES_TERMS = 17     # phi_k by its Taylor series for |z| < 1: remainder < 1/20! relative
 

@@ -392,6 +392,9 @@ def christoffel_slices(robot, q):
 def cholesky_velocity(robot, q):
     """(M, T, T^{-1}) at q: M^{-1} = T T^T with T lower-triangular, T^{-1} = T^T M  [SPEC §5].
 
+    T^{-1} is the lower-triangular factor of M = T^{-T} T^{-1} (``reversed_cholesky``) and T its
+    triangular inverse (``lower_inverse``): no inverse of M, ~n^3/3 operations.
+
     Parameters
     ----------
     robot : RobotModel (n joints)
@@ -401,8 +404,31 @@ def cholesky_velocity(robot, q):
     -------
     (M (n, n), T (n, n), T^{-1} (n, n)) as SX; pbar = T^{-1} qd is the Cholesky velocity."""
     Mq = robot.mass_matrix(q)
-    T = chol_lower(ldl_solve(Mq, ca.DM.eye(robot.n)))
-    return Mq, T, ca.mtimes(T.T, Mq)
+    Tinv = reversed_cholesky(Mq)
+    return Mq, lower_inverse(Tinv), Tinv
+
+
+def reversed_cholesky(A):
+    """Lower-triangular L with A = L^T L (A symmetric positive-definite): the Cholesky factor of
+    A with rows and columns in reverse order, J chol_lower(J A J)^T J, J the exchange matrix."""
+    n = A.shape[0]
+    J = ca.DM(np.fliplr(np.eye(n)))
+    return ca.mtimes(ca.mtimes(J, chol_lower(ca.mtimes(ca.mtimes(J, A), J)).T), J)
+
+
+def lower_inverse(L):
+    """L^{-1} of a lower-triangular L with non-zero diagonal (lower-triangular) by forward
+    substitution, entry by entry: X_jj = 1/L_jj, X_ij = -sum_{j<=k<i} L_ik X_kj / L_ii."""
+    n = L.shape[0]
+    X = [[0] * n for _ in range(n)]
+    for j in range(n):
+        X[j][j] = 1 / L[j, j]
+        for i in range(j + 1, n):
+            s = 0
+            for k in range(j, i):
+                s = s - L[i, k] * X[k][j]
+            X[i][j] = s / L[i, i]
+    return ca.vertcat(*[ca.horzcat(*row) for row in X])
 
 
 @lru_cache(maxsize=32)
@@ -410,9 +436,9 @@ def _skew_function(robot):
     """CasADi Function (q, b) -> S(q, b) of pure symbols (AD needs them), cached per robot."""
     n = robot.n
     q, v = ca.SX.sym("q", n), ca.SX.sym("v", n)
-    Mq, T, _ = cholesky_velocity(robot, q)
+    _, T, Tinv = cholesky_velocity(robot, q)
     Tb = ca.mtimes(T, v)
-    S = (-ca.mtimes(ca.mtimes(T.T, Mq), ca.jtimes(T, q, Tb))
+    S = (-ca.mtimes(Tinv, ca.jtimes(T, q, Tb))
          - ca.mtimes(ca.mtimes(T.T, robot.coriolis(q, Tb)), T))
     return ca.Function("S", [q, v], [S])
 

@@ -27,11 +27,12 @@ respect to the filter states enter the observer only through the product
 so that product is one forward-mode directional derivative of the quadrature (one sweep),
 never the two n x n Jacobians (14)-(15); ``beta_jacobians`` gives those when wanted.
 
-Code shape: each column is one routine (``column_routines``, symbolic.routine) and each
-integral one call of a quadrature routine that loops over its nodes
-(symbolic.gauss_legendre_routine, trapezoid_routine); the directional derivative calls the
-loop's forward derivative. The C holds each column and its derivative once whatever
-N (I&I ur5 at N = 8: 7.0 MB of fully inlined C before, well under 1 MB now; codegen.bench).
+Code shape: the columns are one routine col(q, x, k1, e) called with e = e_i (AOV), or one
+routine per column (I&I speed; ``column_routines``, symbolic.routine), and each integral one
+call of a quadrature routine that loops over its nodes (symbolic.gauss_legendre_routine,
+trapezoid_routine); the directional derivative calls the loop's forward derivative. The C holds
+each routine and its derivative once whatever N (I&I ur5 at N = 8: 7.0 MB of fully inlined C
+at first; codegen.bench).
 """
 from __future__ import annotations
 
@@ -77,12 +78,21 @@ def resolve_wrap(robot, wrap="auto"):
 
 
 @lru_cache(maxsize=32)
-def column_routines(robot, column, name):
-    """[col_0, ..., col_{n-1}]: routine ``name``i (q, v, k1) -> column(robot, q, v, k1, i), the
-    integrand of column i of beta (n-vector), cached per robot and column builder."""
+def column_routines(robot, column, name, specialise=False):
+    """[col_0, ..., col_{n-1}]: col_i(q, v, k1) = column(robot, q, v, k1, e_i), the integrand of
+    column i of beta (n-vector), cached per robot and column builder.
+
+    Shared (default): every col_i calls one routine ``name``(q, v, k1, e) with e = e_i, so the C
+    holds one column body and one forward derivative whatever n. ``specialise``: one routine
+    ``name``i per column with e_i folded in (n bodies, each cheaper to run: the terms that
+    vanish along e_i are gone)."""
     n = robot.n
-    q, v, k1 = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("k1")
-    return [routine(f"{name}{i}", [q, v, k1], [column(robot, q, v, k1, i)]) for i in range(n)]
+    q, v, k1, e = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("k1"), ca.SX.sym("e", n)
+    eye = ca.DM.eye(n)
+    if specialise:
+        return [routine(f"{name}{i}", [q, v, k1], [column(robot, q, v, k1, eye[:, i])]) for i in range(n)]
+    shared = routine(name, [q, v, k1, e], [column(robot, q, v, k1, e)])
+    return [ca.Function(f"{name}{i}", [q, v, k1], [shared(q, v, k1, eye[:, i])]) for i in range(n)]
 
 
 def substitute_entry(v, i, value):

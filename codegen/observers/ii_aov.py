@@ -31,7 +31,7 @@ from functools import lru_cache
 import casadi as ca
 
 from ..design import ii_aov_bounds
-from ..symbolic import christoffel_column_matrix, cholesky_velocity, routine, skew_S
+from ..symbolic import cholesky_velocity, routine, skew_S
 from ._ii_common import (DEFAULT_N, beta_directional, column_routines, designed_bounds,
                          filter_symbols, frobenius_sq, ii_spec, lemma2_bound, lemma2_names,
                          lemma2_values, quadrature_beta, resolve_wrap, split_params)
@@ -45,26 +45,24 @@ def p_names(n):
     return lemma2_names(SCALARS, "dq_k1", "dq_p", n)
 
 
-def hbar_column(robot, q, v, k1, i):
-    """Hbar_i(q, v) = k1 T^{-1} e_i - T^T M (dT/dq_i) v - T^T C(q, e_i) T v  [DERIVED, SPEC §5],
-    column i of the ideal Jacobian Hbar(q, v) = (k1 I + Cbar(q, v)) T^{-1}.
+def hbar_column(robot, q, v, k1, e):
+    """Hbar(q, v) e = k1 T^{-1} e - T^{-1} (dT/dq e) v - T^T C(q, e) T v  [DERIVED, SPEC §5]: at
+    e = e_i, column i of the ideal Jacobian Hbar(q, v) = (k1 I + Cbar(q, v)) T^{-1}.
 
     Parameters
     ----------
     robot : RobotModel (n joints)
     q : SX (n,) pure configuration symbols [rad or m] (AD of T needs them)
-    v : SX (n,) Cholesky velocity;  k1 : float or SX, gain (> 4);  i : int, column (0 <= i < n)
+    v : SX (n,) Cholesky velocity;  k1 : float or SX, gain (> 4)
+    e : SX or DM (n,) direction (e_i for column i; Hbar is linear in it)
 
     Returns
     -------
     SX (n,)"""
-    n = robot.n
-    Mq, T, Tinv = cholesky_velocity(robot, q)
-    e = ca.DM.zeros(n, 1)
-    e[i] = 1.0
+    _, T, Tinv = cholesky_velocity(robot, q)
     dT = ca.jtimes(T, q, e)
-    return (k1 * Tinv[:, i] - ca.mtimes(ca.mtimes(T.T, Mq), ca.mtimes(dT, v))
-            - ca.mtimes(T.T, ca.mtimes(christoffel_column_matrix(robot, q, i), ca.mtimes(T, v))))
+    return (k1 * ca.mtimes(Tinv, e) - ca.mtimes(Tinv, ca.mtimes(dT, v))
+            - ca.mtimes(T.T, ca.mtimes(robot.coriolis(q, e), ca.mtimes(T, v))))
 
 
 @lru_cache(maxsize=32)

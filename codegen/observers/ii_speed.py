@@ -18,7 +18,7 @@ the seed; a robot with friction keeps its F [ASSUMPTION]).
 Implementation choices:
 - H_i(q, x) = M(q)^{-1}(k1 e_i - C(q, e_i) x) (symmetry P2): one Christoffel matrix and one
   unpivoted LDL^T solve per quadrature node, no symbolic inverse; one routine per column in the
-  C, called at every node (_ii_common.column_routines).
+  C (H e_i: C(q, e_i) costs half the general C(q, e)), called at every node (_ii_common.column_routines).
 - beta by N-node Gauss-Legendre (``N``, a generation parameter), the intervals of 2 pi-periodic
   joints reduced to |rho| <= pi plus whole periods (``wrap``, ``N_period``; _ii_common and
   docs/quadrature.md; declared as ``spec.options`` (codegen.options.QuadratureOptions), which the
@@ -40,7 +40,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ..design import ii_speed_bounds
-from ..symbolic import christoffel_column_matrix, ldl_solve
+from ..symbolic import ldl_solve
 from ._ii_common import DEFAULT_N  # public: default quadrature nodes N (docs/quadrature.md)
 from ._ii_common import (beta_directional, column_routines, designed_bounds, filter_symbols,
                          frobenius_sq, ii_spec, lemma2_bound, lemma2_names, lemma2_values,
@@ -55,9 +55,9 @@ def p_names(n):
     return lemma2_names(SCALARS, "dy_k1", "dy_sx", n)
 
 
-def h_column(robot, q, x, k1, i):
-    """H_i(q, x) = M(q)^{-1} (k1 e_i - C(q, e_i) x)  [S003 (11)], column i of the target
-    Jacobian, by symmetry P2 and one LDL^T solve (no symbolic inverse).
+def h_column(robot, q, x, k1, e):
+    """H(q, x) e = M(q)^{-1} (k1 e - C(q, e) x)  [S003 (11)]: at e = e_i, column i of the
+    target Jacobian, by symmetry P2 and one LDL^T solve (no symbolic inverse).
 
     Parameters
     ----------
@@ -66,16 +66,13 @@ def h_column(robot, q, x, k1, i):
     x : SX (n,) velocity [rad/s or m/s]
     k1 : float or SX
         Observer gain k1 (> 4).
-    i : int
-        Column (0 <= i < n).
+    e : SX or DM (n,)
+        Direction (e_i for column i; H is linear in it).
 
     Returns
     -------
     SX (n,)"""
-    n = robot.n
-    e = ca.DM.zeros(n, 1)
-    e[i] = 1.0
-    return ldl_solve(robot.mass_matrix(q), k1 * e - ca.mtimes(christoffel_column_matrix(robot, q, i), x))
+    return ldl_solve(robot.mass_matrix(q), k1 * e - ca.mtimes(robot.coriolis(q, e), x))
 
 
 def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=None,
@@ -130,7 +127,7 @@ def build(robot, k1=40.0, k2=8.0, k3=2.5, c_r=1e-3, r0=0.1, N=DEFAULT_N, bounds=
     s, a, b = split_params(p, n, SCALARS)
     K1 = s["k1"]
 
-    cols = column_routines(robot, h_column, "h")
+    cols = column_routines(robot, h_column, "h", specialise=True)   # H e_i costs half of H e
     beta, dbdy = quadrature_beta(cols, K1, y, s_y, s_x, N, periodic, N_period)   # [S003 (12),(13)]
     xhat = xi + beta                                                    # [S003 (3b)]
     e_y, e_x = s_y - y, s_x - xhat                                      # [S003 (17),(18)]
