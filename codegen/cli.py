@@ -290,11 +290,11 @@ def _compare_source(args):
 def cmd_compare(args):
     """Observers and tuned baselines on a scenario or a CSV: table, figures, JSON.
     ``args``: the parsed argparse namespace; returns the exit status."""
-    from .compare import compare, design_inputs
+    from .compare import DEFAULT_FAMILIES, compare, design_inputs
     from .recording import RecordingError
     try:
         rec, robot, title = _compare_source(args)
-        families = [f for f in args.observers.split(",") if f]
+        families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
         bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
         cmp = compare(rec, robot, families=families, t_ss=args.t_ss, level=args.level,
                       design=design_inputs(args.quantization, args.noise, args.mismatch),
@@ -412,7 +412,9 @@ def parser():
     cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a scenario or a CSV")
     cp.add_argument("source", help="mujoco-ur5, mujoco-panda, or a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>])")
     cp.add_argument("--robot", help="robot of a CSV: catalog name or a .urdf path")
-    cp.add_argument("--observers", default="reduced_order,nicosia_tomei", help="comma-separated families")
+    cp.add_argument("--observers", help="comma-separated families, each optionally with gains "
+                    "(family:name=value:...); default reduced_order_switched,reduced_order,extended_state,"
+                    "nicosia_tomei")
     cp.add_argument("--baselines", help="comma-separated (default: all of codegen.baselines)")
     cp.add_argument("--quantization", type=float,
                     help="encoder step (rad); scenario: of its sensor (default 0); both this and --noise "

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import baselines, metrics
 
-DEFAULT_FAMILIES = ("reduced_order", "nicosia_tomei")
+DEFAULT_FAMILIES = ("reduced_order_switched", "reduced_order", "extended_state", "nicosia_tomei")
 
 
 @dataclass
@@ -75,15 +75,17 @@ class Comparison:
 
     def table(self):
         """The metrics table as text (one line per method)."""
-        head = (f"{'method':16s} {'parameters':22s} {'RMS t>=' + format(self.t_ss, 'g') + 's':>12s} "
+        rows = self.rows()
+        w = max([16] + [len(r["name"]) for r in rows])
+        head = (f"{'method':{w}s} {'parameters':26s} {'RMS t>=' + format(self.t_ss, 'g') + 's':>12s} "
                 f"{'max':>9s} {'t<' + format(self.level, 'g'):>9s} {'gain':>8s} {'lag ms':>8s} "
                 f"{'/best bl':>8s}")
         lines = [self.title, head] if self.title else [head]
-        for r in self.rows():
+        for r in rows:
             par = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
                             for k, v in r["params"].items())
             lines.append(
-                f"{r['name']:16s} {par[:22]:22s} {r['rms']:12.3e} {r['max']:9.2e} "
+                f"{r['name']:{w}s} {par[:26]:26s} {r['rms']:12.3e} {r['max']:9.2e} "
                 f"{r['t_conv']:9.3f} {r['gain']:8.4f} {1e3 * r['lag']:8.3f} "
                 f"{r['rms_over_best_baseline']:8.3f}" + ("  DIVERGED" if r["diverged"] else "")
                 + (f"  ({r['note']})" if r.get("note") else ""))

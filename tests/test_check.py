@@ -29,6 +29,8 @@ def test_other_discretizations_match_reference(name, method, substeps, hold, spe
 
 
 @pytest.mark.parametrize("family,robot", [("reduced_order_hybrid", "seed000_2r"),
+                                          ("reduced_order_switched", "seed000_2r"),
+                                          ("extended_state", "seed000_2r"),
                                           ("nicosia_tomei", "seed000_2r"),
                                           ("lotfi_namvar", "seed002_2r"),
                                           ("su_nonsmooth", "seed002_2r"),

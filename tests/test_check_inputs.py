@@ -17,6 +17,8 @@ SIGMAS = 6.0         # a normal draw beyond 6 standard deviations is a bug, not 
 CASES = {
     "reduced_order": ("seed000_2r", "reduced_order", {}),
     "reduced_order_hybrid": ("seed000_2r", "reduced_order_hybrid", {}),
+    "reduced_order_switched": ("seed000_2r", "reduced_order_switched", {}),
+    "extended_state": ("seed000_2r", "extended_state", {}),
     "reduced_order_nonlinear": ("seed000_2r", "reduced_order_nonlinear", {}),
     "nicosia_tomei": ("seed000_2r", "nicosia_tomei", {}),
     "lotfi_namvar": ("seed002_2r", "lotfi_namvar", {}),

@@ -87,7 +87,8 @@ def test_compile_observer_bad_arguments(spec_of):
 
 
 SPLIT_FAMILIES = [("reduced_order", "ur5"), ("reduced_order_hybrid", "seed000_2r"),
-                  ("reduced_order_nonlinear", "seed000_2r"), ("nicosia_tomei", "panda")]
+                  ("reduced_order_nonlinear", "seed000_2r"), ("nicosia_tomei", "panda"),
+                  ("reduced_order_switched", "seed000_2r"), ("extended_state", "ur5")]
 
 
 @pytest.mark.parametrize("family,robot", SPLIT_FAMILIES)

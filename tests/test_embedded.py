@@ -186,8 +186,9 @@ def test_firmware_runs_float_on_m4f_and_double_on_m7(arm, seed000, spec_of, tmp_
 
 def test_host_build_with_newlibs_math_is_the_m7_bit_for_bit(arm, tmp_path):
     """The libm.a members the firmware linked, rebuilt for the host and linked into its build:
-    the M7's estimates bit for bit over 300 steps, where the host build with glibc's math differs
-    in the last bits (newlib's sin and cos round some arguments differently)."""
+    the M7's estimates bit for bit over 300 steps, where the host build with glibc's math may
+    differ in the last bits (newlib's sin and cos round some arguments differently: 3 % of them
+    on this machine's glibc; whether a run meets one depends on the gains and on the glibc)."""
     from codegen.check import run_inputs
     from codegen.targets import build_spec, make_target
     reason = embedded_libm.unavailable()
@@ -200,7 +201,7 @@ def test_host_build_with_newlibs_math_is_the_m7_bit_for_bit(arm, tmp_path):
     rec = embedded.verify(folder, "m7", Y, U, build_dir=tmp_path / "fw")
     assert {"s_sin", "k_sin", "s_cos", "k_cos", "e_rem_pio2"} <= set(rec["libm_members"])
     assert rec["bit_identical_newlib"] and rec["rel_diff_host_newlib"] == 0.0 and rec["ok"]
-    assert not rec["bit_identical"] and 0 < rec["rel_diff_host"] <= embedded.TOLERANCE["double"]
+    assert rec["rel_diff_host"] <= embedded.TOLERANCE["double"]
     fw = embedded.firmware(folder, "m7", tmp_path / "fw")
     lib = build(folder, extra_flags=[str(embedded_libm.host_libm(fw))])
     assert embedded_libm.glibc_calls(lib) == [] and embedded_libm.glibc_calls(build(folder)) != []

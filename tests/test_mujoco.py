@@ -142,7 +142,7 @@ def ur5_quantised():
     from codegen.compare import compare, design_inputs
     from codegen.sim.scenarios import mujoco
     rec = mujoco.recording("ur5", T=3.0, quantization=1e-4)
-    return compare(rec, load_robot("ur5"), families=("reduced_order",), t_ss=1.0,
+    return compare(rec, load_robot("ur5"), families=("reduced_order", "reduced_order_switched"), t_ss=1.0,
                    design=design_inputs(quantization=1e-4))
 
 
@@ -157,6 +157,52 @@ def test_observer_beats_the_tuned_baselines_on_mujoco(ur5_quantised):
     assert obs["t_conv"] < 0.3
     assert abs(obs["gain"] - 1) < 0.01 and abs(obs["lag"]) < 1e-3
     assert not obs["diverged"]
+
+
+def test_switched_gain_is_a_third_of_the_best_baseline_on_mujoco(ur5_quantised):
+    """The time-switched observer designed for the encoder (k0 = 29.4 until 0.23 s, then 2.65):
+    the convergence of the fixed gain, and an RMS error at most 1/3 of the best tuned baseline's
+    (issue 11; 0.07 on the 20 s run of the README), unbiased."""
+    entry = ur5_quantised["reduced_order_switched"]
+    assert entry.params["k0"] == pytest.approx(np.log(200) / 0.18)
+    assert entry.params["k0_final"] < entry.params["k0"] / 5
+    obs, best = entry.metrics, ur5_quantised.best_baseline()
+    assert obs["rms"] < best.metrics["rms"] / 3
+    assert obs["rms"] < ur5_quantised["reduced_order"].metrics["rms"] / 3
+    assert obs["t_conv"] < 0.2
+    assert abs(obs["gain"] - 1) < 0.01 and abs(obs["lag"]) < 1e-3
+
+
+def test_switched_gain_converges_within_0_2_s_on_panda():
+    """The panda's Coriolis coupling slows the start-up decay (0.214 s at ln(200)/0.2): the
+    switched family's k0 (for 0.18 s) converges below 1e-2 rad/s within 0.2 s."""
+    from codegen.compare import compare, design_inputs
+    from codegen.sim.scenarios import mujoco
+    rec = mujoco.recording("panda", T=1.0, quantization=1e-4)
+    cmp = compare(rec, load_robot("panda"), families=("reduced_order_switched",), t_ss=0.5,
+                  design=design_inputs(quantization=1e-4), baseline_names=("backward",))
+    assert cmp["reduced_order_switched"].metrics["t_conv"] < 0.2
+
+
+@pytest.fixture(scope="module")
+def ur5_mismatched():
+    """3 s of MuJoCo ur5, 1e-4 rad encoder, plant masses and inertias 10 % above the model's,
+    the uncertainty given to the design (as `compare --mismatch 0.1` does)."""
+    from codegen.compare import compare, design_inputs
+    from codegen.sim.scenarios import mujoco
+    rec = mujoco.recording("ur5", T=3.0, quantization=1e-4, mismatch=0.1)
+    return compare(rec, load_robot("ur5"), families=("reduced_order", "extended_state"), t_ss=1.0,
+                   design=design_inputs(quantization=1e-4, uncertainty=0.1))
+
+
+def test_extended_state_within_1_5_of_the_best_baseline_when_the_model_is_off(ur5_mismatched):
+    """With 10 % mass error the reduced-order observer keeps a bias ~ e / k0 (8x the best tuned
+    baseline on the 20 s run); the extended-state observer estimates the model error and stays
+    within 1.5x of the best tuned baseline (issue 11; 0.86 on ur5, 1.29 on panda over 20 s)."""
+    eso, best = ur5_mismatched["extended_state"].metrics, ur5_mismatched.best_baseline()
+    assert eso["rms"] <= 1.5 * best.metrics["rms"]
+    assert eso["rms"] < ur5_mismatched["reduced_order"].metrics["rms"] / 3
+    assert eso["t_conv"] < 0.3 and abs(eso["gain"] - 1) < 0.01 and abs(eso["lag"]) < 1e-3
 
 
 def test_baselines_tuned_and_ordered(ur5_quantised):

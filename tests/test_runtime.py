@@ -124,7 +124,8 @@ def test_c_harness_csv_equals_ctypes(name, compiled, spec_of, tmp_path):
     assert np.array_equal(EST, obs.run(Q, TAU))
 
 
-@pytest.mark.parametrize("family", ["reduced_order", "reduced_order_hybrid", "nicosia_tomei"])
+@pytest.mark.parametrize("family", ["reduced_order", "reduced_order_hybrid", "reduced_order_switched",
+                                    "nicosia_tomei", "extended_state"])
 def test_retuning_is_bumpless_in_c_and_reference(family, tmp_path):
     """At rest at q = (1, 0.5), a gain change mid-run moves the estimate by <= 1e-12 (the state
     is transformed: z += (k_old - k_new) y), in the C and in the reference; without the

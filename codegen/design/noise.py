@@ -253,3 +253,122 @@ def gravity_statistics(M, g, dg, points):
             "g_rms": float(np.sqrt(np.mean(np.sum(gs ** 2, axis=1)))),
             "trace_minv2": float(np.mean(np.sum(lam ** -2.0, axis=1))),
             "mu_min": float(1 / lam[:, -1].max()), "mu_max": float(1 / lam[:, 0].min())}
+
+
+def switched_gains(nd, n, t_settle=2.0):
+    """The time-switched gain of the reduced_order_switched family from a noise-aware design.
+
+    The gain nd.k0 (>= the convergence floor) runs until the initial error has decayed to the
+    predicted error at that gain, then the gain switches (bumplessly) to the noise-aware optimum
+    nd.k0_noise, kept at or above the gain that still brings an error of v_max below 1e-2 rad/s
+    within ``t_settle`` (so a model error or a disturbance the design did not foresee still
+    settles in seconds) and at or below nd.k0 [DERIVED]:
+
+        k0_final = min(k0, max(k0_noise, ln(v_max / tol) / t_settle))
+        t_switch = max(t_conv, ln(v_max / E(k0)) / k0),   E the predicted RMS error
+
+    Parameters
+    ----------
+    nd : NoiseAwareDesign
+        The design of the initial gain (its sensor, uncertainty, dt, v_max, t_conv).
+    n : int
+        Number of joints.
+    t_settle : float
+        Time (s) the final gain takes to bring an error of v_max below 1e-2 rad/s.
+
+    Returns
+    -------
+    dict
+        k0, k0_final (1/s), t_switch (s), k0_settle (the floor of k0_final, 1/s), t_settle and
+        the predicted RMS error at k0 and at k0_final (rad/s); k0_final = k0 (no switch) without
+        sensor noise or when the optimum is the convergence-floor gain or above.
+    """
+    if not (isinstance(t_settle, (int, float)) and math.isfinite(t_settle) and t_settle > 0):
+        raise ValueError(f"t_settle must be a positive time (s), got {t_settle!r}")
+    k_settle = convergence_floor(nd.v_max, t_settle)
+    k0 = nd.k0
+    k_final = min(k0, max(nd.k0_noise, k_settle)) if math.isfinite(nd.k0_noise) else k0
+
+    def err(k):
+        return reduced_order_error(k, nd.dt, n, nd.sigma, nd.e_rms, nd.G)
+    e0 = err(k0)
+    t_switch = max(nd.t_conv, math.log(nd.v_max / e0) / k0) if (k_final < k0 and e0 > 0) else 0.0
+    return {"k0": float(k0), "k0_final": float(k_final), "t_switch": float(t_switch),
+            "k0_settle": float(k_settle), "t_settle": float(t_settle),
+            "predicted_error": {"k0": e0, "k0_final": err(k_final)}}
+
+
+# ------------------------------------------------------------ extended-state observer (per joint)
+# e = y - q_hat:  q_hat' = v_hat + l1 e,  v_hat' = a_model + d_hat + l2 e,  d_hat' = l3 e, with the
+# triple pole (s + w)^3: l1, l2, l3 = 3 w, 3 w^2, w^3.  Error (q, v, d) per joint: x' = A x + ...,
+# A = [[-l1, 1, 0], [-l2, 0, 1], [-l3, 0, 0]].  [DERIVED]
+
+def extended_state_gains(omega):
+    """(l1, l2, l3) = (3 w, 3 w^2, w^3) of the triple pole at -``omega`` (1/s)."""
+    return 3 * omega, 3 * omega ** 2, omega ** 3
+
+
+def _eso_matrix(omega):
+    l1, l2, l3 = extended_state_gains(omega)
+    return np.array([[-l1, 1.0, 0.0], [-l2, 0.0, 1.0], [-l3, 0.0, 0.0]]), np.array([l1, l2, l3])
+
+
+def extended_state_noise(omega, dt, sigma):
+    """Std (rad/s) of v_hat at poles -``omega`` (1/s) from white measurement noise of std ``sigma`` (rad) sampled every
+    ``dt`` (s) (PSD sigma^2 dt), per joint: the stationary covariance of the error dynamics
+    (continuous Lyapunov equation A P + P A^T + b b^T sigma^2 dt = 0), its v entry."""
+    from scipy.linalg import solve_continuous_lyapunov
+    A, b = _eso_matrix(omega)
+    P = solve_continuous_lyapunov(A, -np.outer(b, b) * sigma ** 2 * dt)
+    return math.sqrt(max(P[1, 1], 0.0))
+
+
+def extended_state_floor(v_max, t_conv, tol=TOL):
+    """The smallest omega (1/s) with which an initial velocity error v_max (rad/s) stays below
+    tol after t_conv (s): the response scales with omega t, so omega = c / t_conv with c the
+    last time the unit-omega response |v(c)| exceeds tol / v_max."""
+    from scipy.linalg import expm
+    A, _ = _eso_matrix(1.0)
+    ts = np.linspace(0.0, 60.0, 24001)
+    step = expm(A * (ts[1] - ts[0]))
+    x, above = np.array([0.0, 1.0, 0.0]), 0.0
+    for t in ts[1:]:
+        x = step @ x
+        if abs(x[1]) > tol / v_max:
+            above = t
+    return above / t_conv
+
+
+def extended_state_noise_gain(n, dt, sigma, e_dot, floor):
+    """omega minimising the predicted RMS error norm of the extended-state observer,
+    sqrt(n s(w)^2 + (3 e_dot / w^2)^2), at or above the convergence ``floor`` (1/s).
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+    dt : float
+        Sample time, s.
+    sigma : float
+        Sensor std, rad.
+    e_dot : float
+        RMS norm of the rate of the model's acceleration error (rad/s^3): a ramp disturbance
+        leaves a velocity error 3 e_dot / w^2 (final value theorem on the error dynamics).
+    floor : float
+        Convergence floor on omega (extended_state_floor), 1/s.
+
+    Returns
+    -------
+    (omega, predicted RMS error at omega (rad/s), unconstrained optimum (1/s; 0 when only the
+    floor bounds it)).
+    """
+    def err(w):
+        return math.sqrt(n * extended_state_noise(w, dt, sigma) ** 2 + (3 * e_dot / w ** 2) ** 2)
+    if sigma > 0 and e_dot > 0:
+        res = minimize_scalar(lambda lw: err(math.exp(lw)), method="bounded",
+                              bounds=(math.log(0.1), math.log(0.5 / dt)))
+        w_opt = math.exp(res.x)
+    else:
+        w_opt = 0.0 if sigma > 0 else math.inf
+    omega = max(floor, w_opt) if math.isfinite(w_opt) else max(floor, 0.1 / dt)
+    return omega, err(omega), w_opt
