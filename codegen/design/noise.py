@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
@@ -323,20 +324,28 @@ def extended_state_noise(omega, dt, sigma):
     return math.sqrt(max(P[1, 1], 0.0))
 
 
-def extended_state_floor(v_max, t_conv, tol=TOL):
-    """The smallest omega (1/s) with which an initial velocity error v_max (rad/s) stays below
-    tol after t_conv (s): the response scales with omega t, so omega = c / t_conv with c the
-    last time the unit-omega response |v(c)| exceeds tol / v_max."""
+@lru_cache(maxsize=1)
+def _unit_response():
+    """(t, |v(t)|) of the unit-omega error dynamics from a unit velocity error, t in [0, 60]
+    (the response of any omega is this one at omega t): computed once."""
     from scipy.linalg import expm
     A, _ = _eso_matrix(1.0)
     ts = np.linspace(0.0, 60.0, 24001)
     step = expm(A * (ts[1] - ts[0]))
-    x, above = np.array([0.0, 1.0, 0.0]), 0.0
-    for t in ts[1:]:
+    x, v = np.array([0.0, 1.0, 0.0]), np.empty(len(ts))
+    for i in range(len(ts)):
+        v[i] = abs(x[1])
         x = step @ x
-        if abs(x[1]) > tol / v_max:
-            above = t
-    return above / t_conv
+    return ts, v
+
+
+def extended_state_floor(v_max, t_conv, tol=TOL):
+    """The smallest omega (1/s) with which an initial velocity error v_max (rad/s) stays below
+    tol after t_conv (s): the response scales with omega t, so omega = c / t_conv with c the
+    last time the unit-omega response |v(c)| exceeds tol / v_max."""
+    ts, v = _unit_response()
+    above = np.nonzero(v > tol / v_max)[0]
+    return float(ts[above[-1]]) / t_conv if len(above) else 0.0
 
 
 def extended_state_noise_gain(n, dt, sigma, e_dot, floor):
