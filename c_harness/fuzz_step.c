@@ -2,7 +2,7 @@
  * fuzz_step - libFuzzer harness: a generated target's step (and run, estimate, rhs,
  * set_state, set_params) on hostile numbers, asserting the contract its header documents.
  *
- * Build (codegen/check/sanitize.py does this; clang with libFuzzer, e.g. Debian's clang and
+ * Build (codegen/verify/sanitize.py does this; clang with libFuzzer, e.g. Debian's clang and
  * libclang-rt-14-dev):
  *   clang -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
  *     -DOBS=<prefix> -DOBS_UPPER=<PREFIX> -DOBS_HEADER='"<prefix>.h"' -I <target dir> -I . \

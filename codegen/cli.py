@@ -14,10 +14,10 @@ import tomllib
 from dataclasses import replace
 from pathlib import Path
 
-from .build import ToolError, build_dir
-from .emit import FolderTaken
-from .target import HOLDS, METHODS, PRECISIONS
-from .targets import DEFAULT_FAMILY, TargetError, check_unique, load_targets, make_target
+from .pipeline.compile import ToolError, work_dir
+from .pipeline.emit import FolderTaken
+from .core.target import HOLDS, METHODS, PRECISIONS
+from .pipeline.targets_file import DEFAULT_FAMILY, TargetError, check_unique, load_targets, make_target
 
 TARGETS_FILE = "targets.toml"
 USER_ERRORS = (TargetError, FolderTaken, ToolError, ValueError, KeyError, FileNotFoundError)
@@ -144,7 +144,7 @@ def cmd_list(args):
     from models import names
     from models.catalog import ELASTIC
 
-    from .targets import family_info, families
+    from .pipeline.targets_file import family_info, families
     print("robots:   " + ", ".join(names()) + f"  (elastic defaults J, K: {', '.join(ELASTIC)})")
     print("families:")
     for f in families():
@@ -178,9 +178,9 @@ def cmd_generate(args):
 def cmd_build(args):
     """Design, emit and compile each target.
     ``args``: the parsed argparse namespace; returns the exit status."""
-    from .jobs import BUILD
-    rows, failed = _report(_jobs(args, BUILD), args,
-                           lambda job, row: f"{row['prefix']}: {row['lib']}  ({_times(row, BUILD)})")
+    from .jobs import COMPILE
+    rows, failed = _report(_jobs(args, COMPILE), args,
+                           lambda job, row: f"{row['prefix']}: {row['lib']}  ({_times(row, COMPILE)})")
     return 2 if failed else 0
 
 
@@ -189,7 +189,7 @@ def cmd_check(args):
     ``args``: the parsed argparse namespace; returns the exit status."""
     from .jobs import CHECK
     if args.out is None:
-        args.out, args.force = str(build_dir() / "check"), True   # a scratch folder
+        args.out, args.force = str(work_dir() / "check"), True   # a scratch folder
 
     def line(job, row):
         r = {k: v for k, v in row["check"].items() if k != "samples"}
@@ -204,9 +204,9 @@ def cmd_check(args):
 
 
 def cmd_bench(args):
-    """`bench`: timings as ratios (codegen.bench, `make bench`).
+    """`bench`: timings as ratios (codegen.evaluate.bench, `make bench`).
     ``args``: the parsed argparse namespace; returns the exit status."""
-    from .bench import main
+    from .evaluate.bench import main
     return main(args.bench_robots, native=args.native, json_path=args.json, scenarios=not args.no_scenarios,
                 generate=not args.no_generate)
 
@@ -224,7 +224,7 @@ def cmd_embedded(args):
     RAM, peak stack, instructions per step and the difference from the host build, recorded in
     each target's JSON and printed as a table.
     ``args``: the parsed argparse namespace; returns the exit status."""
-    from . import embedded
+    from .verify import cortex_m as embedded
     missing = embedded.missing_packages()
     if missing:
         print(f"error: ARM toolchain missing; install it with: apt-get install {' '.join(missing)} "
@@ -234,8 +234,8 @@ def cmd_embedded(args):
           f"{'max':>7s} {'vs glibc':>8s} {'vs newlib':>9s} {'vs double':>9s}")
     from tqdm import tqdm
 
-    from .emit import with_params
-    from .targets import build_spec
+    from .pipeline.emit import with_params
+    from .pipeline.targets_file import build_spec
     rows, targets = [], _targets(args)
     for target, out in tqdm(targets, desc="embedded", unit="target", file=sys.stderr, leave=False, disable=None):
         spec = with_params(build_spec(target), target.params)
@@ -256,20 +256,20 @@ def cmd_embedded(args):
 
 
 def cmd_simulate(args):
-    """`simulate`: run a scenario of the seed papers (codegen.sim.scenarios).
+    """`simulate`: run a scenario of the seed papers (codegen.evaluate.scenarios).
     ``args``: the parsed argparse namespace; returns the exit status."""
-    from .sim import scenarios
+    from .evaluate import scenarios
     options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T")
                if getattr(args, k) is not None}
-    return scenarios.run(args.name, reference=args.reference, out=args.out or build_dir() / "sim", **options)
+    return scenarios.run(args.name, reference=args.reference, out=args.out or work_dir() / "sim", **options)
 
 
 def _compare_source(args):
     """(Recording, robot, title) of ``compare``'s source: a mujoco-* scenario run with the
     sensor and mismatch options, or a recorded CSV of ``--robot``."""
-    from .compare import robot_by_name
-    from .recording import read_csv
-    from .sim.scenarios import mujoco
+    from .evaluate.compare import robot_by_name
+    from .core.recording import read_csv
+    from .evaluate.scenarios import mujoco
     if args.source in mujoco.SCENARIOS:
         name = args.source.removeprefix("mujoco-")
         if args.robot not in (None, name):
@@ -290,8 +290,8 @@ def _compare_source(args):
 def cmd_compare(args):
     """Observers and tuned baselines on a scenario or a CSV: table, figures, JSON.
     ``args``: the parsed argparse namespace; returns the exit status."""
-    from .compare import DEFAULT_FAMILIES, compare, design_inputs
-    from .recording import RecordingError
+    from .evaluate.compare import DEFAULT_FAMILIES, compare, design_inputs
+    from .core.recording import RecordingError
     try:
         rec, robot, title = _compare_source(args)
         families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
@@ -303,7 +303,7 @@ def cmd_compare(args):
         print(f"error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
     print(cmp.table())
-    out = Path(args.out or build_dir() / "compare")
+    out = Path(args.out or work_dir() / "compare")
     paths = cmp.figures(out)
     (out / "compare.json").write_text(json.dumps({"title": title, "t_ss": cmp.t_ss, "level": cmp.level,
                                                   "rows": cmp.rows()}, indent=2, default=float) + "\n")
@@ -312,10 +312,10 @@ def cmd_compare(args):
 
 
 def cmd_sweep(args):
-    """A Monte-Carlo sweep on Dask (codegen.sweep): results, map and best-gain table in --out.
+    """A Monte-Carlo sweep on Dask (codegen.evaluate.sweep): results, map and best-gain table in --out.
     ``args``: the parsed argparse namespace; returns the exit status."""
-    from . import sweep
-    from .sweep import maps, plan
+    from .evaluate import sweep
+    from .evaluate.sweep import maps, plan
     try:
         spec = plan.load(args.file)
         res = sweep.run(args.file, workers=args.workers, scheduler=args.scheduler, out=args.out)
@@ -331,9 +331,9 @@ def cmd_sweep(args):
 
 
 def cmd_sanitize(args):
-    """`sanitize`: the C harness under ASan/UBSan and a libFuzzer campaign (codegen.check.sanitize).
+    """`sanitize`: the C harness under ASan/UBSan and a libFuzzer campaign (codegen.verify.sanitize).
     ``args``: the parsed argparse namespace; returns the exit status."""
-    from .check import sanitize
+    from .verify import sanitize
     return sanitize.run(args.runs, args.seconds)
 
 
@@ -347,7 +347,7 @@ def _target_options(p, out_help):
     a = p.add_argument
     a("robots", nargs="*", metavar="ROBOT", help="catalog robot names (see `list`); none: the targets "
       f"of -c FILE or ./{TARGETS_FILE}")
-    a("-c", "--config", metavar="FILE", help="a targets file (TOML, [[target]] tables; see codegen/targets.py)")
+    a("-c", "--config", metavar="FILE", help="a targets file (TOML, [[target]] tables; see codegen/pipeline/targets_file.py)")
     a("--urdf", metavar="PATH", help="a robot from a URDF file (revolute, continuous, prismatic joints)")
     a("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint at VALUE (rad or m); repeatable")
     a("--elastic", action="store_true", help="elastic joints on the robot (tomei, ciccarella_germani, spong_*)")
@@ -362,7 +362,7 @@ def _target_options(p, out_help):
       "default (e.g. k0=50); repeatable")
     a("--dt", type=float, help="sample time in s (default 1e-3)")
     a("--method", choices=METHODS, help="integrator (default etdrk4: RK4 with the gain term integrated exactly)")
-    a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discretize)")
+    a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discrete.discretize)")
     a("--substeps", type=int, help="integrator sub-steps per sample (default 1)")
     a("--precision", choices=PRECISIONS, help="real type of the C (default double)")
     a("--name", help="symbol prefix and folder name (default <robot>_<family>[_<variant>])")
@@ -415,7 +415,7 @@ def parser():
     cp.add_argument("--observers", help="comma-separated families, each optionally with gains "
                     "(family:name=value:...); default reduced_order_switched,reduced_order,extended_state,"
                     "nicosia_tomei")
-    cp.add_argument("--baselines", help="comma-separated (default: all of codegen.baselines)")
+    cp.add_argument("--baselines", help="comma-separated (default: all of codegen.evaluate.baselines)")
     cp.add_argument("--quantization", type=float,
                     help="encoder step (rad); scenario: of its sensor (default 0); both this and --noise "
                          "unset on a CSV: the design assumes a 2^16 counts/rev encoder")
@@ -428,7 +428,7 @@ def parser():
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     cp.add_argument("--out", metavar="DIR", help="folder of the figures and compare.json (default build/compare)")
     sw = sub.add_parser("sweep", parents=[debug], help="Monte-Carlo sweep of observers and baselines on Dask (resumable)")
-    sw.add_argument("file", help="the sweep file (TOML; see codegen.sweep.plan)")
+    sw.add_argument("file", help="the sweep file (TOML; see codegen.evaluate.sweep.plan)")
     where = sw.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, help="local cluster of N worker processes (default: one "
                        "per CPU; 0: in this process, no Dask)")

@@ -17,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-BUILD = ("design", "emit", "compile")
-GENERATE = BUILD + ("run",)
-CHECK = BUILD + ("check",)
+from .pipeline.stages import STAGES as COMPILE  # design, emit, compile
+
+GENERATE = COMPILE + ("run",)
+CHECK = COMPILE + ("check",)
 
 
 @dataclass(frozen=True)
@@ -28,11 +29,11 @@ class Job:
 
     Parameters
     ----------
-    target : codegen.target.Target
+    target : codegen.core.target.Target
     out : path
         Parent folder of the target's generated folder.
     stages : tuple of str
-        ``BUILD``, ``GENERATE`` (then run the C harness and ctypes over a run of ``T`` seconds)
+        ``COMPILE``, ``GENERATE`` (then run the C harness and ctypes over a run of ``T`` seconds)
         or ``CHECK`` (then cross-check against the reference on ``count`` random inputs).
     force : bool
         Replace a folder generated from another target.
@@ -61,16 +62,12 @@ def make(job, report=lambda stage: None):
         "harness_equal" (the C harness and ctypes give identical estimates over the run), "T",
         "error" (|truth - estimate| at the first and last sample, when the run has a truth: qd
         or an elastic robot's state x, named by "error_of"), or "check" (worst relative errors
-        of ``codegen.check.cross_check``).
+        of ``codegen.verify.cross_check``).
     """
-    from .build import build
-    from .emit import check_folder, emit, with_params
-    from .targets import build_spec
+    from .pipeline.stages import make as make_target
     target = job.target
-    folder = Path(job.out) / target.prefix
-    if not job.force:
-        check_folder(folder, target)           # before the (slow) design
-    row, clock, current = {"prefix": target.prefix, "folder": str(folder)}, time.perf_counter(), None
+    row, clock, current = {"prefix": target.prefix, "folder": str(Path(job.out) / target.prefix)}, \
+        time.perf_counter(), None
 
     def stage(name):
         nonlocal clock, current
@@ -80,18 +77,14 @@ def make(job, report=lambda stage: None):
         clock, current = now, name
         report(name)
 
-    stage("design")
-    spec = with_params(build_spec(target), target.params)
-    row["params"] = spec.params
-    stage("emit")
-    emit(target, job.out, spec=spec, force=True)
-    stage("compile")
-    row["lib"] = str(build(folder, native=job.native))
+    made = make_target(target, job.out, force=job.force, native=job.native, report=stage)
+    spec, folder = made.spec, made.folder
+    row["params"], row["lib"] = spec.params, str(made.lib)
     if "run" in job.stages:
         stage("run")
         row.update(_run(spec, target, folder, Path(row["lib"]), job.options.get("T", 2.0)))
     if "check" in job.stages:
-        from .check import cross_check
+        from .verify import cross_check
         stage("check")
         row["check"] = cross_check(spec, count=job.options.get("count", 1000), folder=folder)
     stage(None)
@@ -101,14 +94,14 @@ def make(job, report=lambda stage: None):
 def _run(spec, target, folder, lib, T):
     """The C harness (run_csv) and ctypes over T seconds of ``check.trajectory_inputs``; the
     estimate's error against the truth at the first and last sample, when there is one."""
-    from . import harness
-    from .build import build_dir
-    from .check.inputs import trajectory_inputs
-    from .runtime import load
+    from .verify import c_programs as harness
+    from .pipeline.compile import work_dir
+    from .verify.inputs import trajectory_inputs
+    from .pipeline.load import load
     dt = target.discretization.dt
     run = trajectory_inputs(spec, int(round(T / dt)) + 1, dt)
     t = np.arange(len(run.Y)) * dt
-    work = build_dir() / "demo"
+    work = work_dir() / "demo"
     work.mkdir(parents=True, exist_ok=True)
     csv_in, csv_out = work / f"{target.prefix}_in.csv", work / f"{target.prefix}_out.csv"
     harness.write_csv(csv_in, t, run.Y, run.U)

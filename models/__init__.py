@@ -1,5 +1,5 @@
 """Robot models: what a robot is (no observers here). See DESIGN §1-§3."""
-from .catalog import from_source, load_robot, names
-from .robot import ModelError, RobotModel
+from models.catalog import from_source, load_robot, names
+from models.robot import ModelError, RobotModel
 
 __all__ = ["from_source", "load_robot", "names", "ModelError", "RobotModel"]

@@ -15,7 +15,7 @@ inertias J and stiffness K of ``ELASTIC`` (or given ones); e.g. ``load_elastic("
 """
 from __future__ import annotations
 
-from . import closed_form, dh
+from models import closed_form, dh
 
 _URDFS = {
     "ur5": ("ur_description/urdf/ur5_robot.urdf", {}),
@@ -54,14 +54,14 @@ def load_robot(name=None, *, urdf=None, locked_joints=None, **kwargs):
     if (name is None) == (urdf is None):
         raise ValueError("load_robot: give exactly one of a catalog name or urdf=path")
     if urdf is not None:
-        from .urdf import load_urdf
+        from models.urdf import load_urdf
         return load_urdf(urdf, locked_joints=locked_joints, **kwargs)
     key = (name, tuple(sorted(kwargs.items())))
     if key not in _cache:
         if name in _CLOSED:
             _cache[key] = _CLOSED[name](**kwargs)
         elif name in _URDFS:
-            from .urdf import example_robot_data_dir, load_urdf
+            from models.urdf import example_robot_data_dir, load_urdf
             rel, locked = _URDFS[name]
             _cache[key] = load_urdf(example_robot_data_dir() / rel, locked_joints=locked,
                                     name=name, **kwargs)
@@ -93,7 +93,7 @@ def from_source(source):
     if name in names() and load_robot(name).source == source:
         return load_robot(name)
     if kind == "elastic":
-        from .elastic import ElasticRobot
+        from models.elastic import ElasticRobot
         rigid = from_source(source["rigid"])
         if name == f"{rigid.name}_elastic" and rigid.name in ELASTIC:
             cached = load_elastic(rigid.name, J=source["J"], K=source["K"])
@@ -101,7 +101,7 @@ def from_source(source):
                 return cached
         return ElasticRobot(rigid, source["J"], source["K"], name=name)
     if kind == "urdf":
-        from .urdf import load_urdf
+        from models.urdf import load_urdf
         return load_urdf(source["path"], locked_joints=source.get("locked_joints") or None,
                          name=name, snap_tol=source.get("snap_tol", 1e-9))
     if kind == "dh":
@@ -115,7 +115,7 @@ def from_source(source):
 
 def load_elastic(name, J=None, K=None):
     """ElasticRobot (SPEC §6) on catalog robot ``name``; J, K default to ``ELASTIC[name]``."""
-    from .elastic import ElasticRobot
+    from models.elastic import ElasticRobot
     if (J is None or K is None) and name not in ELASTIC:
         raise KeyError(f"no default J, K for {name!r}; give J= and K= (defaults for: {', '.join(ELASTIC)})")
     J0, K0 = ELASTIC.get(name, (None, None))

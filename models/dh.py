@@ -18,7 +18,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .robot import ModelError, RobotModel
+from models.robot import ModelError, RobotModel
 
 
 class DHRobot(RobotModel):

@@ -24,7 +24,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from .robot import ModelError
+from models.robot import ModelError
 
 
 def _diag(value, n, what):

@@ -57,7 +57,7 @@ class RobotModel:
     def periodic(self):
         """(n,) bools: joint i is 2 pi-periodic, i.e. M(q), C(q, .) and g(q) are 2 pi-periodic in
         q_i (revolute joints). Default: none declared (subclasses that know say so); the I&I
-        observers use it to reduce their quadrature intervals (codegen/observers/_ii_common)."""
+        observers use it to reduce their quadrature intervals (codegen/families/observers/_ii_common)."""
         return np.asarray(getattr(self, "_periodic", np.zeros(self.n, dtype=bool)), dtype=bool)
 
     # ------------------------------------------------------------ symbolic blocks

@@ -13,7 +13,7 @@ DEFAULT = CLOSED_FORM + ["ur5", "panda"]
 @pytest.fixture(scope="session")
 def spec_of():
     """Cached default (reduced-order) spec per catalog robot."""
-    from codegen.targets import default_spec
+    from codegen.pipeline.targets_file import default_spec
     cache = {}
 
     def get(name):
@@ -27,7 +27,7 @@ def spec_of():
 def compiled():
     """Cached CompiledObserver per catalog robot (the default discretisation, dt = 1e-3)."""
     from codegen import compile_observer
-    from codegen.targets import default_spec
+    from codegen.pipeline.targets_file import default_spec
     cache = {}
 
     def get(name):
@@ -41,7 +41,7 @@ def ur5_source(**extra):
     """The plain-data robot source of example-robot-data's ur5 (for the reference tests)."""
     import pinocchio as pin
 
-    from codegen.reference.urdf import file_sha256
+    from codegen.reference.robots.urdf import file_sha256
     for parent in Path(pin.__file__).resolve().parents:      # <cmeel.prefix>/share/example-robot-data
         path = parent / "share" / "example-robot-data" / "robots" / "ur_description" / "urdf" / "ur5_robot.urdf"
         if path.is_file():

@@ -1,4 +1,4 @@
-"""Baselines (codegen.baselines) on analytic signals, and the metrics they are judged by.
+"""Baselines (codegen.evaluate.baselines) on analytic signals, and the metrics they are judged by.
 
 Signal: q = sin(2 pi t) sampled at 1 kHz for 4 s; measures over t >= 1 s (after the start).
 Bounds: the gain and lag of each method against its known response (backward difference:
@@ -9,7 +9,7 @@ backward difference on the same Gaussian noise.
 import numpy as np
 import pytest
 
-from codegen import baselines, metrics
+from codegen.evaluate import baselines, metrics
 
 DT = 1e-3
 T = np.arange(0, 4, DT)

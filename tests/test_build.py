@@ -1,18 +1,18 @@
-"""Build: the toolchain of codegen.build (compiler lookup, flags, content-hash cache, compiler
+"""Build: the toolchain of codegen.pipeline.compile (compiler lookup, flags, content-hash cache, compiler
 messages) and the generated folder's own Makefile and CMakeLists.txt."""
 import shutil
 
 import pytest
 
-from codegen.build import BuildError, build, c_flags, cached_build, compiler
-from codegen.emit import emit
+from codegen.pipeline.compile import CompileError, compile_library, c_flags, cached_build, compiler
+from codegen.pipeline.emit import emit
 
 
 @pytest.mark.parametrize("name", ["seed000_2r", "ur5"])
 def test_strict_c99_compile(name, spec_of, tmp_path):
     """The emitted C compiles with -std=c99 -Wall -Wextra -Werror -pedantic."""
     target = emit(spec_of(name), tmp_path / "t")
-    lib = build(target, strict=True, cache=tmp_path / "cache")
+    lib = compile_library(target, strict=True, cache=tmp_path / "cache")
     assert lib.exists()
 
 
@@ -20,8 +20,8 @@ def test_compile_error_shows_compiler_message(spec_of, tmp_path):
     target = emit(spec_of("seed000_2r"), tmp_path / "t")
     c = target / f"{target.name}.c"
     c.write_text(c.read_text() + "\nint broken( {\n")
-    with pytest.raises(BuildError) as e:
-        build(target, cache=tmp_path / "cache")
+    with pytest.raises(CompileError) as e:
+        compile_library(target, cache=tmp_path / "cache")
     assert f"{target.name}.c" in str(e.value) and "error" in str(e.value)
 
 
@@ -42,10 +42,10 @@ def test_generated_folder_builds_standalone(spec_of, tmp_path):
 
 
 def test_missing_compiler_is_a_clear_build_error(monkeypatch):
-    with pytest.raises(BuildError, match="compiler 'no-such-cc-h3' not found on PATH"):
+    with pytest.raises(CompileError, match="compiler 'no-such-cc-h3' not found on PATH"):
         compiler("no-such-cc-h3")
     monkeypatch.setenv("CC", "no-such-cc-from-env")
-    with pytest.raises(BuildError, match="no-such-cc-from-env"):
+    with pytest.raises(CompileError, match="no-such-cc-from-env"):
         compiler()
     assert compiler("gcc").path == shutil.which("gcc") and compiler("gcc").version
 
@@ -67,7 +67,7 @@ def test_cached_build_compiles_once_per_content(tmp_path):
     other = cached_build("f", [tool, "k"], {"f.c": b"int f(void) { return 2; }\n"}, ["libf.so"],
                          commands, tmp_path)
     assert other != first and len(calls) == 2
-    with pytest.raises(BuildError, match="compiling f.c failed") as e:
+    with pytest.raises(CompileError, match="compiling f.c failed") as e:
         cached_build("f", [tool, "k"], {"f.c": b"int f(void) { return }\n"}, ["libf.so"], commands,
                      tmp_path, shown="/somewhere/src")
     assert e.value.returncode != 0 and "error" in e.value.stderr
@@ -77,7 +77,7 @@ def test_cached_build_compiles_once_per_content(tmp_path):
 
 def test_build_is_cached_by_content(spec_of, tmp_path):
     target = emit(spec_of("seed000_2r"), tmp_path / "t")
-    lib = build(target, cache=tmp_path / "cache")
+    lib = compile_library(target, cache=tmp_path / "cache")
     mtime = lib.stat().st_mtime_ns
-    assert build(target, cache=tmp_path / "cache") == lib and lib.stat().st_mtime_ns == mtime
-    assert build(target, cache=tmp_path / "cache", extra_flags=["-O1"]) != lib
+    assert compile_library(target, cache=tmp_path / "cache") == lib and lib.stat().st_mtime_ns == mtime
+    assert compile_library(target, cache=tmp_path / "cache", extra_flags=["-O1"]) != lib

@@ -1,8 +1,8 @@
-"""The cross-check: emitted C against the independent reference (codegen.check.cross_check)."""
+"""The cross-check: emitted C against the independent reference (codegen.verify.cross_check)."""
 import numpy as np
 import pytest
 
-from codegen.check import cross_check
+from codegen.verify import cross_check
 from conftest import DEFAULT
 
 TOL = 1e-9

@@ -1,14 +1,14 @@
-"""Cross-check inputs (codegen.check.inputs) drawn where each family declares them
-(``spec.inputs``, codegen.options.InputRanges): finite, inside the declared ranges, integer slots
+"""Cross-check inputs (codegen.verify.inputs) drawn where each family declares them
+(``spec.inputs``, codegen.core.options.InputRanges): finite, inside the declared ranges, integer slots
 integers, and the compiled C equal to the independent reference on them (DESIGN §4: 1e-9)."""
 import copy
 
 import numpy as np
 import pytest
 
-from codegen import observers
-from codegen.check import cross_check, random_inputs
-from codegen.options import InputRanges
+from codegen.families import observers
+from codegen.verify import cross_check, random_inputs
+from codegen.core.options import InputRanges
 from models import load_robot
 
 TOL = 1e-9
@@ -101,8 +101,8 @@ def test_jittered_configurations_are_one_fixed_draw():
 def test_c_equals_reference_on_drawn_inputs(case):
     """At the default discretisation with the fewest stable sub-steps (the tanh-smoothed Su
     observer, eps = 1e-4, is too stiff for one step at 1 kHz: the stability check refuses it)."""
-    from codegen.stability import auto_substeps
-    from codegen.target import DEFAULT_DISCRETIZATION
+    from codegen.discrete.stability import auto_substeps
+    from codegen.core.target import DEFAULT_DISCRETIZATION
     spec = spec_of(case)
     r = cross_check(spec, auto_substeps(spec, DEFAULT_DISCRETIZATION), count=COUNT)
     for key in ("step_est", "step_state", "rhs", "run"):

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from codegen import cli
-from codegen.targets import TargetError
+from codegen.pipeline.targets_file import TargetError
 
 ROOT = Path(__file__).resolve().parent.parent
 URDF = ROOT / "tests" / "data" / "gripper_arm.urdf"
@@ -176,7 +176,7 @@ def test_force_and_permissions(capsys, workdir):
     assert (folder / "seed002_2r_su_nonsmooth.json").read_text() == before
     code, _, err = run(capsys, "build", *CHEAP, "--dt", "5e-4", "--substeps", "2", "--force")
     assert code == 0, err
-    from codegen.target import DEFAULT_DISCRETIZATION as D
+    from codegen.core.target import DEFAULT_DISCRETIZATION as D
     assert meta(folder)["target"]["discretization"] == {"dt": 5e-4, "method": D.method, "hold": D.hold, "substeps": 2}
     code, _, err = run(capsys, "build", *CHEAP, "--name", "su_fast", "--dt", "5e-4")     # elsewhere: fine
     assert code == 0 and (workdir / "generated" / "su_fast").is_dir()

@@ -23,7 +23,7 @@ def _law(name):
     """(spec, compiled law, reference) per law, built and compiled once for the module."""
     if name not in _LAWS:
         from codegen import compile_observer
-        from codegen.controllers import seed000, spong
+        from codegen.families.controllers import seed000, spong
         from models.catalog import load_elastic, load_robot
         if name.startswith("seed000"):
             robot = load_robot("seed000_2r")
@@ -81,7 +81,7 @@ def _elastic_inputs(n, rng, count):
     """Measurements y = [x; q_d .. q_d''''] in physical ranges: links within (-pi, pi), speeds of
     a few rad/s, motor positions/speeds close to the links' (elastic torques up to ~200 N m),
     a reference near q1 with moderate derivatives; half of them from the cubic of SPEC §12.4."""
-    from codegen.controllers.spong import cubic_reference
+    from codegen.families.controllers.spong import cubic_reference
     ys = []
     for k in range(count):
         q1, v1 = rng.uniform(-np.pi, np.pi, n), rng.uniform(-3.0, 3.0, n)
@@ -118,7 +118,7 @@ def test_spong_laws_match_reference(law, robot):
 def test_reference_F_one_shot_equals_column_form(robot):
     """The Spong references' F = e1e2 part of y3(x + e1 f + e2 f + e1e2 Df f) against
     ElasticRobot.spong_F (dPhi/dx column by column, both exact): same to rounding."""
-    from codegen.reference import spong_fl
+    from codegen.reference.families import spong_fl
     from codegen.reference.robots import reference_robot
     from models.catalog import load_elastic
     r = reference_robot(load_elastic(robot).source)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from codegen.design import c0_batch, reduced_order_gain, scheduled_gains
+from codegen.families.design import c0_batch, reduced_order_gain, scheduled_gains
 from models import load_robot
 
 
@@ -61,16 +61,16 @@ def _imported_modules(path, package):
 
 def test_design_and_symbolic_never_import_observers():
     """design imports only symbolic and the disk cache (and numerics); neither reaches
-    codegen.observers."""
+    codegen.families.observers."""
     root = Path(__file__).parents[1] / "codegen"
-    files = [(f, "codegen.design") for f in (root / "design").glob("*.py")] + [(root / "symbolic.py", "codegen")]
+    files = [(f, "codegen.families.design") for f in (root / "design").glob("*.py")] + [(root / "symbolic.py", "codegen")]
     assert len(files) >= 6
     for f, package in files:
         bad = [m for m in _imported_modules(f, package)
-               if m.startswith("codegen.") and not m.startswith(("codegen.design", "codegen.symbolic", "codegen.cache"))]
+               if m.startswith("codegen.") and not m.startswith(("codegen.families.design", "codegen.core.symbolic", "codegen.core.cache"))]
         assert not bad, f"{f.name} imports {bad}"
-    code = ("import sys, codegen.design, codegen.symbolic; "
-            "print([m for m in sys.modules if m.startswith('codegen.observers')])")
+    code = ("import sys, codegen.families.design, codegen.core.symbolic; "
+            "print([m for m in sys.modules if m.startswith('codegen.families.observers')])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                          cwd=Path(__file__).parents[1])
     assert out.stdout.strip() == "[]"
@@ -78,7 +78,7 @@ def test_design_and_symbolic_never_import_observers():
 
 # ----------------------------------------------------------------------------- noise-aware gains
 def test_sensor_sigma_and_default_encoder():
-    from codegen.design.noise import DEFAULT_QUANTIZATION, sensor_sigma
+    from codegen.families.design.noise import DEFAULT_QUANTIZATION, sensor_sigma
     assert DEFAULT_QUANTIZATION == pytest.approx(9.587e-5, rel=1e-3)          # 2 pi / 2^16
     assert sensor_sigma() == pytest.approx(DEFAULT_QUANTIZATION / np.sqrt(12))
     assert sensor_sigma(noise=3e-4, quantization=1e-4) == pytest.approx(np.hypot(3e-4, 1e-4 / np.sqrt(12)))
@@ -91,7 +91,7 @@ def test_smoother_noise_formula_matches_its_filter():
     """w_k+1 = E w_k + (1 - E)(y_k+1 - y_k)/dt on white noise: std = sigma (1-E)/dt sqrt(2/(1+E))."""
     from scipy.signal import lfilter
 
-    from codegen.design.noise import smoother_noise
+    from codegen.families.design.noise import smoother_noise
     dt, sigma = 1e-3, 1e-4
     n = np.random.default_rng(0).normal(scale=sigma, size=400_000)
     for k0 in (20.0, 500.0, 3000.0):
@@ -104,7 +104,7 @@ def test_smoother_noise_formula_matches_its_filter():
 def test_noise_aware_choices():
     """No uncertainty: the convergence floor ln(v_max/1e-2)/t_conv decides; 10 % uncertainty: an
     interior optimum; no noise at all: the guarantee gain (12)."""
-    from codegen.design import reduced_order_design
+    from codegen.families.design import reduced_order_design
     robot = load_robot("ur5")
     plain = reduced_order_design(robot, 1e-3)
     assert plain.choice == "convergence floor" and plain.k0 == pytest.approx(np.log(200) / 0.2)
@@ -121,15 +121,16 @@ def test_noise_aware_choices():
 @pytest.mark.slow
 @pytest.mark.parametrize("name,uncertainty", [("ur5", 0.1), ("panda", 0.1), ("ur5", 0.0)])
 def test_predicted_error_matches_simulation(name, uncertainty):
-    """The prediction of codegen.design.noise against the compiled observer on the built-in
+    """The prediction of codegen.families.design.noise against the compiled observer on the built-in
     trajectory (torque held over each sample, plant masses and inertias x (1 + uncertainty),
     q quantised to 1e-4 rad): the predicted error within 25 % of the simulated one on a grid of
     gains, and the predicted optimum within a factor 2 of the simulated one (with uncertainty;
     without, both sit at the low end, where only the convergence floor stops the design)."""
-    from codegen import compile_observer, observers
-    from codegen.design import reduced_order_design
-    from codegen.design.noise import reduced_order_error
-    from codegen.trajectory import demo_trajectory
+    from codegen import compile_observer
+    from codegen.families import observers
+    from codegen.families.design import reduced_order_design
+    from codegen.families.design.noise import reduced_order_error
+    from codegen.verify.trajectory import demo_trajectory
     robot = load_robot(name)
     t, Q, QD, TAU = demo_trajectory(robot, T=3.0)
     F = np.asarray(robot.F)
@@ -154,7 +155,7 @@ def test_predicted_error_matches_simulation(name, uncertainty):
 
 
 def test_nicosia_tomei_noise_gains_meet_the_rate():
-    from codegen.design import model_statistics, nicosia_tomei_noise_gains
+    from codegen.families.design import model_statistics, nicosia_tomei_noise_gains
     stats = model_statistics(load_robot("panda"))
     for unc in (0.0, 0.1):
         kd, kp, err = nicosia_tomei_noise_gains(1e-3, 3e-5, stats["g_rms"], unc, stats["trace_minv2"],
@@ -165,7 +166,7 @@ def test_nicosia_tomei_noise_gains_meet_the_rate():
 
 def test_design_is_kept_on_disk(tmp_path, monkeypatch):
     """A second process (here: the in-memory cache cleared) reads (12) from the disk cache."""
-    from codegen.design import reduced_order as ro
+    from codegen.families.design import reduced_order as ro
     monkeypatch.setenv("CODEGEN_CACHE", str(tmp_path))
     robot = load_robot("seed000_2r")
     ro._design_cached.cache_clear()

@@ -2,10 +2,11 @@
 import numpy as np
 import pytest
 
-from codegen import compile_observer, observers
-from codegen.build import build
-from codegen.emit import emit
-from codegen.runtime import load
+from codegen import compile_observer
+from codegen.families import observers
+from codegen.pipeline.compile import compile_library
+from codegen.pipeline.emit import emit
+from codegen.pipeline.load import load
 from models import load_robot
 
 
@@ -28,7 +29,7 @@ def test_default_is_unbiased_whatever_k0_dt(name, tmp_path):
     order hold) has a steady gain within 1e-4 of 1; the zero-order hold settles at a / (1 - R(-a))
     with R the method's stability function: RK4's polynomial (ur5 1.262, panda 3.54), e^-a for
     ETD-RK4 (1.262, 2.43)."""
-    from codegen.trajectory import demo_trajectory
+    from codegen.verify.trajectory import demo_trajectory
     spec = observers.build("reduced_order", load_robot(name), design="guarantee")
     a = spec.p_default[0] * 1e-3
     t, Q, QD, TAU = demo_trajectory(spec.robot, T=2.5)
@@ -47,7 +48,7 @@ def test_etdrk4_phi_functions_and_exactness():
     step, written separately, agrees)."""
     import casadi as ca
 
-    from codegen.discretize import integrator_step, phi_functions
+    from codegen.discrete.discretize import integrator_step, phi_functions
     from codegen.reference.discretize import etdrk4_step, phi
     z = ca.SX.sym("z")
     f = ca.Function("phi", [z], list(phi_functions(z)))
@@ -67,13 +68,13 @@ def test_etdrk4_phi_functions_and_exactness():
 def test_rk4_calling_a_shared_rhs_equals_the_inlined_one(spec_of, tmp_path):
     """inline=False (the stages call one RHS routine, for big observers) gives the same numbers
     and strict C99."""
-    from codegen.trajectory import demo_trajectory
+    from codegen.verify.trajectory import demo_trajectory
     spec = spec_of("ur5")
     t, Q, QD, TAU = demo_trajectory(spec.robot, T=0.3)
     ests = []
     for inline in (True, False):
         target = emit(spec.target(hold="foh", substeps=2, inline=inline), tmp_path / str(inline), spec=spec)
-        obs = load(target, build(target, strict=True, cache=tmp_path / "cache"))
+        obs = load(target, compile_library(target, strict=True, cache=tmp_path / "cache"))
         obs.reset(Q[0])
         ests.append(obs.run(Q, TAU))
     assert np.allclose(ests[0], ests[1], rtol=1e-12, atol=1e-12)
@@ -125,8 +126,8 @@ def test_first_order_hold_builds_the_model_once_per_substep(spec_of):
     zero-order hold does; without the split flow it is three times (y_k-1, midpoint, y_k)."""
     import dataclasses
 
-    from codegen.discretize import discretize
-    from codegen.target import Discretization
+    from codegen.discrete.discretize import discretize
+    from codegen.core.target import Discretization
     spec = spec_of("ur5")
     once = _trig_count(discretize(spec, Discretization(dt=1e-3, hold="zoh"), inline=True))
     assert once > 0
@@ -143,7 +144,7 @@ def test_midpoint_model_error_is_negligible(name):
     true velocity (the reference with and without the split; measured 1.3e-6 vs 7.5e-5 rad/s on
     ur5, 1.1e-5 vs 3.2e-4 on panda)."""
     from codegen.reference import reference_observer
-    from codegen.trajectory import demo_trajectory
+    from codegen.verify.trajectory import demo_trajectory
     spec = observers.build("reduced_order", load_robot(name), design="guarantee")
     t, Q, QD, TAU = demo_trajectory(spec.robot, T=1.5)
     ests = []

@@ -10,9 +10,10 @@ import subprocess
 import numpy as np
 import pytest
 
-from codegen import compile_observer, embedded, embedded_libm
-from codegen.build import build
-from codegen.emit import emit
+from codegen import compile_observer
+from codegen.verify import cortex_m as embedded, newlib_libm as embedded_libm
+from codegen.pipeline.compile import compile_library
+from codegen.pipeline.emit import emit
 
 from conftest import DEFAULT, ROOT
 
@@ -73,7 +74,7 @@ def test_float_target_has_one_real_type_and_float_math(seed000, tmp_path):
     assert need and not any(embedded.DOUBLE_ROUTINES.match(s) for s in need), need   # cosf, sincosf
     assert "double" in _sources(d)[f"{d.name}.h"]
     assert any(embedded.DOUBLE_ROUTINES.match(s) for s in _undefined(d, tmp_path))   # cos, sincos
-    assert build(f, strict=True, cache=tmp_path / "cache").exists()
+    assert compile_library(f, strict=True, cache=tmp_path / "cache").exists()
 
 
 def test_float_ii_quadrature_loops_stay_single_precision(tmp_path):
@@ -81,7 +82,7 @@ def test_float_ii_quadrature_loops_stay_single_precision(tmp_path):
     emitted in float too: no double in the sources, float math only."""
     from models import load_robot
 
-    from codegen.observers import build as build_observer
+    from codegen.families.observers import build as build_observer
     spec = build_observer("ii_aov", load_robot("seed003_2r_abs"), N=4)
     f = emit(spec.target(precision="float"), tmp_path / "t", spec=spec)
     assert not any(re.search(r"\bdouble\b", text) for text in _sources(f).values())
@@ -90,7 +91,7 @@ def test_float_ii_quadrature_loops_stay_single_precision(tmp_path):
 
 
 def test_float_runtime_converts_at_the_boundary(spec_of):
-    from codegen.runtime import ObserverError
+    from codegen.pipeline.load import ObserverError
     obs = compile_observer(spec_of("seed000_2r"), precision="float")
     assert obs.precision == "float" and obs.dtype == np.float32
     assert obs.p_default.dtype == np.float64 and obs.p_default[0] == np.float32(spec_of("seed000_2r").p_default[0])
@@ -116,15 +117,15 @@ def test_float_runtime_converts_at_the_boundary(spec_of):
 
 def test_c_harness_runs_a_float_target(seed000, tmp_path):
     """run_csv (no Python) on a float target gives the ctypes loader's estimates bit for bit."""
-    from codegen import harness
-    from codegen.runtime import load
+    from codegen.verify import c_programs as harness
+    from codegen.pipeline.load import load
     folder = seed000["float"]
     t = np.arange(50) * 1e-3
     Y, U = np.column_stack([np.sin(t), np.cos(t)]), np.ones((50, 2))
     harness.write_csv(tmp_path / "in.csv", t, Y, U)
-    harness.run_csv(folder, tmp_path / "in.csv", tmp_path / "out.csv", build_dir=tmp_path / "h")
+    harness.run_csv(folder, tmp_path / "in.csv", tmp_path / "out.csv", work_dir=tmp_path / "h")
     _, est = harness.read_csv(tmp_path / "out.csv")
-    obs = load(folder, build(folder))
+    obs = load(folder, compile_library(folder))
     obs.reset(Y[0])
     assert np.array_equal(est, obs.run(Y, U))
 
@@ -145,8 +146,8 @@ def test_float_c_against_double_reference_over_10s(name, method, spec_of):
     (FLOAT_FACTOR) is measured with margin for each integrator.
     """
     from codegen.reference import reference_observer
-    from codegen.target import Discretization
-    from codegen.trajectory import demo_trajectory
+    from codegen.core.target import Discretization
+    from codegen.verify.trajectory import demo_trajectory
     spec = spec_of(name)
     t, Q, QD, TAU = demo_trajectory(spec.robot, T=10.0)
     ref = reference_observer(spec, Discretization(method=method))
@@ -161,9 +162,9 @@ def test_float_c_against_double_reference_over_10s(name, method, spec_of):
 
 # ------------------------------------------------------------------ Cortex-M
 def test_firmware_runs_float_on_m4f_and_double_on_m7(arm, seed000, spec_of, tmp_path):
-    from codegen.check import run_inputs
+    from codegen.verify import run_inputs
     Y, U = run_inputs(spec_of("seed000_2r"), 200, 1e-3)
-    recs = {cpu: embedded.verify(seed000[prec], cpu, Y, U, build_dir=tmp_path)
+    recs = {cpu: embedded.verify(seed000[prec], cpu, Y, U, work_dir=tmp_path)
             for cpu, (_, prec) in embedded.CPUS.items()}
     for cpu, rec in recs.items():
         assert rec["ok"] and rec["steps"] == 200
@@ -181,7 +182,7 @@ def test_firmware_runs_float_on_m4f_and_double_on_m7(arm, seed000, spec_of, tmp_
     assert not {c for c in called if embedded.DOUBLE_ROUTINES.match(c)}
     assert not re.search(r"\bv\w+\.f64\b", dis)                     # no double FPU instruction
     with pytest.raises(ValueError, match="cpu: m4f runs float targets"):
-        embedded.verify(seed000["double"], "m4f", Y, U, build_dir=tmp_path)
+        embedded.verify(seed000["double"], "m4f", Y, U, work_dir=tmp_path)
 
 
 def test_host_build_with_newlibs_math_is_the_m7_bit_for_bit(arm, tmp_path):
@@ -189,8 +190,8 @@ def test_host_build_with_newlibs_math_is_the_m7_bit_for_bit(arm, tmp_path):
     the M7's estimates bit for bit over 300 steps, where the host build with glibc's math may
     differ in the last bits (newlib's sin and cos round some arguments differently: 3 % of them
     on this machine's glibc; whether a run meets one depends on the gains and on the glibc)."""
-    from codegen.check import run_inputs
-    from codegen.targets import build_spec, make_target
+    from codegen.verify import run_inputs
+    from codegen.pipeline.targets_file import build_spec, make_target
     reason = embedded_libm.unavailable()
     if reason:
         pytest.skip(reason)
@@ -198,13 +199,13 @@ def test_host_build_with_newlibs_math_is_the_m7_bit_for_bit(arm, tmp_path):
     spec = build_spec(target)
     folder = emit(target, tmp_path / "gen", spec=spec)
     Y, U = run_inputs(spec, 300, target.discretization.dt)
-    rec = embedded.verify(folder, "m7", Y, U, build_dir=tmp_path / "fw")
+    rec = embedded.verify(folder, "m7", Y, U, work_dir=tmp_path / "fw")
     assert {"s_sin", "k_sin", "s_cos", "k_cos", "e_rem_pio2"} <= set(rec["libm_members"])
     assert rec["bit_identical_newlib"] and rec["rel_diff_host_newlib"] == 0.0 and rec["ok"]
     assert rec["rel_diff_host"] <= embedded.TOLERANCE["double"]
     fw = embedded.firmware(folder, "m7", tmp_path / "fw")
-    lib = build(folder, extra_flags=[str(embedded_libm.host_libm(fw))])
-    assert embedded_libm.glibc_calls(lib) == [] and embedded_libm.glibc_calls(build(folder)) != []
+    lib = compile_library(folder, extra_flags=[str(embedded_libm.host_libm(fw))])
+    assert embedded_libm.glibc_calls(lib) == [] and embedded_libm.glibc_calls(compile_library(folder)) != []
 
 
 def test_newlib_settings_follow_the_multilib(arm):
@@ -226,11 +227,11 @@ def test_firmware_reports_an_observer_failure(arm, seed000, tmp_path):
 def test_ur5_float_on_m4f_within_budget(arm, spec_of, tmp_path):
     """ur5 reduced-order in float on the Cortex-M4F: <= 10,000 instructions per step, within
     1e-4 of the host float build, and recorded in the target's JSON."""
-    from codegen.check import run_inputs
+    from codegen.verify import run_inputs
     spec = spec_of("ur5")
     folder = emit(spec.target(precision="float"), tmp_path / "gen", spec=spec)
     Y, U = run_inputs(spec, 300, 1e-3)
-    rec = embedded.verify(folder, "m4f", Y, U, build_dir=tmp_path / "fw")
+    rec = embedded.verify(folder, "m4f", Y, U, work_dir=tmp_path / "fw")
     embedded.record(folder, rec)
     assert rec["instructions_per_step"] <= 10_000 and rec["rel_diff_host"] <= 1e-4 and rec["ok"]
     meta = json.loads((folder / f"{folder.name}.json").read_text())
@@ -293,7 +294,7 @@ int main(void) {{
 def test_cmake_install_exports_a_package_found_by_find_package(seed000, tmp_path):
     """Install into a temporary prefix; a tiny consumer finds it with find_package, links (libm
     included through the exported target) and gives the estimates the ctypes loader gives."""
-    from codegen.runtime import load
+    from codegen.pipeline.load import load
     folder, name = seed000["float"], seed000["float"].name
     _cmake("-S", folder, "-B", tmp_path / "b", "-DCMAKE_BUILD_TYPE=Release")
     _cmake("--build", tmp_path / "b")
@@ -310,7 +311,7 @@ def test_cmake_install_exports_a_package_found_by_find_package(seed000, tmp_path
     _cmake("--build", app / "b")
     got = np.array(subprocess.run([str(app / "b" / "app")], capture_output=True, text=True,
                                   check=True).stdout.split(), float)
-    obs = load(folder, build(folder))
+    obs = load(folder, compile_library(folder))
     obs.reset([0.1, 0.2])
     obs.step([0.1, 0.2], [1.0, 2.0])
     assert np.array_equal(got, obs.step([0.1, 0.2], [1.0, 2.0]))

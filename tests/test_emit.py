@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from codegen import build_spec
-from codegen.emit import TEMPLATES, emit, render
-from codegen.spec import sanitize
-from codegen.target import Target
+from codegen.pipeline.emit import TEMPLATES, emit, render
+from codegen.core.spec import sanitize
+from codegen.core.target import Target
 from conftest import ROOT
 
 
@@ -75,7 +75,7 @@ def _same_files(a, b):
 
 
 def _rebuild_cases(spec_of):
-    from codegen import observers
+    from codegen.families import observers
     from models.catalog import load_elastic
     s = spec_of("seed000_2r")
     lotfi = observers.build("lotfi_namvar", spec_of("seed002_2r").robot)

@@ -1,12 +1,12 @@
-"""The model-based extended-state observer (codegen.observers.extended_state): its design
+"""The model-based extended-state observer (codegen.families.observers.extended_state): its design
 formulas against direct simulation, and what the design chooses."""
 import math
 
 import numpy as np
 import pytest
 
-from codegen import observers
-from codegen.design.noise import (extended_state_floor, extended_state_gains, extended_state_noise,
+from codegen.families import observers
+from codegen.families.design.noise import (extended_state_floor, extended_state_gains, extended_state_noise,
                                   extended_state_noise_gain)
 from models import load_robot
 

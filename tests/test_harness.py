@@ -1,4 +1,4 @@
-"""c_harness/ programs (run_csv, time_step, pin_aba) through codegen.harness.
+"""c_harness/ programs (run_csv, time_step, pin_aba) through codegen.verify.c_programs.
 
 The observer programs are exercised on a hand-made FAKE target that follows the generated
 C API exactly (x' = -p x + y + u, Euler, est = (x1, x2, x1 x2)), so these tests depend on
@@ -9,8 +9,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from codegen import harness
-from codegen.build import BuildError
+from codegen.verify import c_programs as harness
+from codegen.pipeline.compile import CompileError
 
 FAKE_H = """\
 #ifndef FAKEOBS_H
@@ -123,7 +123,7 @@ def fake(tmp_path_factory):
 @pytest.fixture(scope="module")
 def exe(fake):
     d, build = fake
-    return harness.build_harness(d, build_dir=build)
+    return harness.build_harness(d, work_dir=build)
 
 
 def trajectory(n=400, seed=0):
@@ -143,7 +143,7 @@ def test_build_is_cached_and_outside_target(fake, exe):
     assert exe["run_csv"].is_file() and exe["time_step"].is_file()
     assert build in exe["run_csv"].parents
     before = exe["run_csv"].stat().st_mtime_ns
-    again = harness.build_harness(d, build_dir=build)
+    again = harness.build_harness(d, work_dir=build)
     assert again == exe and again["run_csv"].stat().st_mtime_ns == before
     assert sorted(p.name for p in d.iterdir()) == ["fakeobs.c", "fakeobs.h", "fakeobs.json",
                                                    "fakeobs_kernels.c"]
@@ -155,7 +155,7 @@ def test_run_csv_matches_python(fake, exe, tmp_path):
     harness.write_csv(tmp_path / "in.csv", t, Y, U)
     for est0 in (None, [0.5, -0.25, 7.0]):
         out = harness.run_csv(d, tmp_path / "in.csv", tmp_path / "out.csv", est0=est0,
-                              build_dir=build)
+                              work_dir=build)
         t2, EST = harness.read_csv(out)
         assert out.read_text().splitlines()[0] == "t,est0,est1,est2"
         np.testing.assert_array_equal(t2, t)
@@ -212,7 +212,7 @@ def test_run_csv_status_error(exe, fake, tmp_path, row, status):
     assert "in.csv:3: data row 2 (t=0.001): fakeobs_step " + status in r.stderr
     assert not (tmp_path / "out.csv").exists()
     with pytest.raises(harness.HarnessError, match="data row 2") as e:
-        harness.run_csv(d, tmp_path / "in.csv", tmp_path / "out.csv", build_dir=build)
+        harness.run_csv(d, tmp_path / "in.csv", tmp_path / "out.csv", work_dir=build)
     assert e.value.returncode == 3
 
 
@@ -225,7 +225,7 @@ def test_time_step_json(fake, exe):
     assert (res["nx"], res["ny"], res["nu"], res["nest"], res["dt"]) == (2, 2, 1, 3, DT)
     for key in ("ns_per_step", "ns_per_rhs", "calls_per_block", "calls_per_block_rhs"):
         assert np.isfinite(res[key]) and res[key] > 0, key
-    res = harness.time_target(d, blocks=3, block_ms=1, build_dir=build)
+    res = harness.time_target(d, blocks=3, block_ms=1, work_dir=build)
     assert res["ns_per_step"] > 0 and res["ns_per_rhs"] > 0 and res["blocks"] == 3
 
 
@@ -234,8 +234,8 @@ def test_compile_error_is_reported(tmp_path):
     d.mkdir()
     (d / "broken.h").write_text(FAKE_H.replace("fakeobs", "broken").replace("FAKEOBS", "BROKEN"))
     (d / "broken.c").write_text("int broken_step(void) { return syntax error; }\n")
-    with pytest.raises(BuildError, match=r"compiling broken\.c failed[\s\S]*error") as e:
-        harness.build_harness(d, build_dir=tmp_path / "build")
+    with pytest.raises(CompileError, match=r"compiling broken\.c failed[\s\S]*error") as e:
+        harness.build_harness(d, work_dir=tmp_path / "build")
     assert e.value.returncode != 0 and "error" in e.value.stderr
     assert str(d / "broken.c") in str(e.value)          # the source folder, not the private copy
     assert sorted(p.name for p in (tmp_path / "build").iterdir()) == []   # nothing half-built

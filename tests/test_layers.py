@@ -1,16 +1,17 @@
-"""The import graph points one way (issue 10; DESIGN §1).
+"""The import graph points one way: one layer per folder, no circle.
 
 Every module of ``models`` and ``codegen`` is parsed (imports inside functions count too) and
-each import must point down the layers, with no cycle anywhere:
+each import must point down this table, or stay in its own folder:
 
-    values (codegen.target, codegen.options, codegen.cache: stdlib-only paths and JSON memo)
-      -> models -> codegen.symbolic -> codegen.design -> observers, controllers, spec, with the
-         discrete step and its stability check (discretize, stability, sampling: a family's
-         default gains are kept inside the stable region of the default discretisation)
-      -> pipeline (discretize, emit, build, runtime, harness, trajectory, codegen itself)
-      -> check  <-  reference (which imports only the values)
-      -> sim, bench, compare, sweep, embedded (Cortex-M runs checked against the host), jobs, cli
-      on top.
+    core        values: Target, options, ObserverSpec, symbolic helpers, recordings, cache
+    models      what a robot is (CasADi expressions from closed forms, DH tables, URDF)
+    discrete    a spec's discrete step, its stability check, the working points they draw
+    reference   numpy + pinocchio, independent of all the above but core's plain values
+    families    observers, controllers, gain designs (which use the stability check)
+    pipeline    targets file -> design -> emit -> compile -> load, as one sequence (stages)
+    verify      cross-checks, sanitizers, C programs, Cortex-M runs
+    evaluate    baselines, metrics, plants, scenarios, compare, sweeps, benchmarks
+    top         cli, jobs, __main__ and the package itself (imported by nothing of ours)
 """
 import ast
 from pathlib import Path
@@ -20,23 +21,20 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("models", "codegen")
 
-# (prefix, rank): the longest matching prefix decides a module's layer
+# (folder, rank): a module's rank is its folder's; each folder is one layer
 LAYERS = [
-    ("codegen.target", 0), ("codegen.options", 0), ("codegen.cache", 0),
+    ("codegen.core", 0),
     ("models", 1),
-    ("codegen.symbolic", 2),
-    ("codegen.design", 3),
-    ("codegen.spec", 4), ("codegen.observers", 4), ("codegen.controllers", 4),
-    ("codegen.discretize", 4), ("codegen.stability", 4), ("codegen.sampling", 4),
-    ("codegen", 5),                     # the pipeline: discretize, emit, build, runtime, harness, ...
-    ("codegen.reference", 5),
-    ("codegen.check", 6),
-    ("codegen.sim", 7), ("codegen.bench", 7), ("codegen.compare", 7), ("codegen.embedded", 7),
-    ("codegen.sweep", 7), ("codegen.cli", 7),
-    ("codegen.jobs", 7),                # targets through design, emit, compile, run or check
-    ("codegen.__main__", 7),
+    ("codegen.discrete", 2), ("codegen.reference", 2),
+    ("codegen.families", 3),
+    ("codegen.pipeline", 4),
+    ("codegen.verify", 5),
+    ("codegen.evaluate", 6),
+    ("codegen.jobs", 7), ("codegen.cli", 7), ("codegen.__main__", 7),
 ]
-REFERENCE_MAY_IMPORT = ("codegen.target", "codegen.options", "codegen.reference")
+TOP = 7                                  # the package ``codegen`` itself: a lazy facade for users
+REFERENCE_MAY_IMPORT = ("codegen.core.target", "codegen.core.options", "codegen.core.arrays",
+                        "codegen.reference")
 
 
 def _modules():
@@ -80,8 +78,24 @@ def _graph():
 
 
 def rank(module):
-    best = max((p for p, _ in LAYERS if module == p or module.startswith(p + ".")), key=len)
-    return dict(LAYERS)[best]
+    """The layer of ``module``; KeyError for a module in no folder of the table."""
+    if module == "codegen":
+        return TOP
+    for prefix, r in LAYERS:
+        if module == prefix or module.startswith(prefix + "."):
+            return r
+    raise KeyError(f"{module} is in no layer of tests/test_layers.py: put it in a folder of the table")
+
+
+def test_every_module_has_a_layer():
+    """No module sits at codegen's top level but the package, __main__, cli and jobs."""
+    loose = []
+    for m in _modules():
+        try:
+            rank(m)
+        except KeyError as e:
+            loose.append(str(e))
+    assert not loose, "\n".join(loose)
 
 
 def test_every_import_points_down():
@@ -116,9 +130,9 @@ def test_no_import_cycles():
     assert not cycles, "import cycles:\n" + "\n".join(cycles)
 
 
-@pytest.mark.parametrize("module,expected", [("codegen.reference.reduced_order", 5),
-                                             ("codegen.observers.ii_speed", 4),
-                                             ("models.urdf", 1), ("codegen.emit", 5),
-                                             ("codegen.sim.engine", 7), ("codegen.target", 0)])
+@pytest.mark.parametrize("module,expected", [("codegen.reference.families.reduced_order", 2),
+                                             ("codegen.families.observers.ii_speed", 3),
+                                             ("models.urdf", 1), ("codegen.pipeline.emit", 4),
+                                             ("codegen.evaluate.sim.engine", 6), ("codegen.core.target", 0)])
 def test_layer_table(module, expected):
     assert rank(module) == expected

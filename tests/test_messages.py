@@ -4,9 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from codegen import compile_observer, observers
-from codegen.emit import with_params
-from codegen.target import Target
+from codegen import compile_observer
+from codegen.families import observers
+from codegen.pipeline.emit import with_params
+from codegen.core.target import Target
 from conftest import ROOT
 from models import load_robot
 from models.robot import ModelError

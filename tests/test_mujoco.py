@@ -9,8 +9,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from codegen.recording import Recording, RecordingError, read_csv
-from codegen.sim.mujoco_plant import MujocoPlant, mujoco_urdf, sinusoids
+from codegen.core.recording import Recording, RecordingError, read_csv
+from codegen.evaluate.sim.mujoco_plant import MujocoPlant, mujoco_urdf, sinusoids
 from models import load_robot
 
 TOL = 1e-9
@@ -137,10 +137,10 @@ def test_compare_cli_errors(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def ur5_quantised():
     """3 s of MuJoCo ur5 with a 1e-4 rad encoder: the reduced-order observer with the gain the
-    design gives for that encoder (codegen.compare.design_inputs) and every baseline tuned on
-    the run (codegen.compare)."""
-    from codegen.compare import compare, design_inputs
-    from codegen.sim.scenarios import mujoco
+    design gives for that encoder (codegen.evaluate.compare.design_inputs) and every baseline tuned on
+    the run (codegen.evaluate.compare)."""
+    from codegen.evaluate.compare import compare, design_inputs
+    from codegen.evaluate.scenarios import mujoco
     rec = mujoco.recording("ur5", T=3.0, quantization=1e-4)
     return compare(rec, load_robot("ur5"), families=("reduced_order", "reduced_order_switched"), t_ss=1.0,
                    design=design_inputs(quantization=1e-4))
@@ -176,8 +176,8 @@ def test_switched_gain_is_a_third_of_the_best_baseline_on_mujoco(ur5_quantised):
 def test_switched_gain_converges_within_0_2_s_on_panda():
     """The panda's Coriolis coupling slows the start-up decay (0.214 s at ln(200)/0.2): the
     switched family's k0 (for 0.18 s) converges below 1e-2 rad/s within 0.2 s."""
-    from codegen.compare import compare, design_inputs
-    from codegen.sim.scenarios import mujoco
+    from codegen.evaluate.compare import compare, design_inputs
+    from codegen.evaluate.scenarios import mujoco
     rec = mujoco.recording("panda", T=1.0, quantization=1e-4)
     cmp = compare(rec, load_robot("panda"), families=("reduced_order_switched",), t_ss=0.5,
                   design=design_inputs(quantization=1e-4), baseline_names=("backward",))
@@ -188,8 +188,8 @@ def test_switched_gain_converges_within_0_2_s_on_panda():
 def ur5_mismatched():
     """3 s of MuJoCo ur5, 1e-4 rad encoder, plant masses and inertias 10 % above the model's,
     the uncertainty given to the design (as `compare --mismatch 0.1` does)."""
-    from codegen.compare import compare, design_inputs
-    from codegen.sim.scenarios import mujoco
+    from codegen.evaluate.compare import compare, design_inputs
+    from codegen.evaluate.scenarios import mujoco
     rec = mujoco.recording("ur5", T=3.0, quantization=1e-4, mismatch=0.1)
     return compare(rec, load_robot("ur5"), families=("reduced_order", "extended_state"), t_ss=1.0,
                    design=design_inputs(quantization=1e-4, uncertainty=0.1))
@@ -242,7 +242,7 @@ def test_simulate_mujoco_scenario_with_options(tmp_path, capsys):
 def test_design_inputs_describe_the_sensor():
     """compare passes the sensor and the uncertainty to the families that design for them; an
     unstated sensor leaves the design its default encoder."""
-    from codegen.compare import design_for, design_inputs
+    from codegen.evaluate.compare import design_for, design_inputs
     assert design_inputs(None, None, 0.1) == {"uncertainty": 0.1}
     assert design_inputs(1e-4, None) == {"quantization": 1e-4, "noise": 0.0, "uncertainty": 0.0}
     assert set(design_for("nicosia_tomei", design_inputs(1e-4))) == {"quantization", "noise", "uncertainty"}

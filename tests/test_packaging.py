@@ -70,8 +70,8 @@ def test_wheel_in_fresh_venv_writes_nothing_in_site_packages(tmp_path):
                                   'name = "two_link"\nout = "c"\n')
     out = _sh(venv / "bin" / "observer-codegen", "generate", "-c", "my.toml", "--T", "0.2", cwd=work, env=env)
     assert "two_link " in out and "C harness == ctypes: True" in out, out
-    load = ("from codegen.runtime import load; from codegen.build import build; import numpy as np; "
-            "o = load('c/two_link', build('c/two_link')); o.reset(np.zeros(o.ny)); "
+    load = ("from codegen.pipeline.load import load; from codegen.pipeline.compile import compile_library; import numpy as np; "
+            "o = load('c/two_link', compile_library('c/two_link')); o.reset(np.zeros(o.ny)); "
             "print(o.prefix, o.step(np.zeros(o.ny), np.zeros(o.nu)).shape == (o.nest,), o.lib_path)")
     prefix, shape_ok, lib = _sh(py, "-c", load, cwd=work, env=env).split()
     assert (prefix, shape_ok) == ("two_link", "True") and Path(lib).is_relative_to(work / "build")

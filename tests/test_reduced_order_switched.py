@@ -1,10 +1,10 @@
-"""The reduced-order observer with a time-switched gain (codegen.observers.reduced_order_switched):
+"""The reduced-order observer with a time-switched gain (codegen.families.observers.reduced_order_switched):
 its design, the bumpless switch in the C and the reference, and the refusals."""
 import numpy as np
 import pytest
 
-from codegen import observers
-from codegen.design import reduced_order_design, switched_gains
+from codegen.families import observers
+from codegen.families.design import reduced_order_design, switched_gains
 from models import load_robot
 
 

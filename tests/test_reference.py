@@ -41,7 +41,7 @@ def fake_spec(source, k0=16.037, family="reduced_order"):
 # what the reference may import: the standard library, numpy, pinocchio, itself, and the two
 # plain-data modules of ours (DESIGN §1); nothing else of the project, no CasADi
 ALLOWED_THIRD_PARTY = {"numpy", "pinocchio"}
-ALLOWED_OURS = {"codegen.target", "codegen.options"}
+ALLOWED_OURS = {"codegen.core.target", "codegen.core.options"}
 
 
 def _imports(path, package="codegen.reference"):
@@ -71,7 +71,7 @@ def test_source_import_is_independent():
     for f in files:
         bad = [m for m in _imports(f) if not _allowed(m)]
         assert not bad, (f.name, bad)
-    assert not _allowed("casadi") and not _allowed("models.urdf") and not _allowed("codegen.spec")
+    assert not _allowed("casadi") and not _allowed("models.urdf") and not _allowed("codegen.core.spec")
 
 
 def test_reference_runs_without_casadi_or_models():
@@ -301,7 +301,7 @@ def _family_configure(name):
 def test_configure_binds_options_without_touching_the_robot(name, source, options):
     """configure returns the family with the options bound as values; the robot is unchanged
     (nothing stored on it), and the bound sizes follow the options."""
-    from codegen.options import options_from_dict
+    from codegen.core.options import options_from_dict
     robot = reference_robot(source)
     before = dict(vars(robot))
     family = _family_configure(name)(robot, options_from_dict(options))
@@ -319,7 +319,7 @@ def test_configure_binds_options_without_touching_the_robot(name, source, option
 def test_two_observers_of_one_robot_keep_their_options():
     """Two Ciccarella-Germani variants on the same reference robot object: each family keeps its
     own variant (the first is not overwritten by the second)."""
-    from codegen.options import VariantOptions
+    from codegen.core.options import VariantOptions
     robot = reference_robot({"kind": "elastic", "rigid": SEED_SOURCES["seed000_2r"], "J": [1.0, 1.0],
                              "K": [100.0, 100.0]})
     configure = _family_configure("ciccarella_germani")
@@ -329,7 +329,7 @@ def test_two_observers_of_one_robot_keep_their_options():
 
 
 def test_bound_refuses_an_option_no_function_takes():
-    from codegen.reference import _family, reduced_order
+    from codegen.reference.families import _family, reduced_order
     family = _family.bound(reduced_order)
     assert family.rhs is reduced_order.rhs and family.P_NAMES == ("k0",)
     with pytest.raises(TypeError, match="variant"):
@@ -351,6 +351,6 @@ def test_bound_refuses_an_option_no_function_takes():
                                                                         "N_period": 4}, "^periodic: expected 2"),
 ])
 def test_configure_refuses_bad_options(name, source, options, match):
-    from codegen.options import options_from_dict
+    from codegen.core.options import options_from_dict
     with pytest.raises(ValueError, match=match):
         _family_configure(name)(reference_robot(source), options_from_dict(options))

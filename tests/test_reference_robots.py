@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from codegen.reference import SEED_SOURCES, reference_robot
-from codegen.reference.urdf import file_sha256
+from codegen.reference.robots.urdf import file_sha256
 from conftest import ur5_source
 
 pin = pytest.importorskip("pinocchio")

@@ -12,10 +12,10 @@ import time
 import numpy as np
 import pytest
 
-from codegen import observers
-from codegen.build import build
-from codegen.emit import emit
-from codegen.runtime import CompiledObserver, ObserverError, load
+from codegen.families import observers
+from codegen.pipeline.compile import compile_library
+from codegen.pipeline.emit import emit
+from codegen.pipeline.load import CompiledObserver, ObserverError, load
 from conftest import ROOT
 from models import load_robot
 from urdf_chain import revolute_chain, write_chain
@@ -41,7 +41,7 @@ def test_slot_names_colliding_after_sanitising_get_unique_macros(tmp_path):
     for kind, n in (("Y", 3), ("U", 3), ("X", 3), ("EST", 3)):
         assert sorted(v for m, v in slots if m.startswith(f"{P}_{kind}_")) == list(range(n))
     assert dict(slots)[f"{P}_Y_Q_X_2"] == 0 and dict(slots)[f"{P}_Y_Q_X"] == 1
-    assert build(target, strict=True, cache=tmp_path / "cache").is_file()
+    assert compile_library(target, strict=True, cache=tmp_path / "cache").is_file()
 
 
 # ------------------------------------------------------------------ two processes, one target
@@ -67,7 +67,7 @@ def _hammer(mode, spec, out, cache, rounds, done, q):
         try:
             if mode == "emit" or k % 8 == 7:
                 folder = emit(spec, out)
-            obs = load(folder, build(folder, cache=cache))
+            obs = load(folder, compile_library(folder, cache=cache))
             assert obs.prefix == folder.name
         except Exception as e:  # reported by the parent
             errors.append(f"{type(e).__name__}: {e}")
@@ -82,7 +82,7 @@ def test_two_processes_building_the_same_target(spec_of, tmp_path):
     absent or half-swapped (emit exchanges the folders atomically; build reads one snapshot)."""
     spec = spec_of("seed000_2r")
     out, cache = tmp_path / "out", tmp_path / "cache"
-    build(emit(spec, out), cache=cache)
+    compile_library(emit(spec, out), cache=cache)
     ctx = mp.get_context("fork")
     done, q = ctx.Event(), ctx.Queue()
     procs = [ctx.Process(target=_hammer, args=(m, spec, out, cache, 40, done, q))
@@ -103,7 +103,7 @@ def test_load_reads_the_metadata_that_was_built(spec_of, tmp_path):
     was regenerated (another dt) in between."""
     spec = spec_of("seed000_2r")
     folder = emit(spec.target(dt=1e-3), tmp_path / "t", spec=spec)
-    lib = build(folder, cache=tmp_path / "cache")
+    lib = compile_library(folder, cache=tmp_path / "cache")
     emit(spec.target(dt=2e-3), tmp_path / "t", spec=spec)
     assert json.loads((folder / f"{folder.name}.json").read_text())["discretization"]["dt"] == 2e-3
     assert load(folder, lib).dt == 1e-3
@@ -154,20 +154,20 @@ def test_rhs_refuses_non_finite_input_in_c(compiled):
 
 # ------------------------------------------------------------------ corrupt cache
 def test_corrupt_cached_library_is_rebuilt_or_refused(spec_of, tmp_path):
-    """A truncated library in the cache is never mapped (that is a SIGBUS): build() verifies
+    """A truncated library in the cache is never mapped (that is a SIGBUS): compile_library() verifies
     size and sha256 recorded at build time and rebuilds it; loading it refuses clearly."""
     folder = emit(spec_of("seed000_2r"), tmp_path / "t")
-    lib = build(folder, cache=tmp_path / "cache")
+    lib = compile_library(folder, cache=tmp_path / "cache")
     good = lib.read_bytes()
     meta = json.loads((folder / f"{folder.name}.json").read_text())
     lib.write_bytes(good[: len(good) // 2])
-    code = (f"import json, sys; from codegen.runtime import CompiledObserver\n"
+    code = (f"import json, sys; from codegen.pipeline.load import CompiledObserver\n"
             f"try:\n    CompiledObserver({str(lib)!r}, json.loads({json.dumps(json.dumps(meta))}))\n"
             f"except Exception as e:\n    print(type(e).__name__, e); sys.exit(7)\n")
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 7, (r.returncode, r.stdout, r.stderr)      # an error, not a signal
     assert "corrupt" in r.stdout and lib.name in r.stdout
-    assert build(folder, cache=tmp_path / "cache") == lib and lib.read_bytes() == good
+    assert compile_library(folder, cache=tmp_path / "cache") == lib and lib.read_bytes() == good
     obs = CompiledObserver(lib, meta)
     obs.reset([0.0, 0.0])
     assert np.all(np.isfinite(obs.step([0.1, 0.2], [0.0, 0.0])))

@@ -6,8 +6,8 @@ import shutil
 import numpy as np
 import pytest
 
-from codegen.emit import emit
-from codegen.runtime import ObserverError
+from codegen.pipeline.emit import emit
+from codegen.pipeline.load import ObserverError
 
 
 def test_bad_input_raises_clear_errors(compiled):
@@ -110,8 +110,8 @@ def test_estimate_equals_step_without_advancing(compiled, spec_of):
 @pytest.mark.parametrize("name", ["seed000_2r", "ur5"])
 def test_c_harness_csv_equals_ctypes(name, compiled, spec_of, tmp_path):
     """The standalone C program (no Python) gives the same estimates, bit for bit, as ctypes."""
-    from codegen import harness
-    from codegen.trajectory import demo_trajectory
+    from codegen.verify import c_programs as harness
+    from codegen.verify.trajectory import demo_trajectory
     obs = compiled(name)
     target = emit(spec_of(name), tmp_path / "t")
     t, Q, QD, TAU = demo_trajectory(spec_of(name).robot, T=0.5)
@@ -130,7 +130,8 @@ def test_retuning_is_bumpless_in_c_and_reference(family, tmp_path):
     """At rest at q = (1, 0.5), a gain change mid-run moves the estimate by <= 1e-12 (the state
     is transformed: z += (k_old - k_new) y), in the C and in the reference; without the
     transform the estimate would jump by (k_new - k_old) q."""
-    from codegen import compile_observer, observers
+    from codegen import compile_observer
+    from codegen.families import observers
     from codegen.reference import reference_observer
     from models import load_robot
     robot = load_robot("seed000_2r")

@@ -1,4 +1,4 @@
-"""The sanitizer and fuzz run (codegen.check.sanitize, `python -m codegen sanitize` in make test)
+"""The sanitizer and fuzz run (codegen.verify.sanitize, `python -m codegen sanitize` in make test)
 can fail: faults put back into a generated target are found. The clean run over the sample of
 targets is `make test`'s own step; here one small target, with its C edited."""
 import os
@@ -8,9 +8,9 @@ import subprocess
 
 import pytest
 
-from codegen.build import BuildError, compiler
-from codegen.check import sanitize
-from codegen.emit import emit
+from codegen.pipeline.compile import CompileError, compiler
+from codegen.verify import sanitize
+from codegen.pipeline.emit import emit
 
 
 def _libfuzzer(tmp_path):
@@ -23,7 +23,7 @@ def _libfuzzer(tmp_path):
         r = subprocess.run([tool.path, "-fsanitize=fuzzer,address,undefined", str(probe), "-o",
                             str(tmp_path / "probe")], capture_output=True, text=True)
         why = r.stderr if r.returncode else None
-    except BuildError as e:
+    except CompileError as e:
         tool, why = None, str(e)
     if why is None:
         return tool

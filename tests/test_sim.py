@@ -5,10 +5,10 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from codegen.reference import SEED_SOURCES, reference_robot
-from codegen.sim import blocks
-from codegen.sim.engine import Law, Port, simulate
-from codegen.sim.plant import Plant
-from codegen.sim.sensors import Sensor
+from codegen.evaluate.sim import blocks
+from codegen.evaluate.sim.engine import Law, Port, simulate
+from codegen.evaluate.sim.plant import Plant
+from codegen.evaluate.sim.sensors import Sensor
 
 PLANT_TOL = 1e-10    # stated accuracy of the compiled RK4 plant at h = 1e-4 s (measured 1.7e-14)
 
@@ -67,7 +67,8 @@ def test_exact_sensor_passes_q_through():
 
 def test_port_calls_c_like_the_checked_api(robot):
     """The engine's zero-copy Port gives the same estimates and states as step()/estimate()."""
-    from codegen import compile_observer, observers
+    from codegen import compile_observer
+    from codegen.families import observers
     spec = observers.build("nicosia_tomei", robot)
     a, b = compile_observer(spec), compile_observer(spec)
     y, u = np.zeros(2), np.zeros(2)
@@ -88,8 +89,8 @@ def test_block_is_c_or_reference_under_the_stated_discretization(robot):
     """blocks.block: the C records the Discretization it was given (not the library default),
     the reference steps under the same one, and both give the same steps (<= 1e-12 relative);
     anything but a Discretization is refused, naming the argument."""
-    from codegen import observers
-    from codegen.target import Discretization
+    from codegen.families import observers
+    from codegen.core.target import Discretization
     spec = observers.build("nicosia_tomei", robot)
     disc = Discretization(dt=2e-3, method="euler", hold="zoh", substeps=3)
     c, ref = blocks.block(spec, disc), blocks.block(spec, disc, reference=True)
@@ -117,8 +118,8 @@ def test_huge_kernels_get_the_extra_compiler_flags():
 def test_port_on_the_reference_equals_the_port_on_c(robot):
     """blocks.bind on the numpy reference (buffers longer than ny, nu: sliced) writes what the
     C writes through its bound entry points (<= 1e-12)."""
-    from codegen import observers
-    from codegen.target import Discretization
+    from codegen.families import observers
+    from codegen.core.target import Discretization
     spec = observers.build("reduced_order", robot)
     disc = Discretization(dt=1e-3, method="rk4", hold="foh")
     c, ref = blocks.block(spec, disc), blocks.block(spec, disc, reference=True)
@@ -137,8 +138,9 @@ def test_closed_loop_with_compiled_law(robot):
     """A compiled open-loop law (18) drives the plant with two compiled observers attached: the
     torque it applies equals g(q) + (cos(t/2), -cos(t)) from the independent numpy robot. (The
     loop's wall time is measured in `make bench`, seed000_loop, not asserted here.)"""
-    from codegen import compile_observer, observers
-    from codegen.controllers.seed000 import open_loop
+    from codegen import compile_observer
+    from codegen.families import observers
+    from codegen.families.controllers.seed000 import open_loop
 
     def assemble(t, y, est, x, out):
         out[:2] = x[:2]

@@ -1,4 +1,4 @@
-"""Discrete-time stability check (codegen.stability): purpose-made unstable cases are refused
+"""Discrete-time stability check (codegen.discrete.stability): purpose-made unstable cases are refused
 with one clear message, the default design and discretisation are stable, the C-side bound
 is documented, and the same check guards parameter changes in Python and the reference."""
 from pathlib import Path
@@ -6,10 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from codegen import compile_observer, observers
+from codegen import compile_observer
+from codegen.families import observers
 from codegen.reference import reference_observer
-from codegen.stability import UnstableDiscretization, auto_substeps, check
-from codegen.target import DEFAULT_DISCRETIZATION, Discretization
+from codegen.discrete.stability import UnstableDiscretization, auto_substeps, check
+from codegen.core.target import DEFAULT_DISCRETIZATION, Discretization
 from models import load_robot
 
 DAMPED = Path(__file__).parent / "data" / "damped_arm.urdf"
@@ -38,7 +39,7 @@ def test_damped_urdf_is_the_case_of_the_issue(damped):
 def test_damped_urdf_default_design_and_discretisation_are_stable(damped, tmp_path):
     """The default (noise-aware) design and the guarantee gain (12) are both stable under the
     default discretisation (ETD-RK4 integrates k0 exactly); the compiled observer runs."""
-    from codegen.trajectory import demo_trajectory
+    from codegen.verify.trajectory import demo_trajectory
     t, Q, QD, TAU = demo_trajectory(damped, T=0.5)
     for design in ("noise", "guarantee"):
         spec = observers.build("reduced_order", damped, design=design)
@@ -52,7 +53,7 @@ def test_damped_urdf_default_design_and_discretisation_are_stable(damped, tmp_pa
 def test_damped_urdf_with_rk4_is_refused_with_the_fix(damped, tmp_path):
     """The guarantee gain with plain RK4 at 1 kHz: one error naming the gain, dt and the fix;
     substeps="auto" picks the fix and the run stays finite."""
-    from codegen.trajectory import demo_trajectory
+    from codegen.verify.trajectory import demo_trajectory
     spec = observers.build("reduced_order", damped, design="guarantee")
     with pytest.raises(UnstableDiscretization) as err:
         compile_observer(spec, method="rk4", out_dir=tmp_path)
@@ -93,7 +94,7 @@ def test_etdrk4_has_no_gain_limit_and_rk4_the_textbook_one():
 
 
 def test_header_and_metadata_record_the_bound(tmp_path):
-    from codegen.emit import emit
+    from codegen.pipeline.emit import emit
     spec = observers.build("reduced_order", load_robot("seed000_2r"), k0=100.0)
     folder = emit(spec.target(method="rk4"), tmp_path, spec=spec)
     header = (folder / f"{folder.name}.h").read_text()

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from codegen import sweep
-from codegen.sweep import maps, plan
-from codegen.sweep.store import Store
+from codegen.evaluate import sweep
+from codegen.evaluate.sweep import maps, plan
+from codegen.evaluate.sweep.store import Store
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = {"name": "small", "robot": "seed000_2r", "plant": "model", "T": 0.5,

@@ -1,13 +1,13 @@
-"""Targets files (codegen.targets): parsing into Target values, errors naming file, target and the
+"""Targets files (codegen.pipeline.targets_file): parsing into Target values, errors naming file, target and the
 valid choices, round trips through the metadata JSON, and the folder guard of emit."""
 import json
 from pathlib import Path
 
 import pytest
 
-from codegen.emit import FolderTaken, check_folder, emit
-from codegen.target import Target
-from codegen.targets import KEYS, TargetError, build_spec, load_targets, make_target
+from codegen.pipeline.emit import FolderTaken, check_folder, emit
+from codegen.core.target import Target
+from codegen.pipeline.targets_file import KEYS, TargetError, build_spec, load_targets, make_target
 
 ROOT = Path(__file__).resolve().parent.parent
 URDF = ROOT / "tests" / "data" / "gripper_arm.urdf"
@@ -22,7 +22,7 @@ def write(tmp_path, text, name="my.toml"):
 def test_repository_targets_one_of_each_family():
     """targets.toml (make generate) has every observer family, reduced_order on ur5 and panda,
     catalog robots recorded by name, and the CG variants in their folder names."""
-    from codegen import observers
+    from codegen.families import observers
     targets = load_targets(ROOT / "targets.toml")
     by_family = {}
     for t, out in targets:

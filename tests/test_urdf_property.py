@@ -14,7 +14,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from codegen.emit import _slot_macros
+from codegen.pipeline.emit import _slot_macros
 from models.robot import ModelError
 from models.urdf import load_urdf
 from urdf_chain import Joint, Link, write_chain

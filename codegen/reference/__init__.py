@@ -4,7 +4,7 @@ Never imports CasADi, ``models`` or the symbolic ``codegen`` modules (DESIGN §1
 cross-check of the generated C against it compares two independent implementations.
 It reads only plain data: an ObserverSpec's ``describe()`` (family, variant, robot source,
 slot names, default parameters, typed options, hybrid flag), or the same keys in a generated
-target's metadata JSON, and a ``codegen.target.Discretization`` (plain data too).
+target's metadata JSON, and a ``codegen.core.target.Discretization`` (plain data too).
 
     ref = reference_observer(spec)                      # the default discretisation
     ref = reference_observer(spec, dt=1e-3, method="rk4", substeps=1, hold="foh")
@@ -17,7 +17,7 @@ A family module gives ``rhs(robot, x, y, u, p)``, ``output(robot, x, y, u, p)``,
 observers ``jump(robot, x, y, p)``, for a flow split like the spec's (``rhs_split`` in its
 description) ``rhs_split(robot, x, y_cfg, y, u, p)`` (the model at y_cfg, which the first-order
 hold puts at each sub-step's midpoint configuration), and, when it needs the spec's declared
-options, ``configure(robot, options) -> family`` (options: the typed value of codegen.options): the
+options, ``configure(robot, options) -> family`` (options: the typed value of codegen.core.options): the
 module's functions with those options bound as keyword arguments (reference/_family.py),
 never state stored on the robot.
 
@@ -32,16 +32,14 @@ import pkgutil
 
 import numpy as np
 
-from ..options import options_from_dict
-from ..target import discretization as as_discretization
-from . import discretize
+from ..core.options import options_from_dict
+from ..core.target import discretization as as_discretization
+from . import discretize, families
 from .robots import SEED_SOURCES, reference_robot
 
-# a family is a module of this package named like the symbolic one (codegen/observers/<family>.py)
-_NOT_FAMILIES = {"discretize", "robots", "rigid", "urdf", "dh", "elastic", "hyperdual"}
-FAMILIES = {m.name: importlib.import_module(f"{__name__}.{m.name}")
-            for m in pkgutil.iter_modules(__path__)
-            if m.name not in _NOT_FAMILIES and not m.name.startswith("_")}
+# every public module of reference/families/, named like the symbolic family it checks
+FAMILIES = {m.name: importlib.import_module(f"{families.__name__}.{m.name}")
+            for m in pkgutil.iter_modules(families.__path__) if not m.name.startswith("_")}
 
 __all__ = ["reference_observer", "reference_robot", "ReferenceObserver", "FAMILIES", "SEED_SOURCES"]
 
@@ -54,8 +52,8 @@ def reference_observer(spec, discretization=None, *, dt=None, method=None, subst
     spec : ObserverSpec or dict
         Anything with ``describe()`` (an ObserverSpec), or its plain-data description (the
         keys of ``ObserverSpec.describe``; a generated target's metadata JSON has them).
-    discretization : codegen.target.Discretization or dict, optional
-        Default: ``codegen.target.DEFAULT_DISCRETIZATION`` (for metadata: the recorded one).
+    discretization : codegen.core.target.Discretization or dict, optional
+        Default: ``codegen.core.target.DEFAULT_DISCRETIZATION`` (for metadata: the recorded one).
         ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields.
 
     Returns
@@ -121,7 +119,7 @@ class ReferenceObserver:
     ----------
     desc : dict
         Plain-data description (``ObserverSpec.describe()`` keys).
-    disc : codegen.target.Discretization
+    disc : codegen.core.target.Discretization
     """
 
     def __init__(self, desc, disc):

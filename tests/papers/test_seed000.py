@@ -3,10 +3,11 @@ logic), the Example laws, and Examples 1–3 (SPEC §1, §2, §12.1)."""
 import numpy as np
 import pytest
 
-from codegen import compile_observer, observers
-from codegen.check import cross_check
+from codegen import compile_observer
+from codegen.families import observers
+from codegen.verify import cross_check
 from codegen.reference import SEED_SOURCES, reference_observer, reference_robot
-from codegen.sim.scenarios import seed000 as S
+from codegen.evaluate.scenarios import seed000 as S
 
 TOL = 1e-9
 
@@ -56,7 +57,7 @@ def _near_threshold_states(spec, count, rng):
 def test_hybrid_c_equals_reference_near_thresholds(hybrid, hybrid_spec):
     """1000 single steps from states whose ||x2hat|| sits just above/below a switching threshold:
     same logic state, estimate and next state (<= 1e-9 relative)."""
-    from codegen.check import relative_error
+    from codegen.verify import relative_error
     obs, ref = hybrid
     rng = np.random.default_rng(7)
     X, Y = _near_threshold_states(hybrid_spec, 1000, rng)
@@ -137,7 +138,7 @@ def test_nicosia_tomei_defaults_and_equations(robot):
 # ----------------------------------------------------------------------------- control laws
 def test_compiled_laws_match_seed_formulas(robot):
     """(18), (19) and the Example-3 law against numpy formulas on the reference robot."""
-    from codegen.controllers.seed000 import KD, KP, LAMBDA, Q_GOAL, T_MOVE, open_loop, quintic, tracking
+    from codegen.families.controllers.seed000 import KD, KP, LAMBDA, Q_GOAL, T_MOVE, open_loop, quintic, tracking
     ref = reference_robot(SEED_SOURCES["seed000_2r"])
     ex1, ex2 = compile_observer(open_loop(robot, 1)), compile_observer(open_loop(robot, 2))
     trk = compile_observer(tracking(robot, S.Q0))

@@ -1,13 +1,13 @@
 """Seed 000 §VI, beyond the paper: the nonlinear gain k(y) = k0 K1(y) by deformation reduction
-(codegen.design.reduced_order_nonlinear, family reduced_order_nonlinear): its design, the
+(codegen.families.design.reduced_order_nonlinear, family reduced_order_nonlinear): its design, the
 numerical check of its convergence condition (12'), and C against the reference."""
 import numpy as np
 import pytest
 
-from codegen import observers
-from codegen.design import reduced_order_gain
-from codegen.design import reduced_order_nonlinear as D
-from codegen.sim.scenarios import seed000 as S
+from codegen.families import observers
+from codegen.families.design import reduced_order_gain
+from codegen.families.design import reduced_order_nonlinear as D
+from codegen.evaluate.scenarios import seed000 as S
 
 
 @pytest.fixture(scope="module")
@@ -63,7 +63,7 @@ def test_bad_gains_are_refused(robot):
 def test_designed_observer_converges_and_c_equals_reference(robot, design):
     """Example 1 (open loop (18), noise-free, 3 s): the nonlinear-gain observer's error falls
     below 1e-2; the compiled C and the numpy reference agree over the run."""
-    from codegen.sim.scenarios.seed000_section6 import example1_both
+    from codegen.evaluate.scenarios.seed000_section6 import example1_both
     res, s = example1_both(T=3.0)
     assert s["reduced_order_nonlinear"]["t_below_0.01"] < 3.0, s
     ref, _ = example1_both(reference=True, T=0.2)

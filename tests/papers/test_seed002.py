@@ -6,12 +6,13 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from codegen import compile_observer, observers
-from codegen.observers._nonminimal import (conditioning, gravity_vector, moving_rows,
+from codegen import compile_observer
+from codegen.families import observers
+from codegen.families.observers._nonminimal import (conditioning, gravity_vector, moving_rows,
                                            nonminimal, observable_joints, select_rows)
 from codegen.reference import reference_observer
 from codegen.reference.robots import reference_robot
-from codegen.check import random_inputs, relative_error
+from codegen.verify import random_inputs, relative_error
 from models import load_robot
 
 TOL_C = 1e-9          # emitted C vs reference, relative (DESIGN §4)
@@ -180,7 +181,7 @@ def test_table_ii_defaults_and_sizes(r2, ur5):
 # ------------------------------------------------------------------------ the experiment
 @pytest.fixture(scope="module")
 def nominal():
-    from codegen.sim.scenarios.seed002 import experiment, summarize
+    from codegen.evaluate.scenarios.seed002 import experiment, summarize
     return summarize(experiment(T=4.0, noise=0.0))
 
 
@@ -200,14 +201,14 @@ def test_adaptive_is_less_noise_sensitive(nominal, noise, margin):
     the adaptive observer well below that of (35) (measured: 0.14 vs 2.05 and 1.38 vs 3.81 rad/s
     over 5 s). At SPEC's "30 %" reading (~0.21 rad) the order reverses (9.5 vs 7.2): see the
     seed002-noisy scenario and the closing note."""
-    from codegen.sim.scenarios.seed002 import experiment, summarize
+    from codegen.evaluate.scenarios.seed002 import experiment, summarize
     s = summarize(experiment(T=4.0, noise=noise))
     assert s["qd_err_rms_ss_adaptive"] * margin < s["qd_err_rms_ss_su"], s
 
 
 def test_scenario_c_equals_reference():
     """The same short run with the compiled observers and with the numpy reference."""
-    from codegen.sim.scenarios.seed002 import experiment
+    from codegen.evaluate.scenarios.seed002 import experiment
     kw = dict(T=0.05, noise=0.003)
     c, r = experiment(reference=False, **kw), experiment(reference=True, **kw)
     for key in ("qd_hat", "nu_hat", "theta_hat", "su_est"):
@@ -218,7 +219,7 @@ def test_scenario_c_equals_reference():
 def test_ur5_tracking_run_converges():
     """Beyond the paper: ur5 (m = 3, 15 CoM rows, joints 1-4 observable), 10 s of sinusoidal
     tracking: the joint-velocity error falls from O(1) rad/s to below 0.02 rad/s."""
-    from codegen.sim.scenarios.seed002 import experiment, summarize
+    from codegen.evaluate.scenarios.seed002 import experiment, summarize
     d = experiment("ur5", T=10.0, dt=1e-3, su=False, substeps=2, T_ss=1.0)
     e = np.abs(d["qd_hat"] - d["qd"][:, d["joints"]])
     t = d["t"]
@@ -233,7 +234,7 @@ def test_transient_is_set_by_the_adaptation():
     """Noise-free, [0.5, 1) s: with Table II the adaptive observer trails (35) (measured 5.84 vs
     3.56 rad/s); with the adaptation four times faster, or thetahat(0) = theta, it leads. So the
     paper's "faster" rests on the adaptation, not on the observer structure."""
-    from codegen.sim.scenarios.seed002 import TABLE_II_GAMMA, experiment, windowed_rms
+    from codegen.evaluate.scenarios.seed002 import TABLE_II_GAMMA, experiment, windowed_rms
     paper = windowed_rms(experiment(T=1.0), windows=((0.5, 1.0),))
     assert paper["adaptive"][0] > 1.3 * paper["su"][0], paper
     for gains in ({"gamma": 4 * TABLE_II_GAMMA}, {"thetahat0": [0.5, 0.5, 1.0, 1.0]}):
@@ -244,7 +245,7 @@ def test_transient_is_set_by_the_adaptation():
 def test_flip_noise_bisection_brackets_a_sign_change():
     """Short runs (2 s, steady state = last 1 s): the bisection ends on a bracket of relative width
     <= 10 % whose ends give opposite orderings, inside (0.03, 0.3) rad."""
-    from codegen.sim.scenarios.seed002 import flip_noise, ordering
+    from codegen.evaluate.scenarios.seed002 import flip_noise, ordering
     f = flip_noise(T=2.0, rel_tol=0.1)
     lo, hi = f["bracket"]
     assert 0.03 < lo < f["std_rad"] < hi < 0.3 and hi / lo <= 1.1

@@ -5,11 +5,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from codegen import compile_observer, observers
-from codegen.design import ii_speed_bounds
+from codegen import compile_observer
+from codegen.families import observers
+from codegen.families.design import ii_speed_bounds
 from codegen.reference import reference_observer
-from codegen.reference import ii_speed as ref_ii
-from codegen.check import relative_error
+from codegen.reference.families import ii_speed as ref_ii
+from codegen.verify import relative_error
 from models import load_robot
 
 TOL = 1e-9
@@ -34,7 +35,7 @@ def _random_state(robot, y, scale=1.0, r=(0.05, 0.5)):
 def test_cholesky_velocity_and_skew_S():
     """SPEC §5: M^{-1} = T T^T (T lower), T^{-1} = T^T M, and S(q, b) skew-symmetric
     (symbolic helpers shared by the AOV observer and its bounds)."""
-    from codegen.symbolic import cholesky_velocity, skew_S
+    from codegen.core.symbolic import cholesky_velocity, skew_S
     robot = load_robot("seed003_2r_abs")
     q, b = ca.SX.sym("q", 2), ca.SX.sym("b", 2)
     f = ca.Function("f", [q, b], [*cholesky_velocity(robot, q), skew_S(robot, q, b)])
@@ -149,7 +150,7 @@ def test_symbolic_equals_reference_ur5():
 def test_emitted_c_equals_reference_ur5():
     """ur5: emitted C RHS against the reference on random inputs, <= 1e-9 relative, with the
     interval reduction (wrap="auto": all six joints revolute). N = 4 keeps the cold compile
-    short (the step calls the RHS routine, codegen/discretize.py); the accuracy of beta against
+    short (the step calls the RHS routine, codegen/discrete/discretize.py); the accuracy of beta against
     scipy is test_quadrature_converges's business. The library comes from the build cache
     after the first compile."""
     robot, spec = _ur5_spec()
@@ -169,7 +170,7 @@ def test_emitted_c_equals_reference_ur5():
 def test_seed003_scenario_converges():
     """SPEC §12.3 (0.6 s): s_y -> y, xhat and s_x -> x, r bounded, for the I&I observer; the
     AOV comparison is in the same summary."""
-    from codegen.sim.scenarios.seed003 import run_seed003
+    from codegen.evaluate.scenarios.seed003 import run_seed003
     s, tr = run_seed003(T=0.6, plots=False)
     ii, aov = s["ii"], s["aov"]
     assert ii["|s_y-y| final"] < 1e-2 < ii["|s_y-y| t=0"]
@@ -187,9 +188,9 @@ def test_wrap_option_resolution():
     """wrap="auto" follows robot.periodic (models side) and the reference robot's own flags
     (pinocchio joint types, closed forms); True on a robot without periodic joints and a spec
     whose flags disagree with the reference are errors."""
-    from codegen.observers._ii_common import resolve_wrap
+    from codegen.families.observers._ii_common import resolve_wrap
     from codegen.reference import reference_robot
-    from codegen.reference.ii_speed import check_periodic
+    from codegen.reference.families.ii_speed import check_periodic
     for name in ("ur5", "seed003_2r_abs", "seed000_2r"):
         robot = load_robot(name)
         rr = reference_robot(robot.source)
@@ -213,7 +214,7 @@ def test_wrap_removes_the_drift_at_large_angles():
     """At y2 = 9.3 rad (where the seed-003 arm is at t = 2 s) the reduced quadrature keeps
     dbeta/ds_y, dbeta/ds_x at the adaptive value; N-node Gauss-Legendre on [0, 9.3] does not."""
     from codegen.reference import reference_robot
-    from codegen.sim.studies import adaptive_beta
+    from codegen.evaluate.sim.studies import adaptive_beta
     robot = reference_robot(load_robot("seed003_2r_abs").source)
     y, s_y, s_x, k1 = np.array([1.2, 9.3]), np.array([1.25, 9.3 - 2 * np.pi]), np.array([-2.0, 4.0]), 40.0
     exact = adaptive_beta(robot, y, s_y, s_x, k1, epsabs=1e-13, epsrel=1e-12)
@@ -229,8 +230,8 @@ def test_wrap_removes_the_drift_at_large_angles():
 def test_quadrature_converges():
     """beta and its derivatives (reduced intervals) converge with N to the adaptive value on
     the whole [0, y_i], |y_i| up to 3 pi; small at the default N on the 2-DoF arm."""
-    from codegen.observers._ii_common import DEFAULT_N
-    from codegen.sim.studies import quadrature_study
+    from codegen.families.observers._ii_common import DEFAULT_N
+    from codegen.evaluate.sim.studies import quadrature_study
     t = quadrature_study(robots=("seed003_2r_abs",), Ns=(4, 8, 16, 24), samples=2)["seed003_2r_abs"]
     for k in range(3):
         assert t[4][k] > t[8][k] > t[16][k] > t[24][k]

@@ -53,7 +53,7 @@ def test_3r_mass_matrix_det_and_gravity(qs):
 def test_3r_det_Q_formula(qs):
     """SPEC §8.3 / report (5.7): det Q = 1.5625e34 / [(16 cos^2 q3 - 297)^2 (...)^2], for the
     symbolic Q = dPhi/dx (AD) and for the reference's hyper-dual Q."""
-    from codegen import symbolic as sym
+    from codegen.core import symbolic as sym
     e = load_elastic("seed004_3r")
     x = ca.SX.sym("x", 12)
     Phi, _ = sym.observability_map([x[i] for i in range(3)], [4] * 3, x, e.drift(x))
@@ -98,7 +98,7 @@ def test_elastic_robot_shape_and_source():
 
 # ---------------------------------------------------------------- symbolic tools (SPEC §8.1)
 def test_relative_degree_and_decoupling_matrix():
-    from codegen import symbolic as sym
+    from codegen.core import symbolic as sym
     e = load_elastic("seed004_2r")
     x = ca.SX.sym("x", 8)
     f, G = e.drift(x), e.input_matrix(x)
@@ -115,7 +115,7 @@ def test_relative_degree_and_decoupling_matrix():
 
 
 def test_gains_from_eigenvalues():
-    from codegen.design import ciccarella_germani_gains, spong_fl_gains, tomei_K1
+    from codegen.families.design import ciccarella_germani_gains, spong_fl_gains, tomei_K1
     k = ciccarella_germani_gains("O1", 2, -100.0 * np.arange(3, 11))
     assert np.allclose(k, [1800, 1.19e6, 3.42e8, 3.6e10, 3400, 4.31e6, 2.414e9, 5.04e11], rtol=1e-12)
     k2 = ciccarella_germani_gains("O2", 1, [-300, -400, -500, -600])
@@ -127,7 +127,7 @@ def test_gains_from_eigenvalues():
 
 def test_o2_error_dynamics_have_assigned_eigenvalues():
     """Per joint, A - K C with C = [e1; e2] (position, velocity) has the 4 assigned eigenvalues."""
-    from codegen.design import ciccarella_germani_gains
+    from codegen.families.design import ciccarella_germani_gains
     p = np.array([-300.0, -400, -500, -600])
     k = ciccarella_germani_gains("O2", 1, p)
     A = np.diag(np.ones(3), 1)
@@ -157,7 +157,7 @@ def _block(robot, kind):
     routine instead of inlining it (quick to compile)."""
     if (robot, kind) not in _BLOCKS:
         from codegen import compile_observer
-        from codegen.observers import ciccarella_germani, tomei
+        from codegen.families.observers import ciccarella_germani, tomei
         e = load_elastic(robot)
         spec = tomei.build(e) if kind == "tomei" else ciccarella_germani.build(e, kind)
         obs = compile_observer(spec, dt=DT_C, method="euler", inline=e.n < 3)
@@ -213,7 +213,7 @@ def test_emitted_c_step_and_run_against_reference(robot, kind):
     x0 = e.sample_states(1, seed=9)[0]
     N = (8 if e.n == 3 else 20) if heavy else 200
     t = np.arange(N)[:, None] * DT_C
-    from codegen.sim.scenarios.seed004 import measurement
+    from codegen.evaluate.scenarios.seed004 import measurement
     y0 = measurement(spec, x0[None, :4 * e.n])[0]          # consistent with the state
     Y = y0 + 0.01 * np.sin(5000 * t + np.arange(spec.ny))
     U = 20 * np.cos(3000 * t + np.arange(e.n))
@@ -227,7 +227,7 @@ def test_emitted_c_step_and_run_against_reference(robot, kind):
 def test_ill_conditioned_pivot_gives_nonfinite_status():
     """rcond_min above 1 makes every pivot 'ill-conditioned': the C step reports a non-finite
     result and the state stays unchanged."""
-    from codegen.runtime import ObserverError
+    from codegen.pipeline.load import ObserverError
     e, spec, obs, _ = _block("seed004_2r", "O1")
     x = e.sample_states(1, seed=4)[0]
     p = spec.p_default.copy()
@@ -248,7 +248,7 @@ def test_ill_conditioned_pivot_gives_nonfinite_status():
 def test_sim1_o1_converges_within_50ms():
     """Sim 1 (2R, CG O1 with -100{3..10}, true-state FL): ||x - xhat|| < 2 % of its initial
     value from t = 0.05 s on (0.1 s horizon); Tomei has not converged by then."""
-    from codegen.sim.scenarios import seed004 as s
+    from codegen.evaluate.scenarios import seed004 as s
     robot = load_elastic("seed004_2r")
     t, X, U = s.closed_loop(robot, s.controller(robot, "fl"), s.SIM1_X0, [np.pi / 2, 0], T=0.1)
     spec, obs = s.observer(robot, "O1", -100.0 * np.arange(3, 11))
@@ -265,7 +265,7 @@ def test_sim1_figures_one_per_paper_figure(tmp_path):
     the per-component errors x - xhat of run.csv's O1 estimate, over the paper's span."""
     import csv
 
-    from codegen.sim.scenarios import seed004 as s
+    from codegen.evaluate.scenarios import seed004 as s
     summary = s.sim1(out=tmp_path, T=0.05, dt_check=False)
     figs = summary["figures"]
     assert sorted(figs) == ["fig02", "fig03", "fig04"]
@@ -287,8 +287,8 @@ def test_sim1_figures_one_per_paper_figure(tmp_path):
 def test_3r_manifold_uses_spec_fast_poles():
     """SPEC §10: the 3R integral-manifold controller the scenarios compile places the fast poles
     at the authors' 70 [-1, -1.2, ..., -1.6] (its compiled gains are those of these poles)."""
-    from codegen.controllers.spong import spong_fast_gains
-    from codegen.sim.scenarios import seed004 as s
+    from codegen.families.controllers.spong import spong_fast_gains
+    from codegen.evaluate.scenarios import seed004 as s
     robot = load_elastic("seed004_3r")
     ctrl = s.controller(robot, "manifold")
     poles = 70.0 * np.array([-1, -1.2, -1.3, -1.4, -1.5, -1.6])

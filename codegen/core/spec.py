@@ -1,0 +1,204 @@
+"""ObserverSpec: a continuous-time observer as CasADi functions (DESIGN §1, §3).
+
+Every observer family builds one of these; ``discretize``, ``emit``, ``build`` and
+``runtime`` only ever see this shape, never a particular observer.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from .options import DEFAULT_INPUTS, InputRanges, Options
+from .target import Target, default_name, discretization, sanitize  # noqa: F401  (sanitize re-exported)
+
+
+@dataclass
+class ObserverSpec:
+    """A continuous-time observer (optionally hybrid).
+
+    Flat float64 vectors with named slots:
+      x  observer state          y  measurement        u  known input (torque)
+      p  runtime parameters (gains, with designed defaults)
+      est  the estimate the observer outputs
+
+    Functions (casadi.Function):
+      rhs(x, y, u, p)    -> xdot            the flow
+      rhs_split(x, y_cfg, y, u, p) -> xdot  (or None)  the flow with its use of y split into the
+                                            configuration of the model (M, C, g, F at y_cfg) and
+                                            the output injection (the gain terms, at y);
+                                            rhs(x, y, u, p) = rhs_split(x, y, y, u, p). The
+                                            first-order hold freezes y_cfg at the sub-step's
+                                            midpoint (codegen.discrete.discretize)
+      output(x, y, u, p) -> est             the estimate at the current sample
+      init(y0, est0, p)  -> x0              state from a first measurement and an initial estimate
+      jump(x, y, p)      -> x+   (or None)  hybrid jump map, applied before each step
+      rate(x, p)         -> a    (or None)  the flow's linear gain rate: rhs = N - a x on the
+                                            states ``rate_states`` (a constant along the flow),
+                                            integrated exactly by the default "etdrk4"
+      retune(x, y, p_old, p_new) -> x+  (or None: identity)  the state after a parameter change
+                                            at measurement y that keeps the estimate continuous
+      measurement(est)   -> y    (or None)  the measurement of a plant in the estimated state
+                                            (families estimating the whole state): consistent
+                                            working points for the stability check
+
+    Declared data (what the reference and the cross-check read, never guessed):
+      variant     the family's variant (None if it has none)
+      options     typed generation options (codegen.core.options), e.g. the quadrature order
+      inputs      where the cross-check draws random inputs (codegen.core.options.InputRanges)
+      design      the design report (JSON-able dict: why the default gains are what they are)
+      build_args  the keyword arguments ``observers.build`` received (plain data, for Target)
+      rate_states names of the states the linear gain term acts on (with ``rate``)
+      gains       gain name -> the parameter slots it scales together (non-negative gains the
+                  discrete stability check bisects on, codegen.discrete.stability)
+    """
+
+    family: str
+    robot: object
+    x_names: list
+    y_names: list
+    u_names: list
+    p_names: list
+    est_names: list
+    p_default: np.ndarray
+    rhs: ca.Function
+    output: ca.Function
+    init: ca.Function
+    jump: ca.Function | None = None
+    rhs_split: ca.Function | None = None
+    rate: ca.Function | None = None
+    retune: ca.Function | None = None
+    measurement: ca.Function | None = None
+    variant: str | None = None
+    options: Options = field(default_factory=Options)
+    inputs: InputRanges = DEFAULT_INPUTS
+    design: dict = field(default_factory=dict)
+    build_args: dict = field(default_factory=dict)
+    rate_states: tuple = ()
+    gains: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.p_default = np.asarray(self.p_default, dtype=float).reshape(-1)
+        if self.p_default.size != len(self.p_names):
+            raise ValueError(f"p_default has {self.p_default.size} entries, p_names {len(self.p_names)}")
+        for name, v in zip(self.p_names, self.p_default):
+            if not np.isfinite(v):
+                raise ValueError(f"{self.family}: the default of parameter {name!r} is {v}; "
+                                 f"parameters must be finite")
+        for f, ins, outs in ((self.rhs, (self.nx, self.ny, self.nu, self.np), (self.nx,)),
+                             (self.output, (self.nx, self.ny, self.nu, self.np), (self.nest,)),
+                             (self.init, (self.ny, self.nest, self.np), (self.nx,))) + \
+                (() if self.rhs_split is None else
+                 ((self.rhs_split, (self.nx, self.ny, self.ny, self.nu, self.np), (self.nx,)),)):
+            got_in = tuple(f.size1_in(i) * f.size2_in(i) for i in range(f.n_in()))
+            got_out = tuple(f.size1_out(i) * f.size2_out(i) for i in range(f.n_out()))
+            if got_in != ins or got_out != outs:
+                raise ValueError(f"{self.family}: function {f.name()} has sizes {got_in}->{got_out}, "
+                                 f"expected {ins}->{outs}")
+        self.rate_states = tuple(self.rate_states)
+        unknown = [s for s in self.rate_states if s not in self.x_names]
+        if unknown or (self.rate is None) != (not self.rate_states):
+            raise ValueError(f"{self.family}: rate_states {list(self.rate_states)} must name states "
+                             f"and come with a rate function")
+        self.gains = {str(g): tuple(slots) for g, slots in self.gains.items()}
+        for g, slots in self.gains.items():
+            if not slots or any(s not in self.p_names for s in slots):
+                raise ValueError(f"{self.family}: gain {g!r} scales unknown parameters {list(slots)}")
+
+    nx = property(lambda self: len(self.x_names))
+    ny = property(lambda self: len(self.y_names))
+    nu = property(lambda self: len(self.u_names))
+    np = property(lambda self: len(self.p_names))
+    nest = property(lambda self: len(self.est_names))
+
+    @property
+    def robot_source(self):
+        """How the independent reference rebuilds the robot (see RobotModel.source)."""
+        return self.robot.source
+
+    @property
+    def params(self):
+        """Default parameters as a name -> value dict."""
+        return dict(zip(self.p_names, self.p_default.tolist()))
+
+    def target(self, value=None, *, precision="double", name=None, inline="auto", **overrides):
+        """The Target that builds this spec with discretisation ``value`` (None: the default;
+        keyword overrides dt, method, hold, substeps), ``precision``, ``name`` (default
+        ``<robot>_<family>[_<variant>][_float]``) and ``inline``."""
+        build = {k: v for k, v in self.build_args.items() if k != "variant"}
+        return Target(robot=self.robot_source, family=self.family, variant=self.variant, build=build,
+                      discretization=discretization(value, **overrides), precision=precision,
+                      name=name or default_name(self.robot.name, self.family, self.variant, precision),
+                      inline=inline)
+
+    def describe(self):
+        """Plain data (JSON-able) the reference rebuilds this observer from: family, variant,
+        robot source, slot names, default parameters, options, whether it is hybrid, its rate states
+        and whether it splits its flow's y (``rhs_split``)."""
+        return {"family": self.family, "variant": self.variant, "robot": self.robot_source,
+                "names": {"x": list(self.x_names), "y": list(self.y_names), "u": list(self.u_names),
+                          "p": list(self.p_names), "est": list(self.est_names)},
+                "p_default": [float(v) for v in self.p_default], "options": self.options.to_dict(),
+                "hybrid": self.jump is not None, "rate_states": list(self.rate_states),
+                "rhs_split": self.rhs_split is not None,
+                "gains": {g: list(slots) for g, slots in self.gains.items()}}
+
+
+def split_flow(x, y_cfg, y, u, p, xdot):
+    """(rhs, rhs_split) of a flow ``xdot`` (SX) written with its model at the configuration
+    ``y_cfg`` and its output injection at the measurement ``y`` (ObserverSpec.rhs_split);
+    rhs(x, y, u, p) is it at y_cfg = y. x, y_cfg, y, u, p: the SX symbols it depends on."""
+    return (ca.Function("rhs", [x, y, u, p], [ca.substitute(xdot, y_cfg, y)]),
+            ca.Function("rhs_split", [x, y_cfg, y, u, p], [xdot]))
+
+
+def real_number(name, value):
+    """float(value) for a finite real number (not a bool or text), else ValueError naming ``name``."""
+    if isinstance(value, complex):
+        raise ValueError(f"{name}: expected a finite real number, got the complex number {value!r}")
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name}: expected a finite real number, got {type(value).__name__} {value!r}")
+    try:
+        v = float(value)
+    except OverflowError:
+        raise ValueError(f"{name}: {value} is too large for a double") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: expected a finite real number, got {v}")
+    return v
+
+
+def checked_args(args, name=None):
+    """The keyword arguments ``args`` (dict) of a family's build, every number in them (also in
+    lists, arrays and dicts) checked by ``real_number`` under its name (k0, K1[2], bounds['m']);
+    text and other objects are left to the family. ``name``: the name of ``args`` when it is one
+    value (recursion), None for the top-level dict."""
+    if name is None:
+        for k, v in args.items():
+            checked_args(v, k)
+    elif isinstance(args, dict):
+        for k, v in args.items():
+            checked_args(v, f"{name}[{k!r}]")
+    elif isinstance(args, (list, tuple, np.ndarray)):
+        for i, v in enumerate(args):
+            checked_args(v, f"{name}[{i}]")
+    elif isinstance(args, numbers.Number) and not isinstance(args, bool):
+        real_number(name, args)
+    return args
+
+
+def plain(value):
+    """``value`` as plain JSON data: numpy arrays and scalars as lists and floats, design reports
+    through their ``as_dict``; anything else unchanged (Target refuses what is not JSON)."""
+    if hasattr(value, "as_dict"):
+        value = value.as_dict()
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return value
+

@@ -1,0 +1,210 @@
+"""What to build and how: the ``Target`` value (DESIGN §3) and its ``Discretization``.
+
+Plain data (no CasADi, no symbolic code): a targets file, the CLI and Python calls are parsed
+into a Target; ``emit`` receives it and records it in the metadata JSON; the independent
+reference rebuilds its discretisation from it. The default discretisation is defined once,
+here (``DEFAULT_DISCRETIZATION``).
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import asdict, dataclass, field, replace
+
+METHODS = ("euler", "rk4", "etdrk4")
+HOLDS = ("zoh", "foh")
+PRECISIONS = ("double", "float")
+# C type of each precision (the typedef <prefix>_real of the generated header)
+REAL_TYPES = {"double": "double", "float": "float"}
+
+
+def _positive_int(name, value):
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class Discretization:
+    """A fixed-step discretisation of a continuous-time observer.
+
+    Parameters
+    ----------
+    dt : float
+        Sample time (s), > 0 and finite.
+    method : {"etdrk4", "rk4", "euler"}
+        Integrator used over each sub-step. "etdrk4" (the default): exponential time
+        differencing RK4 (Cox & Matthews 2002) for families that declare a linear gain rate a
+        (flow g(x, y, u, p) - a x on some states): the linear part is integrated exactly, RK4
+        sees only the smooth remainder; families without a rate get classical RK4.
+    hold : {"foh", "zoh"}
+        How the measurement behaves between samples: "zoh" holds y and u over [t_k, t_k+1];
+        "foh" brings the state from t_k-1 to t_k with y linear in between and u_k-1 held,
+        then forms the estimate (causal, no k0 dt sampling bias; see codegen.discrete.discretize).
+    substeps : int
+        Equal sub-steps of ``method`` per sample (>= 1).
+    """
+
+    dt: float = 1e-3
+    method: str = "etdrk4"
+    hold: str = "foh"
+    substeps: int = 1
+
+    def __post_init__(self):
+        try:
+            dt = float(self.dt)
+        except (TypeError, ValueError):
+            raise ValueError(f"dt must be a positive finite number of seconds, got {self.dt!r}") from None
+        if isinstance(self.dt, bool) or not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive finite number of seconds, got {self.dt!r}")
+        object.__setattr__(self, "dt", dt)
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        if self.hold not in HOLDS:
+            raise ValueError(f"hold must be one of {HOLDS}, got {self.hold!r}")
+        _positive_int("substeps", self.substeps)
+
+    def to_dict(self):
+        """JSON-able dict (the metadata's "discretization")."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d):
+        """Inverse of ``to_dict``: the Discretization of the dict ``d``; unknown keys are refused."""
+        unknown = set(d) - {"dt", "method", "hold", "substeps"}
+        if unknown:
+            raise ValueError(f"discretization: unknown keys {sorted(unknown)}")
+        return cls(**d)
+
+
+DEFAULT_DISCRETIZATION = Discretization()
+
+
+def discretization(value=None, **overrides):
+    """A Discretization from None (the default), a Discretization, or a dict, with keyword
+    overrides (dt, method, hold, substeps) whose value is not None."""
+    if value is None:
+        value = DEFAULT_DISCRETIZATION
+    elif isinstance(value, dict):
+        value = Discretization.from_dict(value)
+    elif not isinstance(value, Discretization):
+        raise TypeError(f"discretization must be a Discretization or a dict, got {type(value).__name__}")
+    changes = {k: v for k, v in overrides.items() if v is not None}
+    return replace(value, **changes) if changes else value
+
+
+def _jsonable(value, what):
+    """A canonical JSON round-trip of ``value`` (dicts with sorted keys), or ValueError."""
+    try:
+        return json.loads(json.dumps(value, sort_keys=True, allow_nan=False))
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what} must be plain JSON data (numbers, strings, lists, dicts): {exc}") from None
+
+
+def sanitize(text):
+    """A C identifier made from user data ``text``: lowercase, [a-z0-9_], not starting with a digit."""
+    s = re.sub(r"[^0-9a-zA-Z_]", "_", str(text)).lower()
+    s = re.sub(r"_+", "_", s).strip("_") or "x"
+    return s if not s[0].isdigit() else "t_" + s
+
+
+def default_name(robot, family, variant=None, precision="double"):
+    """``<robot>_<family>[_<variant>][_float]`` (``_float`` when ``precision`` is "float"),
+    sanitized (the default prefix of a Target)."""
+    parts = [robot, family] + ([variant] if variant else []) + ([precision] if precision != "double" else [])
+    return sanitize("_".join(parts))
+
+
+@dataclass(frozen=True)
+class Target:
+    """One generated observer: what to build and how.
+
+    Parameters
+    ----------
+    robot : dict
+        The robot source (``RobotModel.source``): how to rebuild the robot from data, e.g.
+        ``{"kind": "catalog", "name": "ur5"}`` or a URDF path with locked joints.
+    family : str
+        Observer family (a module of ``codegen.families.observers``) or control law.
+    variant : str or None
+        Family variant (e.g. "O2" of ``ciccarella_germani``), None when the family has none.
+    build : dict
+        Keyword arguments of the family's ``build`` (design inputs, generation options, gains
+        given explicitly); plain JSON data.
+    params : dict
+        Runtime parameters overriding the designed defaults, name -> value.
+    discretization : Discretization
+        How the continuous-time observer is stepped (default ``DEFAULT_DISCRETIZATION``).
+    precision : {"double", "float"}
+        Real type of the generated C (one type for state, API and kernels; "float" also uses the
+        single-precision math functions, for FPUs such as the Cortex-M4F's).
+    name : str or None
+        Symbol prefix and folder name; default ``<robot>_<family>[_<variant>][_float]``.
+    inline : "auto", bool
+        Code shape of the step: one flat expression (True), calls to one RHS routine (False),
+        or by size ("auto", see codegen.discrete.discretize).
+    """
+
+    robot: dict
+    family: str
+    variant: str | None = None
+    build: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)
+    discretization: Discretization = DEFAULT_DISCRETIZATION
+    precision: str = "double"
+    name: str | None = None
+    inline: object = "auto"
+
+    def __post_init__(self):
+        if not isinstance(self.family, str) or not self.family:
+            raise ValueError(f"family must be a non-empty string, got {self.family!r}")
+        object.__setattr__(self, "robot", _jsonable(self.robot, "robot"))
+        object.__setattr__(self, "build", _jsonable(dict(self.build), "build"))
+        params = _jsonable(dict(self.params), "params")
+        for k, v in params.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ValueError(f"params[{k!r}] must be a number, got {v!r}")
+        object.__setattr__(self, "params", params)
+        object.__setattr__(self, "discretization", discretization(self.discretization))
+        if self.precision not in PRECISIONS:
+            raise ValueError(f"precision must be one of {PRECISIONS}, got {self.precision!r}")
+        if self.inline not in ("auto", True, False):
+            raise ValueError(f"inline must be 'auto', True or False, got {self.inline!r}")
+        if self.name is not None:
+            object.__setattr__(self, "name", sanitize(self.name))
+
+    @property
+    def robot_name(self):
+        """The robot's name in its source (catalog name or URDF stem)."""
+        return str(self.robot.get("name") or self.robot.get("kind") or "robot")
+
+    @property
+    def prefix(self):
+        """The C symbol prefix and folder name."""
+        if self.name:
+            return self.name
+        return default_name(self.robot_name, self.family, self.variant, self.precision)
+
+    def with_discretization(self, value=None, **overrides):
+        """A copy with another discretisation: ``discretization(value, **overrides)``, ``value``
+        (Discretization, dict, or None: the current one) with the fields in ``overrides`` replaced."""
+        return replace(self, discretization=discretization(value or self.discretization, **overrides))
+
+    def to_dict(self):
+        """JSON-able dict (the metadata's "target")."""
+        d = asdict(self)
+        d["discretization"] = self.discretization.to_dict()
+        return d
+
+    @classmethod
+    def from_dict(cls, d):
+        """Inverse of ``to_dict``: the Target of the dict ``d``; unknown keys are refused."""
+        known = {f for f in cls.__dataclass_fields__}
+        unknown = set(d) - known
+        if unknown:
+            raise ValueError(f"target: unknown keys {sorted(unknown)}; known: {sorted(known)}")
+        d = dict(d)
+        if "discretization" in d:
+            d["discretization"] = discretization(d["discretization"])
+        return cls(**d)

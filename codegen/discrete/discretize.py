@@ -1,0 +1,250 @@
+"""ObserverSpec -> fixed-step step Function (DESIGN §4: discretisation is a visible choice).
+
+    step(x, y_prev, y, u_prev, u, p, active) -> (x_next, est)
+
+``hold="zoh"``: y and u are held over [t_k, t_k+1]:
+  1. x <- jump(x, y, p)              hybrid observers only (the logic state lives in x)
+  2. est = output(x, y, u, p)        the estimate at this sample
+  3. x_next = x advanced by dt with y and u held, in ``substeps`` equal sub-steps of
+     ``method``. y_prev, u_prev and active are unused.
+
+``hold="foh"`` (the default, codegen.core.target.DEFAULT_DISCRETIZATION): the state is first brought
+from t_k-1 to t_k with y interpolated linearly between y_prev and y and u_prev held (the input
+that was applied over that interval), then jump and output at t_k. Causal: it only uses samples
+already received. ``active`` = 0 on the first sample after init (nothing to integrate yet).
+A family that splits its flow's use of y (``spec.rhs_split(x, y_cfg, y, u, p)``: the model M, C,
+g, F at the configuration y_cfg, the output-injection gain terms at y) has its model evaluated
+once per sub-step, at the midpoint configuration y_cfg = y(t_i + h/2), while the gain terms see
+y(t) linear: one configuration per sub-step instead of the three (t_i, t_i + h/2, t_i + h) of the
+four RK4 stages, like the zero-order hold. The midpoint rule keeps the model's error at
+O(h^3) per step, and with the gain terms exact (below) a ramp is still followed without bias.
+Families without ``rhs_split`` see y(t) everywhere.
+
+Methods: explicit Euler, classical RK4, and ``"etdrk4"`` (the default): exponential time
+differencing RK4 [Cox & Matthews, J. Comput. Phys. 176 (2002), eq. (26)] for a family that
+declares a scalar gain rate a(x, p) on some states (``spec.rate``, ``spec.rate_states``), i.e.
+a flow x' = N(t, x) - a D x, D the 0/1 diagonal of those states. With E = exp(-a h/2),
+phi_1..3 the phi-functions of z = -a h (phi_1(z) = (e^z - 1)/z, ...):
+
+    a_ = E x  + h/2 phi_1(z/2) N(x)           b_ = E x + h/2 phi_1(z/2) N(a_)
+    c_ = E a_ + h/2 phi_1(z/2) (2 N(b_) - N(x))
+    x+ = E^2 x + h [f1 N(x) + 2 f2 (N(a_) + N(b_)) + f3 N(c_)],
+    f1 = phi_1 - 3 phi_2 + 4 phi_3,  f2 = phi_2 - 2 phi_3,  f3 = 4 phi_3 - phi_2
+
+(the other states get classical RK4). It integrates the gain term exactly, keeps every
+equilibrium of the flow (RK4 does, integrating-factor "Lawson" RK4 does not: at rest it leaves
+z off -k0 y by the Simpson error of the forcing k0^2 y, 0.36 rad/s for ur5 at q = 1), and is
+exact for forcing linear in t, so under the first-order hold a ramp y = v t gives est = v for
+any k0 dt (the model at the midpoint configuration is constant over the sub-step). Why the
+first-order hold: an observer with output injection through a gain k0 (x2hat = z + k0 y)
+sampled with y held settles at a/(1 - R(-a)) qd with a = k0 dt and R the method's stability
+function (RK4: R(-a) = 1 - a + a^2/2 - a^3/6 + a^4/24; exact: e^-a), a bias the linear hold
+removes for every method.
+"""
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+
+from ..core.target import HOLDS, METHODS, Discretization  # noqa: F401  (re-exported)
+
+# Above this many inlined RHS instructions (RHS size x stages x substeps) the stages call one
+# shared RHS routine in the C instead: a big observer (I&I on a 6-DoF arm, an elastic 3R) stays
+# small and quick to compile. Below it, inlining lets common subexpressions (sin/cos of a held y)
+# be shared across stages. An inlined instruction is ~28 bytes of C, and under the first-order
+# hold the estimate kernel holds the unrolled stages too: 10000 keeps both under ~300 KB each
+# (the largest inlined default, panda reduced-order, has 7188; I&I AOV on ur5, 13320, was 0.74 MB
+# of C for the two kernels at 15000).
+INLINE_LIMIT = 10000
+
+_SERIES_TERMS = 17     # phi_k by its Taylor series for |z| < 1: remainder < 1/20! relative
+
+
+def etd_coefficients(z):
+    """(e^(z/2), phi_1(z/2), e^z, phi_1(z), phi_2(z), phi_3(z)) of one ETD-RK4 step, z = -a h
+    (scalar SX/MX), phi_k(z) = sum_j z^j / (j + k)!, with a single exp:
+
+        |z| < 1: phi_3 by its Taylor series (Horner), phi_2 = 1/2 + z phi_3, phi_1 = 1 + z phi_2
+        else:    the closed forms of e^z - 1 (no cancellation there: e^z <= 1/e or >= e)
+        phi_1(z/2) = 2 phi_1(z) / (1 + e^(z/2)),   e^z = (e^(z/2))^2
+
+    No cancellation at z = 0 (a family whose rate is 0 gets exactly RK4's 1, 1/2, 1/6)."""
+    small = ca.fabs(z) < 1
+    zs = ca.if_else(small, 1, z)             # the closed forms never see z = 0
+    E = ca.exp(z / 2)
+    em1 = E * E - 1
+    s = 1.0 / math.factorial(_SERIES_TERMS + 3)
+    for j in range(_SERIES_TERMS - 1, -1, -1):
+        s = s * z + 1.0 / math.factorial(j + 3)
+    p3 = ca.if_else(small, s, (em1 - zs - zs ** 2 / 2) / zs ** 3)
+    p2 = ca.if_else(small, 0.5 + z * p3, (em1 - zs) / zs ** 2)
+    p1 = ca.if_else(small, 1 + z * p2, em1 / zs)
+    return E, 2 * p1 / (1 + E), E * E, p1, p2, p3
+
+
+def phi_functions(z):
+    """(e^z, phi_1(z), phi_2(z), phi_3(z)) (scalar SX/MX z), as ``etd_coefficients``."""
+    return etd_coefficients(z)[2:]
+
+
+def integrator_step(f, x, t, h, method, rate=None, mask=None):
+    """One step of size h of x' = f(t, x) from time t.
+
+    ``method="etdrk4"`` with a scalar ``rate`` a and a 0/1 list ``mask`` (nx): the flow is
+    N(t, x) - a D x with D = diag(mask), integrated by ETD-RK4 (module docstring); without a
+    rate it is classical RK4."""
+    if method == "euler":
+        return x + h * f(t, x)
+    if method == "etdrk4" and rate is not None:
+        return _etdrk4_step(f, x, t, h, rate, mask)
+    k1 = f(t, x)
+    k2 = f(t + h / 2, x + h / 2 * k1)
+    k3 = f(t + h / 2, x + h / 2 * k2)
+    k4 = f(t + h, x + h * k3)
+    return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def _etdrk4_step(f, x, t, h, a, mask):
+    """ETD-RK4 of Cox & Matthews (2002) eq. (26) on the masked states, RK4 on the others."""
+    D = ca.DM(mask)
+
+    def pick(etd, rk4):
+        return D * etd + (1 - D) * rk4 if 0 < sum(mask) < len(mask) else (etd if sum(mask) else rk4)
+    z = -a * h
+    E, p1h, E2, p1, p2, p3 = etd_coefficients(z)
+    f1, f2, f3 = p1 - 3 * p2 + 4 * p3, p2 - 2 * p3, 4 * p3 - p2
+
+    def N(s, xs):
+        return f(s, xs) + a * D * xs
+    k1 = N(t, x)
+    xa = pick(E * x + h / 2 * p1h * k1, x + h / 2 * k1)
+    k2 = N(t + h / 2, xa)
+    xb = pick(E * x + h / 2 * p1h * k2, x + h / 2 * k2)
+    k3 = N(t + h / 2, xb)
+    xc = pick(E * xa + h / 2 * p1h * (2 * k3 - k1), x + h * k3)
+    k4 = N(t + h, xc)
+    return pick(E2 * x + h * (f1 * k1 + 2 * f2 * (k2 + k3) + f3 * k4),
+                x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
+
+
+def _symbols(spec, sym):
+    return (sym("x", spec.nx), sym("y_prev", spec.ny), sym("y", spec.ny),
+            sym("u_prev", spec.nu), sym("u", spec.nu), sym("p", spec.np), sym("active", 1))
+
+
+def rate_mask(spec):
+    """0/1 per state: 1 where the family's linear gain term -a x acts (``spec.rate_states``)."""
+    return [1 if name in spec.rate_states else 0 for name in spec.x_names]
+
+
+def _advance(spec, x, y_of_t, u, p, dt, method, substeps, midpoint=False):
+    """x advanced over dt; ``midpoint``: a family's model (``spec.rhs_split``) at the configuration
+    y(t_i + h/2) of each sub-step i, its output injection at y(t)."""
+    h = dt / substeps
+    rate = spec.rate(x, p) if (spec.rate is not None and method == "etdrk4") else None
+    mask = rate_mask(spec)
+    split = midpoint and spec.rhs_split is not None
+    for i in range(substeps):
+        y_cfg = y_of_t((i + 0.5) * h)
+        flow = ((lambda t, s: spec.rhs_split(s, y_cfg, y_of_t(t), u, p)) if split else
+                (lambda t, s: spec.rhs(s, y_of_t(t), u, p)))
+        x = integrator_step(flow, x, i * h, h, method, rate, mask)
+    return x
+
+
+def _inline(spec, method, substeps, inline):
+    if inline != "auto":
+        return bool(inline)
+    stages = {"euler": 1, "rk4": 4, "etdrk4": 4}[method] * substeps
+    return spec.rhs.n_instructions() * stages <= INLINE_LIMIT
+
+
+def _pieces(spec, dt, method, substeps, hold, inline, syms=None):
+    inline = _inline(spec, method, substeps, inline)
+    x, yp, y, up, u, p, active = syms or _symbols(spec, ca.SX.sym if inline else ca.MX.sym)
+    if hold == "zoh":
+        xj = spec.jump(x, y, p) if spec.jump is not None else x
+        est = spec.output(xj, y, u, p)
+        xn = _advance(spec, xj, lambda t: y, u, p, dt, method, substeps)
+        flow = (xj, xn)
+    else:
+        # linear y over the last interval; active = 0 collapses it to no step at all
+        xa = _advance(spec, x, lambda t: yp + (t / dt) * (y - yp), up, p, active * dt, method, substeps,
+                      midpoint=True)
+        xn = spec.jump(xa, y, p) if spec.jump is not None else xa
+        est = spec.output(xn, y, u, p)
+        flow = (x, xa)
+    return [x, yp, y, up, u, p, active], xn, est, flow
+
+
+_NAMES_IN = ["x", "y_prev", "y", "u_prev", "u", "p", "active"]
+
+
+def _shared(outs):
+    """SX outputs with every repeated subexpression computed once (``casadi.cse``): the stages of
+    a step that see one configuration (zero-order hold, or a split flow's midpoint) share its
+    model, trigonometry included, in the emitted C itself rather than by the C compiler's grace
+    (gcc -O3 on x86-64 merges them too; the kernel files are ~20 % smaller)."""
+    return ca.cse(outs) if isinstance(outs[0], ca.SX) else outs
+
+
+def discretize(spec, disc, inline="auto"):
+    """The step Function of a spec under a discretisation (see the module docstring).
+
+    Parameters
+    ----------
+    spec : ObserverSpec
+    disc : codegen.core.target.Discretization
+        dt (s), method, hold, substeps.
+    inline : "auto" or bool
+        True: one flat SX expression; False: MX calling the spec's functions; "auto": by size.
+
+    Returns
+    -------
+    casadi.Function
+        ``step(x, y_prev, y, u_prev, u, p, active) -> (x_next, est)``.
+    """
+    ins, xn, est, _ = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
+    return ca.Function("step", ins, _shared([xn, est]), _NAMES_IN, ["x_next", "est"])
+
+
+def estimate(spec, disc, inline="auto"):
+    """The estimate of ``discretize(spec, disc)`` as its own Function (same inputs), without
+    advancing the state; ``spec`` the observer, ``disc`` its Discretization, ``inline``: True
+    (SX), False (MX calls) or "auto" (SX when the unrolled step is small)."""
+    ins, _, est, _ = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
+    return ca.Function("estimate", ins, _shared([est]), _NAMES_IN, ["est"])
+
+
+def step_jacobians(spec, disc, inline="auto"):
+    """Linearisations of the step and of the flow, with the sample time as an input.
+
+    Parameters
+    ----------
+    spec : ObserverSpec
+        The observer.
+    disc : Discretization
+        Method, hold and substeps of the step (its dt is replaced by the input dt).
+    inline : bool or "auto"
+        SX (inlined) or MX expressions; "auto": SX when the unrolled step is small.
+
+    Returns
+    -------
+    casadi.Function
+        ``(x, y, u, p, dt) -> (dx_next/dx, J(x_a), J(x_b))``: the step of ``disc`` (its
+        method, hold, substeps; its dt replaced by the input dt) at y_prev = y, u_prev = u,
+        active = 1 (the measurement held over the sample, so a split flow's midpoint
+        configuration is y too: the step the observer takes there), and the continuous-time Jacobian
+        J = drhs/dx of the flow at both ends x_a, x_b of the step's flow (a hybrid jump, before
+        or after it, is not part of the flow).
+    """
+    inline = _inline(spec, disc.method, disc.substeps, inline)
+    sym = ca.SX.sym if inline else ca.MX.sym
+    x, y, u, p, dt = sym("x", spec.nx), sym("y", spec.ny), sym("u", spec.nu), sym("p", spec.np), sym("dt")
+    _, xn, _, (xa, xb) = _pieces(spec, dt, disc.method, disc.substeps, disc.hold, inline,
+                                 syms=(x, y, y, u, u, p, 1))
+    J = ca.Function("J", [x, y, u, p], [ca.jacobian(spec.rhs(x, y, u, p), x)])
+    return ca.Function("step_jacobians", [x, y, u, p, dt],
+                       [ca.jacobian(xn, x), J(xa, y, u, p), J(xb, y, u, p)],
+                       ["x", "y", "u", "p", "dt"], ["Phi", "J0", "J1"])

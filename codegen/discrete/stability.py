@@ -1,0 +1,369 @@
+"""Discrete-time stability and accuracy of a discretised observer (DESIGN §4).
+
+The step x_k+1 = Phi(x_k; y, u, p) of ``codegen.discrete.discretize`` is linearised in x (CasADi
+Jacobian of the step with dt as an input; the robot's F, M, C enter through the flow) at working
+points: sampled configurations y (``spec.inputs``), each at rest (estimate 0) and moving
+(velocity-sized estimate), x = init(y, est, p) (elastic robots: sampled plant states as estimates). At each point i
+
+    rho_i   = spectral radius of dPhi/dx                      (the discrete observer)
+    rho_c,i = rho(expm(dt (J(x_i) + J(x_i+)) / 2)),  J = d rhs/dx   (the exact linearised flow
+              over the step, to O(dt^3): J at both ends, so a moving point compares like with like)
+
+The discretisation is *stable* when rho_i <= max(1, rho_c,i) (1 + 1e-6) at every point (it adds
+no growth the continuous-time observer does not have) and every declared gain (``spec.gains``)
+is >= 0 (a negative output-injection gain makes the continuous observer itself unstable).
+Reported with it: the largest stable value of each gain for this dt (bisection, the other
+parameters fixed), the largest stable dt and the substeps that would make it stable, and the
+accuracy of the step, max_i ||dPhi/dx - expm(dt (J(x_i) + J(x_i+)) / 2)||_2.
+
+    report = check(spec, disc)               # StabilityReport; cached on disk
+    require_stable(spec, disc)               # the report, or UnstableDiscretization (a ValueError)
+    auto_substeps(spec, disc)                # the smallest stable substeps
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy.linalg import expm
+
+from ..core.cache import cached_json
+from .sampling import declared_slots, measurements
+from .discretize import step_jacobians
+
+VERSION = 4            # of this check (part of the cache key)
+POINTS = 8             # sampled configurations; each at rest and moving
+TOL = 1e-6             # relative slack on the spectral radius
+GROWTH = 4.0 ** 10     # a gain is searched up to this multiple of its value (x4 at a time)
+BISECTIONS = 16        # relative precision 2^-16 of the bracket
+
+
+class UnstableDiscretization(ValueError):
+    """The discretised observer is unstable for its gains, dt and method; the message names
+    the gain, dt and the fix."""
+
+
+@dataclass
+class StabilityReport:
+    """What ``check`` found (JSON-able through ``as_dict``).
+
+    Attributes
+    ----------
+    stable : bool
+    spectral_radius : float
+        max_i rho(dPhi/dx) over the working points.
+    flow_radius : float
+        max(1, rho_c) at the worst point: what the exact flow allows there.
+    step_error : float
+        max_i ||dPhi/dx - expm(dt (J_i + J_i+)/2)||_2 (accuracy of the step over one sample).
+    gains : dict
+        gain -> {"value": current (largest slot), "slots": parameter names, "max_stable": the
+        largest stable value (None: unstable even at 0, or not computed), "limit_found": False
+        when no instability was found up to ``max_stable`` = 4^10 times the value}.
+    negative : list
+        Gains below 0.
+    dt, method, hold, substeps : the discretisation checked
+    dt_max : float or None
+        Largest stable dt with these parameters (computed when unstable).
+    substeps_needed : int or None
+        ceil(dt / dt_max) (computed when unstable).
+    points : int
+    """
+
+    stable: bool
+    spectral_radius: float
+    flow_radius: float
+    step_error: float
+    dt: float
+    method: str
+    hold: str
+    substeps: int
+    gains: dict = field(default_factory=dict)
+    negative: list = field(default_factory=list)
+    dt_max: float | None = None
+    substeps_needed: int | None = None
+    points: int = 0
+    checked: bool = True
+    evaluable: bool = True     # False: the step is not finite at the working points (not judged)
+
+    def as_dict(self):
+        """The report as a JSON-ready dict (``dataclasses.asdict``)."""
+        return asdict(self)
+
+    def message(self, family):
+        """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius
+        and the fixes."""
+        where = f"at dt = {self.dt:g} with {self.method} ({self.hold} hold, {self.substeps} substep(s))"
+        gains = ", ".join(f"{g} = {v['value']:.6g}" for g, v in self.gains.items()) or family
+        why = (f"spectral radius {self.spectral_radius:.4g} > 1 (the continuous-time observer: "
+               f"{self.flow_radius:.4g})")
+        if self.negative:
+            why = f"{', '.join(self.negative)} must be >= 0; {why}"
+        fixes = [f"stable for 0 <= {g} <= {v['max_stable']:.6g}" if v["limit_found"] else
+                 f"stable for every {g} >= 0 tested (up to {v['max_stable']:.3g})"
+                 for g, v in self.gains.items() if v["max_stable"]]
+        if self.substeps_needed:
+            fixes.append(f"or use substeps >= {self.substeps_needed * self.substeps}")
+        if self.dt_max:
+            fixes.append(f"or dt <= {self.dt_max:.3g}")
+        if not self.negative:                 # sub-steps cannot make a negative gain stable
+            fixes.append('or substeps="auto" to choose them')
+        return f"{gains} {where}: {why}; " + ", ".join(fixes)
+
+
+def _gain_value(p, idx):
+    return float(np.max(p[idx])) if len(idx) else 0.0
+
+
+def _working_points(spec, points, seed, rng):
+    """(Y, U, EST), 2 ``points`` rows: each measurement with the estimate at rest, then moving.
+
+    A rigid robot: y where ``spec.inputs`` declares it (codegen.verify.inputs), u = g(y) when u
+    is the joint torque (else as declared), estimates 0 and velocity-sized. An elastic one (no joint-space sampling of its own): sampled plant
+    states as the estimates (at rest: velocities 0), y and u at unit scale."""
+    robot = spec.robot
+    if hasattr(robot, "sample_configurations"):
+        Y, U = measurements(spec, points, seed, rng)
+        if spec.nu == robot.n:                # u = tau: the static torque g(y), at rest an equilibrium
+            U = np.asarray(robot.g.map(points)(Y[:, :robot.n].T)).T
+        moving = 0.5 * spec.inputs.est_scale * rng.normal(size=(points, spec.nest))
+        rest = np.zeros_like(moving)
+    else:
+        Y, U = rng.normal(size=(points, spec.ny)), rng.normal(size=(points, spec.nu))
+        if spec.nest == robot.nx:
+            moving = robot.sample_states(points, seed)
+            rest = robot.sample_states(points, seed, speed=0.0)
+        else:
+            moving = 0.5 * spec.inputs.est_scale * rng.normal(size=(points, spec.nest))
+            rest = np.zeros_like(moving)
+    EST = np.vstack([rest, moving])
+    if spec.measurement is not None:          # y of a plant in the estimated state: converged
+        Y = np.asarray(spec.measurement.map(2 * points)(EST.T)).reshape(spec.ny, 2 * points).T
+        return Y, np.vstack([U, U]), EST
+    return np.vstack([Y, Y]), np.vstack([U, U]), EST
+
+
+class _Linearisation:
+    """The step's Jacobian and the exact flow's growth at the working points, for any p, dt."""
+
+    def __init__(self, spec, disc, points=POINTS, seed=0):
+        self.spec, self.disc = spec, disc
+        rng = np.random.default_rng(seed)
+        self.Y, self.U, self.EST = _working_points(spec, points, seed, rng)
+        # the declared continuous slots (about y, uniform); a discrete one (a hybrid logic state)
+        # stays as init sets it, consistent with the rest of the state, and the step's jump moves it
+        slots = declared_slots(spec, self.Y, rng)
+        integer = {spec.x_names.index(name) for name, _, _ in spec.inputs.x_integer}
+        self.slots = {i: v for i, v in slots.items() if i not in integer}
+        self.S = len(self.Y)
+        self.jac = step_jacobians(spec, disc).map(self.S)
+        self.init = spec.init.map(self.S)
+
+    def at(self, p, dt):
+        """(Phi, J) (S, nx, nx) at parameters p and sample time dt: the step's Jacobian and
+        (J(x) + J(x_next)) / 2, whose exponential expm(dt J) is the exact linearised flow over
+        the step to O(dt^3); None for J when anything is not finite."""
+        nx, S = self.spec.nx, self.S
+        P = np.tile(np.asarray(p, float)[:, None], S)
+        X = np.asarray(self.init(self.Y.T, self.EST.T, P)).reshape(nx, S)
+        for i, values in self.slots.items():
+            X[i] = values
+        # a mapped matrix output is [A_1 A_2 ...] side by side
+        Phi, J0, J1 = (np.asarray(m).reshape(nx, S, nx).transpose(1, 0, 2)
+                       for m in self.jac(X, self.Y.T, self.U.T, P, dt))
+        J = 0.5 * (J0 + J1)
+        return Phi, (J if np.all(np.isfinite(Phi)) and np.all(np.isfinite(J)) else None)
+
+    def radii(self, p, dt, accuracy=False):
+        """(max rho(Phi), max(1, rho_c) at the worst point, max_i rho(Phi_i) / max(1, rho_c,i),
+        max_i ||Phi_i - expm(dt J_i)||_2 if ``accuracy`` else None), rho_c = exp(dt max Re eig J)
+        (= rho(expm(dt J)))."""
+        Phi, J = self.at(p, dt)
+        if J is None:
+            return math.inf, math.inf, math.inf, math.inf if accuracy else None
+        rho = np.max(np.abs(np.linalg.eigvals(Phi)), axis=1)
+        rho_c = np.maximum(1.0, np.exp(np.minimum(dt * np.max(np.linalg.eigvals(J).real, axis=1), 700.0)))
+        excess = rho / rho_c
+        worst = int(np.argmax(excess))
+        error = float(max(_distance(a, expm(dt * b)) for a, b in zip(Phi, J))) if accuracy else None
+        return float(rho.max()), float(rho_c[worst]), float(excess[worst]), error
+
+    def stable(self, p, dt):
+        return self.radii(p, dt)[2] <= 1 + TOL
+
+
+def _distance(a, b):
+    """||a - b||_2, inf when not finite."""
+    d = a - b
+    return float(np.linalg.norm(d, 2)) if np.all(np.isfinite(d)) else math.inf
+
+
+def _largest(ok, lo, hi, grow):
+    """(largest v >= lo with ok(v), True) -- ok(lo) assumed: while ok(hi), hi x4 (at most
+    ``grow`` times; (the last hi, False) if never unstable), then bisect."""
+    if ok(hi):
+        for _ in range(grow):
+            lo, hi = hi, 4 * hi
+            if not ok(hi):
+                break
+        else:
+            return hi, False
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo, True
+
+
+def _max_stable(lin, p, idx, dt):
+    """(largest stable value of the gain at slots ``idx`` (all scaled together, others fixed),
+    whether an unstable value was found); (None, True) when unstable even at 0."""
+    v0 = _gain_value(p, idx)
+    base = p[idx] / v0 if v0 > 0 else np.ones(len(idx))
+
+    def ok(v):
+        q = p.copy()
+        q[idx] = base * v
+        return lin.stable(q, dt)
+    if not ok(0.0):
+        return None, True
+    return _largest(ok, 0.0, v0 if v0 > 0 else 1.0, round(math.log(GROWTH, 4)))
+
+
+def _compute(spec, disc, p, gains, bounds=True):
+    lin = _Linearisation(spec, disc)
+    rho, flow, excess, step_error = lin.radii(p, disc.dt, accuracy=True)
+    idx = {g: [spec.p_names.index(s) for s in slots] for g, slots in gains.items()}
+    negative = [g for g, i in idx.items() if np.any(p[i] < 0)]
+    # a step that is not finite at p (e.g. a guard parameter that rejects every pivot) is not
+    # judged here: the C reports it at run time (status 3); growth is what this check refuses
+    evaluable = math.isfinite(rho)
+    stable = (excess <= 1 + TOL or not evaluable) and not negative
+    report = {"gains": {}}
+    for g, i in idx.items():
+        top, found = _max_stable(lin, p, i, disc.dt) if bounds else (None, False)
+        report["gains"][g] = {"value": _gain_value(p, i), "slots": list(gains[g]), "max_stable": top,
+                              "limit_found": found}
+    report.update({
+        "stable": stable, "spectral_radius": rho, "flow_radius": flow, "step_error": step_error,
+        "negative": negative, "points": lin.S, "evaluable": evaluable})
+    if bounds and not stable and not negative:
+        dt_max = _largest(lambda dt: lin.stable(p, dt), 0.0, disc.dt, 0)[0]
+        report["dt_max"] = dt_max if dt_max > 0 else None
+        report["substeps_needed"] = math.ceil(disc.dt / dt_max) if dt_max > 0 else None
+    return report
+
+
+def _digest(spec):
+    """Digests of the spec's functions: the check depends on nothing else of the spec."""
+    from ..core.cache import key_digest
+    fns = [spec.rhs, spec.rhs_split, spec.output, spec.init, spec.jump, spec.rate, spec.measurement]
+    return key_digest([f.serialize() if f is not None else None for f in fns]
+                      + [list(spec.rate_states), spec.inputs.to_dict()])
+
+
+def check(spec, disc, p=None, cache=True, bounds=True):
+    """The discrete stability and accuracy of ``spec`` under ``disc`` (module docstring).
+
+    Parameters
+    ----------
+    spec : ObserverSpec
+    disc : codegen.core.target.Discretization
+    p : (np,) array, optional
+        Parameters (default ``spec.p_default``).
+    cache : bool
+        Keep the result on disk (codegen.core.cache), keyed by the spec's functions, p and disc.
+    bounds : bool
+        Also bisect for the largest stable gains (and, when unstable, dt and substeps); False:
+        only the verdict and radii at p (``max_stable`` None).
+
+    Returns
+    -------
+    StabilityReport
+    """
+    p = np.asarray(spec.p_default if p is None else p, dtype=float).reshape(spec.np)
+    if spec.nx == 0 or spec.ny == 0:
+        # a stateless law has nothing to diverge; a plant (no measurement) is no observer: its
+        # step is the simulation's business (codegen.evaluate.sim), not checked here
+        return StabilityReport(stable=True, spectral_radius=0.0, flow_radius=1.0, step_error=0.0, dt=disc.dt,
+                               method=disc.method, hold=disc.hold, substeps=disc.substeps,
+                               checked=spec.nx == 0)
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"{spec.family}: non-finite parameter(s) "
+                         f"{[n for n, v in zip(spec.p_names, p) if not np.isfinite(v)]}")
+    key = {"version": VERSION, "spec": _digest(spec), "disc": disc.to_dict(), "p": p.tolist(),
+           "gains": {g: list(s) for g, s in spec.gains.items()}, "points": POINTS, "bounds": bounds}
+
+    def compute():
+        return _compute(spec, disc, p, spec.gains, bounds)
+    value = cached_json("stability", key, compute) if cache else compute()
+    return StabilityReport(dt=disc.dt, method=disc.method, hold=disc.hold, substeps=disc.substeps,
+                           **value)
+
+
+def require_stable(spec, disc, p=None):
+    """``check(spec, disc, p)`` (p: parameters (np,) or None for the spec's defaults), raising
+    UnstableDiscretization (its message) when unstable."""
+    report = check(spec, disc, p)
+    if not report.stable:
+        raise UnstableDiscretization(f"{spec.family}: " + report.message(spec.family))
+    return report
+
+
+def auto_substeps(spec, disc, p=None, limit=64):
+    """The discretisation with the smallest substeps (>= disc.substeps, <= limit) that is stable.
+
+    Parameters
+    ----------
+    spec : ObserverSpec
+    disc : codegen.core.target.Discretization
+        The requested one (dt, method, hold, substeps).
+    p : (np,) array or None
+        Parameters; None: the spec's defaults.
+    limit : int
+        Largest substeps tried.
+
+    Returns
+    -------
+    codegen.core.target.Discretization
+        Raises UnstableDiscretization when none is, or when a gain is negative.
+    """
+    from dataclasses import replace
+    report = check(spec, disc, p)
+    if report.stable:
+        return disc
+    if report.negative or not report.substeps_needed:
+        raise UnstableDiscretization(f"{spec.family}: " + report.message(spec.family))
+    m = report.substeps_needed * disc.substeps
+    while m <= limit:
+        candidate = replace(disc, substeps=m)
+        if check(spec, candidate, p).stable:
+            return candidate
+        m += 1
+    raise UnstableDiscretization(f"{spec.family}: no substeps <= {limit} is stable; "
+                                 + report.message(spec.family))
+
+
+def stable_defaults(spec, disc, margin=0.9):
+    """``spec`` with its designed default gains inside the stable region of ``disc``: while the
+    check fails, each declared gain (in order) whose largest stable value is below it is set to
+    ``margin`` times that value. For the families' designs ("the design never returns an
+    unstable default"); gains given explicitly are checked at compile time instead.
+
+    Returns
+    -------
+    (spec, StabilityReport) -- the spec itself when it is stable."""
+    from dataclasses import replace
+    report = check(spec, disc)
+    for gain, slots in spec.gains.items():
+        if report.stable:
+            break
+        g = report.gains[gain]
+        if not g["max_stable"] or not g["limit_found"] or g["max_stable"] >= g["value"]:
+            continue
+        idx = [spec.p_names.index(s) for s in slots]
+        p = spec.p_default.copy()
+        p[idx] *= margin * g["max_stable"] / g["value"]
+        spec = replace(spec, p_default=p)
+        report = check(spec, disc)
+    return spec, report

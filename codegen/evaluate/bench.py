@@ -1,0 +1,378 @@
+"""Every benchmark: `python -m codegen bench` and `make bench` (timings and ratios; tests never
+assert a speed).
+
+    observer_rhs     ns per observer RHS and step of the default targets (C timing program)
+                     against pinocchio's native ``aba``, as ratios; the default discretisation's
+                     step against the plain RK4 zero-order-hold step of the same target
+    seed000_loop     wall time of the Example-1a closed loop, observers as C and as the reference
+    seed003_ii_ur5   the I&I speed observer on ur5 (seed003) and the AOV one (seed003_aov):
+                     generation, C size, compile (kernel file at -O2, one job; gate 1 MB, 30 s
+                     CPU), ns per RHS and step vs the reference
+    seed004_cg       Ciccarella-Germani O1 on elastic robots: generation, C size, compile (also
+                     the kernel file at -O2, one job), cross-check,
+                     ns per RHS vs the reference, gates
+    sweep_ur5        the 500-cell ur5 sweep in-process, on 1 and on 2 Dask workers: cells/s, ratio
+    generate         `make generate` from scratch (empty build cache, new process): wall time
+                     and each target's stage times, against the 60 s budget
+
+``main`` prints the table and the scenario rows and writes them as JSON
+({"observer_rhs": [...], "scenarios": {"seed000": ..., "seed003": ..., "seed004": [...]}}).
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..pipeline.compile import compile_library, work_dir
+from ..core.target import Discretization
+
+BENCH_GATES_NS = {"seed004_3r": 5000.0, "ur5": 50000.0}   # CG O1 rhs, ns per call
+
+
+def _emit(spec, disc, check=True):
+    """Emit ``spec`` under ``disc`` into build/bench (``check``: the discrete stability check of
+    emit): (target folder, bytes of its C)."""
+    from ..pipeline.emit import emit
+    target = emit(spec.target(disc), work_dir() / "bench", spec=spec, check=check)
+    return target, int(sum(p.stat().st_size for p in Path(target).glob("*.c")))
+
+
+def compile_kernels(target, opt="-O2"):
+    """Seconds (wall, CPU) of ``cc <opt> -c`` on the target's CasADi kernel file alone: one job,
+    the flags of ``build`` otherwise. CPU seconds are the figure on a shared machine.
+
+    Parameters
+    ----------
+    target : path of generated/<prefix>/
+    opt : optimisation flag (last, so it wins)
+
+    Returns
+    -------
+    (float, float)
+    """
+    import resource
+    import tempfile
+
+    from ..pipeline.compile import c_flags, compiler, run_tool
+    kernels = next(Path(target).glob("*_kernels.c"))
+    with tempfile.TemporaryDirectory() as tmp:
+        cpu0, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+        run_tool([compiler().path, *c_flags(extra=["-fPIC", opt]), "-c", kernels,
+                  "-o", Path(tmp) / "kernels.o"], f"compiling {kernels.name}")
+        wall, cpu1 = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime)
+    return round(wall, 2), round(cpu, 2)
+
+
+def _time_rhs(fn, args, repeat=20):
+    """Median ns per call of fn(*args) over ``repeat`` calls (warm-up excluded)."""
+    fn(*args)
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn(*args)
+        ts.append(time.perf_counter() - t0)
+    return float(np.median(ts) * 1e9)
+
+
+# ---------------------------------------------------------------------------- observer RHS vs pin
+def observer_rhs(robots=("ur5", "panda"), native=False):
+    """Default reduced-order targets timed by the C program (``harness.time_target``) against
+    pinocchio's ``aba`` (``harness.time_pin``): the default discretisation (ETD-RK4, first-order
+    hold, dt = 1e-3) and, in the same run, the plain RK4 zero-order-hold step it replaced.
+
+    Parameters
+    ----------
+    robots : sequence of catalog names with a URDF source
+    native : bool, add -march=native
+
+    Returns
+    -------
+    list of dict
+        robot, ns_rhs, ns_step (default), ns_rk4_zoh_step, ns_pin_aba and the ratios RHS/aba,
+        step/aba and step/(RK4 zoh step).
+    """
+    from models import load_robot
+
+    from ..verify import c_programs as harness
+    from ..pipeline.targets_file import default_spec
+    rows = []
+    for name in robots:
+        src, spec = load_robot(name).source, default_spec(name)
+        ns = {}
+        for key, disc in (("default", Discretization(dt=1e-3)),
+                          ("rk4_zoh", Discretization(dt=1e-3, method="rk4", substeps=1, hold="zoh"))):
+            target, _ = _emit(spec, disc)
+            compile_library(target, native=native)
+            ns[key] = harness.time_target(target)
+        pin = harness.time_pin(src["path"], list(src.get("locked_joints", {})))
+        ours = ns["default"]
+        rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_step": ours["ns_per_step"],
+                     "ns_rk4_zoh_step": ns["rk4_zoh"]["ns_per_step"], "ns_pin_aba": pin["ns_aba"],
+                     "ratio_rhs_over_aba": ours["ns_per_rhs"] / pin["ns_aba"],
+                     "ratio_step_over_aba": ours["ns_per_step"] / pin["ns_aba"],
+                     "ratio_step_over_rk4_zoh": ours["ns_per_step"] / ns["rk4_zoh"]["ns_per_step"]})
+    return rows
+
+
+# ---------------------------------------------------------------------------- scenarios
+def seed000_loop(T=20.0):
+    """Wall time of Example 1a's loop (plant at 1e-4 s + reduced-order + Nicosia–Tomei at 1 kHz,
+    noisy sensor, compiled law (18)) over T seconds, observers as C and as the numpy reference.
+    Setup (design, generation, compilation; cached after the first call) is timed separately."""
+    from ..families.observers import build as build_observer
+    from .sim.engine import simulate
+    from .scenarios import seed000 as S
+    from .sim.sensors import Sensor
+    out = {"T_s": T, "samples": int(round(T / S.DT)) + 1}
+    for key, ref in (("c", False), ("reference", True)):
+        t0 = time.perf_counter()
+        specs = [build_observer(f, S.robot(), eta=S.ETA, v_max=S.VMAX, design=S.PAPER) for f in ("reduced_order", "nicosia_tomei")]
+        obs = {sp.family: S.observer(sp, ref) for sp in specs}
+        pl, law = S.plant(), S.open_loop_law(1)
+        t1 = time.perf_counter()
+        simulate(pl, S.Q0, S.QD0, T, S.DT, law, obs, sensor=Sensor(**S.NOISE_1A, seed=1))
+        t2 = time.perf_counter()
+        out[f"{key}_setup_s"], out[f"{key}_run_s"] = round(t1 - t0, 3), round(t2 - t1, 3)
+    return out
+
+
+def seed003_ii_ur5(family="ii_speed", robot="ur5", N=8, native=False, wrap="auto", opt="-O2"):
+    """ur5 I&I RHS in C vs the numpy/pin reference (``family``: "ii_speed" or "ii_aov"): generation,
+    emit and compile times, C size, the kernel file's compile time alone (``compile_kernels``:
+    ``opt``, one job) and ns per RHS and per step, at the default discretisation. Gate (issue 12):
+    <= 1 MB of C and <= 30 s CPU at -O2. ``wrap``: the interval reduction of the quadrature
+    (ii_speed.build; "auto": ur5's revolute joints).
+
+    Emitted without the discrete stability check (emit(check=False)): at dt = 1e-3 both observers
+    are stiff on ur5 (the check finds spectral radius ~5 for I&I speed, ~1.6e3 for AOV at its
+    working points) and emit would refuse them; the C's size and speed do not depend on it.
+    ns per RHS and per step (``estimate``: the step's stages without advancing) through ctypes at
+    a plausible state (~1 us of call overhead); the C timing program drives this observer out of
+    range (timing errors). Sizes: the columns first inlined at every node made ii_speed 7.0 MB of
+    C, ~170 s CPU at -O2; AOV at the default discretisation was 1.9 MB, ~26 s before it shared
+    one column routine, a cheaper Cholesky velocity and the RHS between the step's stages.
+
+    ``robot``: catalog name; ``N``: Gauss-Legendre nodes [S003 (12)]; ``native``: -march=native.
+    Returns a dict of the figures and gates."""
+    import timeit
+
+    from models import load_robot
+
+    from ..families.observers import build as build_observer
+    from ..reference import reference_observer
+    from ..pipeline.load import load
+    rb = load_robot(robot)
+    t0 = time.perf_counter()
+    spec = build_observer(family, rb, N=N, wrap=wrap)
+    t_gen = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    disc = Discretization(dt=1e-3)
+    target, c_bytes = _emit(spec, disc, check=False)
+    t_emit = time.perf_counter() - t0
+    cc_wall, cc_cpu = compile_kernels(target, opt)
+    t0 = time.perf_counter()
+    lib = compile_library(target, native=native, extra_flags=[opt])
+    t_cc = time.perf_counter() - t0
+    rng = np.random.default_rng(0)
+    y = rb.sample_configurations(1, 1)[0]
+    r = spec.p_default[spec.p_names.index("r0")]
+    x = np.concatenate([rng.normal(size=rb.n), y + 0.1, rng.normal(size=rb.n), [r]])
+    u = np.zeros(rb.n)
+    ref, reps = reference_observer(spec, disc), 20
+    try:
+        t_ref = min(timeit.repeat(lambda: ref.rhs(x, y, u), number=reps, repeat=3)) / reps
+    except NotImplementedError:      # the AOV reference needs closed-form M, C (not ur5's URDF)
+        t_ref = None
+    obs = load(target, lib)
+    ns_rhs = _time_rhs(obs.rhs, (x, y, u), repeat=2000)
+    obs.state = x
+    ns_step = _time_rhs(obs.estimate, (y, u), repeat=500)
+    return {"observer": family, "robot": robot, "N": N, "wrap": list(spec.options.periodic),
+            "opt": opt, "rhs_instructions": int(spec.rhs.n_instructions()),
+            "generate_s": round(t_gen, 2), "emit_s": round(t_emit, 2), "compile_s": round(t_cc, 2),
+            "c_bytes": c_bytes, "kernels_compile_wall_s": cc_wall, "kernels_compile_cpu_s": cc_cpu,
+            "gate_1MB_30s": c_bytes <= 1e6 and cc_cpu <= 30.0,
+            "ns_per_rhs_ctypes": ns_rhs, "ns_per_step_ctypes": ns_step,
+            "ns_per_rhs_reference": t_ref and t_ref * 1e9, "speedup": t_ref and t_ref * 1e9 / ns_rhs,
+            "gate_1ms": ns_rhs <= 1e6}
+
+
+def seed003_ii_aov_ur5(**kwargs):
+    """``seed003_ii_ur5`` for the AOV observer (``kwargs`` as there)."""
+    return seed003_ii_ur5("ii_aov", **kwargs)
+
+
+def seed004_cg(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
+    """CG O1 on elastic robots: spec and C generation time, C size, compile time, a cross-check
+    of the C rhs against the reference (exact hyper-duals for DH robots; for URDF robots
+    pinocchio's first-order ABA derivatives with central differences for the y4 rows of Q),
+    ns per C rhs call from the C timing program (``harness.time_target``: medians of blocks,
+    no Python in the loop), and ns per rhs of the reference path (numpy/pinocchio). Gates:
+    BENCH_GATES_NS, and the kernel file compiled by gcc -O2 -c in <= 30 s CPU
+    (``compile_kernels``). With RK4 the step calls the RHS routine (discretize.INLINE_LIMIT);
+    inlining its four stages, as before, made elastic ur5 1.0 MB of C, ~31 s CPU at -O2 for the
+    kernel file and a step ~4 times slower. Returns a list of dicts (one per robot).
+
+    ``robots``: elastic catalog names; ``method``, ``dt`` (s): the discretisation; ``checks``:
+    random states of the cross-check."""
+    import tempfile
+
+    from models.catalog import load_elastic
+
+    from ..verify.c_programs import time_target
+    from ..families.observers import ciccarella_germani
+    from ..reference import reference_observer
+    from ..pipeline.load import load
+    rows = []
+    for name in robots:
+        robot = load_elastic(name)
+        t0 = time.perf_counter()
+        # The gains are runtime parameters (the C is the same for any eigenvalues). The timing
+        # program drives the step with synthetic sinusoids (~250 rad/s at dt = 1e-4) that make
+        # the default high-gain observer overflow in its warm-up, so the defaults here are slow.
+        spec = ciccarella_germani.build(robot, "O1", eigenvalues=np.linspace(-1.0, -2.0, robot.nx))
+        t_spec = time.perf_counter() - t0
+        disc = Discretization(dt=dt, method=method, hold="zoh")
+        target, c_bytes = _emit(spec, disc)
+        t_gen = time.perf_counter() - t0
+        with tempfile.TemporaryDirectory() as tmp:   # a fresh cache: the real compile time
+            t1 = time.perf_counter()
+            compile_library(target, cache=tmp)
+            t_cc = time.perf_counter() - t1
+        cc_wall, cc_cpu = compile_kernels(target, "-O2")
+        obs = load(target, compile_library(target))
+        ref = reference_observer(spec, disc)
+        rng = np.random.default_rng(0)
+        worst = 0.0
+        X = robot.sample_states(checks, seed=1)
+        for x in X:
+            y, u = x[:robot.n] + 0.01 * rng.normal(size=robot.n), 10 * rng.normal(size=robot.n)
+            want = ref.rhs(x, y, u)
+            worst = max(worst, float(np.linalg.norm(obs.rhs(x, y, u) - want) / np.linalg.norm(want)))
+        t2 = time.perf_counter()
+        timing = time_target(target, blocks=21, block_ms=10.0)
+        t_time = time.perf_counter() - t2
+        args = (X[0], X[0][:robot.n] + 0.01, np.ones(robot.n))
+        gate = BENCH_GATES_NS.get(name)
+        ns = float(timing["ns_per_rhs"])
+        rows.append({"robot": robot.name, "observer": "ciccarella_germani O1", "nx": robot.nx,
+                     "instructions_rhs": spec.rhs.n_instructions(),
+                     "spec_s": round(t_spec, 3), "generate_s": round(t_gen, 3), "c_bytes": c_bytes,
+                     "compile_s": round(t_cc, 2), "kernels_compile_O2_wall_s": cc_wall,
+                     "kernels_compile_O2_cpu_s": cc_cpu, "gate_compile_30s": cc_cpu <= 30.0,
+                     "timing_program_s": round(t_time, 2),
+                     "rhs_rel_err_vs_reference": worst,
+                     "reference_exact": bool(getattr(ref.robot, "exact", True)),
+                     "ns_rhs_c": ns, "ns_step_c": float(timing["ns_per_step"]),
+                     "ns_rhs_c_ctypes": _time_rhs(obs.rhs, args, repeat=2000),
+                     "ns_rhs_reference": _time_rhs(ref.rhs, args, repeat=20),
+                     "gate_ns_rhs": gate, "gate_ok": None if gate is None else ns <= gate})
+    return rows
+
+
+def generate_from_scratch(targets=None, jobs=None, budget_s=60.0):
+    """Wall time of `python -m codegen generate -c targets.toml` in a new process with an empty
+    build folder (so an empty compile cache), as on a fresh clone after the venv.
+
+    Parameters
+    ----------
+    targets : path, optional
+        The targets file (default ./targets.toml: `make bench` runs in the checkout).
+    jobs : int, optional
+        Parallel processes (default: generate's, one per core).
+    budget_s : float
+        The budget the issue sets (s).
+
+    Returns
+    -------
+    dict
+        wall_s, budget_s, within_budget, cpus, and "targets": the line generate printed per target
+        (its stage times).
+    """
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    targets = Path(targets or "targets.toml").resolve()
+    root = Path(__file__).resolve().parents[3]          # the folder holding the codegen package
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, CODEGEN_BUILD=str(Path(tmp) / "build"), CODEGEN_CACHE="",
+                   PYTHONPATH=os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")])))
+        cmd = [sys.executable, "-m", "codegen", "generate", "-c", str(targets), "--out", str(Path(tmp) / "generated")]
+        cmd += ["-j", str(jobs)] if jobs else []
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"generate failed (exit {proc.returncode}):\n{proc.stderr.strip()[-2000:]}")
+    lines = [ln for ln in proc.stdout.splitlines() if " design " in ln]
+    return {"wall_s": round(wall, 1), "budget_s": budget_s, "within_budget": wall <= budget_s,
+            "cpus": os.cpu_count(), "jobs": jobs or "default", "targets": lines}
+
+
+
+def sweep_ur5(path=None, modes=(0, 1, 2)):
+    """The example sweep (``sweeps/ur5_quantisation.toml``: reduced-order on MuJoCo's ur5, 500
+    cells) computed in-process (0), on a LocalCluster of 1 and of 2 workers: cells/s of each
+    (cluster start and worker imports excluded, true runs included), cells per CPU-second of the
+    cell computations (what a mode costs per cell, whatever else the machine runs), their ratio
+    (the cores the mode had: on a shared machine the 2 workers may get no more than 1), the
+    2-vs-1-worker ratio (issue 14 asks >= 1.7) and whether every mode gave identical rows.
+    ``path``: the sweep file (default the example); ``modes``: worker counts (0: in-process)."""
+    import tempfile
+
+    from . import sweep
+    path = Path(path or "sweeps/ur5_quantisation.toml")      # `make bench` runs in the checkout
+    row, frames = {"sweep": path.name}, []
+    with tempfile.TemporaryDirectory() as tmp:
+        for w in modes:
+            res = sweep.run(path, workers=w, out=Path(tmp) / f"w{w}", progress=False)
+            row["cells"] = res.cells
+            frame = res.frame()
+            mode = f"{w}w" if w else "in_process"
+            row[f"cells_per_s_{mode}"] = res.computed / res.seconds
+            row[f"cells_per_cpu_s_{mode}"] = len(frame) / frame["cpu_s"].sum()
+            row[f"cores_used_{mode}"] = row[f"cells_per_s_{mode}"] / row[f"cells_per_cpu_s_{mode}"]
+            frames.append(frame.drop(columns=["worker", "cpu_s"]))
+    if {1, 2} <= set(modes):
+        row["ratio_2w_over_1w"] = row["cells_per_s_2w"] / row["cells_per_s_1w"]
+    row["identical"] = all(f.equals(frames[0]) for f in frames)
+    return row
+
+
+SCENARIOS = {"seed000": seed000_loop, "seed003": seed003_ii_ur5, "seed003_aov": seed003_ii_aov_ur5,
+             "seed004": seed004_cg, "sweep_ur5": sweep_ur5}
+
+
+# ---------------------------------------------------------------------------- report
+def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, generate=True):
+    """Print the observer-RHS table, (``scenarios``) every scenario bench and (``generate``) the
+    time of `make generate` from scratch; with ``json_path`` also write the figures there.
+    ``robots``: catalog names of the table; ``native``: compile with -march=native.
+    Returns 0 (the CLI's exit status)."""
+    rows = observer_rhs(robots, native)
+    print(f"{'robot':8s} {'RHS ns':>9s} {'step ns':>9s} {'rk4/zoh ns':>11s} {'pin aba ns':>11s} {'RHS/aba':>8s} "
+          f"{'step/aba':>9s} {'step/rk4zoh':>12s}   (step: the default, ETD-RK4 with first-order hold)")
+    for r in rows:
+        print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_step']:9.1f} {r['ns_rk4_zoh_step']:11.1f} "
+              f"{r['ns_pin_aba']:11.1f} {r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f} "
+              f"{r['ratio_step_over_rk4_zoh']:12.3f}")
+    extra = {}
+    benches = dict(SCENARIOS if scenarios else {}, **({"generate": generate_from_scratch} if generate else {}))
+    for name, fn in benches.items():
+        print(f"\n{name}:", flush=True)
+        extra[name] = fn()
+        for row in (extra[name] if isinstance(extra[name], list) else [extra[name]]):
+            print("  " + "  ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
+                                   for k, v in row.items() if not isinstance(v, list)))
+            for k, v in ((k, v) for k, v in row.items() if isinstance(v, list)):
+                print("\n".join(f"    {k}: {item}" for item in v))
+    if json_path:
+        Path(json_path).write_text(json.dumps({"observer_rhs": rows, "scenarios": extra}, indent=2,
+                                              default=float))
+    return 0

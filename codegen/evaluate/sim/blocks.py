@@ -1,0 +1,78 @@
+"""Stepped blocks of the simulator: the one place that decides compiled C or numpy reference.
+
+Every observer, control law and plant of a scenario is a spec stepped under a stated
+``Discretization``; ``block`` turns the pair into something with reset/step/estimate/state
+(a ``CompiledObserver``, or the numpy ``ReferenceObserver`` with ``reference=True``), and
+``bind`` gives the simulation loops buffer-bound step/estimate calls for either kind.
+"""
+from __future__ import annotations
+
+HUGE_KERNEL = 50_000        # RHS instructions above which a kernel is compiled with HUGE_FLAGS
+HUGE_FLAGS = ("-O1",)       # ~100k instructions (I&I on ur5): -O3 takes > 8 min, -O1 about one
+
+
+def compiler_flags(spec):
+    """Extra compiler flags for a spec's kernel: HUGE_FLAGS above HUGE_KERNEL RHS instructions.
+
+    Parameters
+    ----------
+    spec : codegen.core.spec.ObserverSpec
+
+    Returns
+    -------
+    tuple of str
+    """
+    return HUGE_FLAGS if spec.rhs.n_instructions() > HUGE_KERNEL else ()
+
+
+def block(spec, disc, *, reference=False, prefix=None, inline="auto", out_dir=None):
+    """A spec as a stepped block: compiled C (default) or the numpy reference.
+
+    Parameters
+    ----------
+    spec : codegen.core.spec.ObserverSpec
+        Observer, control law or plant.
+    disc : codegen.core.target.Discretization
+        How it is stepped (dt in s, method, hold, substeps); stated by every caller, never
+        the library default.
+    reference : bool
+        True: ``codegen.reference.reference_observer`` (numpy + pin), else emitted C.
+    prefix : str, optional
+        Symbol prefix of the C (two variants of one family in one run need two).
+    inline : "auto" or bool
+        Code shape of the C step (codegen.discrete.discretize).
+    out_dir : path, optional
+        Folder of the generated target (default build/targets in the working folder).
+
+    Returns
+    -------
+    codegen.pipeline.load.CompiledObserver or codegen.reference.ReferenceObserver
+    """
+    from ...core.target import Discretization
+    if not isinstance(disc, Discretization):
+        raise TypeError(f"disc must be a codegen.core.target.Discretization, got {type(disc).__name__}")
+    if reference:
+        from ...reference import reference_observer
+        return reference_observer(spec, disc)
+    from ...pipeline.stages import compile_observer
+    return compile_observer(spec, disc, prefix=prefix, inline=inline, out_dir=out_dir,
+                            cflags=compiler_flags(spec))
+
+
+def bind(block, y, u, est):
+    """(step, estimate): calls without arguments that read the buffers ``y``, ``u`` and write
+    the block's estimate into ``est[:nest]``.
+
+    A compiled block calls its C entry points on the buffers (no per-call allocation or checks;
+    a non-zero C status still raises); the reference calls its methods on ``y[:ny]``, ``u[:nu]``.
+    """
+    if hasattr(block, "bind"):
+        return block.bind(y, u, est)
+    ny, nu, nest = block.ny, block.nu, block.nest
+
+    def step():
+        est[:nest] = block.step(y[:ny], u[:nu])
+
+    def estimate():
+        est[:nest] = block.estimate(y[:ny], u[:nu])
+    return step, estimate

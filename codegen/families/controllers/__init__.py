@@ -1,0 +1,49 @@
+"""Control laws the experiments need, as ObserverSpecs (stateless blocks, emitted like observers).
+
+| family               | law                                                        |
+|----------------------|------------------------------------------------------------|
+| seed000_torque_ex1   | open-loop torque of seed 000 Example 1 [S000 (18)]         |
+| seed000_torque_ex2   | open-loop torque of seed 000 Example 2 [S000 (19)]         |
+| seed000_tracking     | seed 000 Example-3 output-feedback law (SPEC §1.4)         |
+| spong_fl             | Spong's feedback linearisation (SPEC §9)                   |
+| spong_manifold       | Spong's integral-manifold controller (SPEC §10)            |
+"""
+from __future__ import annotations
+
+
+def _laws():
+    from . import seed000, spong
+    return {"seed000_torque_ex1": lambda robot, **kw: seed000.open_loop(robot, example=1, **kw),
+            "seed000_torque_ex2": lambda robot, **kw: seed000.open_loop(robot, example=2, **kw),
+            "seed000_tracking": seed000.tracking,
+            "spong_fl": spong.feedback_linearization,
+            "spong_manifold": spong.integral_manifold}
+
+
+FAMILIES = ("seed000_torque_ex1", "seed000_torque_ex2", "seed000_tracking", "spong_fl", "spong_manifold")
+ELASTIC = ("spong_fl", "spong_manifold")   # laws for an ElasticRobot (the others: a rigid one)
+
+
+def build(family, robot, **kwargs):
+    """The ObserverSpec of control law ``family`` for ``robot`` (keyword arguments recorded in
+    ``spec.build_args`` so that a Target can rebuild it).
+
+    Parameters
+    ----------
+    family : str
+        One of ``FAMILIES``.
+    robot : RobotModel or ElasticRobot
+    **kwargs
+        Arguments of the law's builder (gains, reference, saturation).
+
+    Returns
+    -------
+    codegen.core.spec.ObserverSpec
+    """
+    from ...core.spec import checked_args, plain
+    laws = _laws()
+    if family not in laws:
+        raise KeyError(f"unknown control law {family!r}; known: {', '.join(FAMILIES)}")
+    spec = laws[family](robot, **checked_args(kwargs))
+    spec.build_args = {k: plain(v) for k, v in kwargs.items()}
+    return spec

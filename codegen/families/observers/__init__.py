@@ -1,0 +1,38 @@
+"""Observer families: one module each, each with ``build(robot, **gains) -> ObserverSpec``.
+
+A family is any module of this package with a ``build`` function; adding a file adds a family.
+"""
+from __future__ import annotations
+
+import importlib
+import pkgutil
+
+from ...core.spec import checked_args, plain
+
+FAMILIES = sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
+__all__ = ["FAMILIES", "build"]
+
+
+def build(family, robot, **gains):
+    """ObserverSpec of an observer family for a robot; gains designed when not given.
+
+    Parameters
+    ----------
+    family : str
+        One of ``FAMILIES`` (a module of this package).
+    robot : models.RobotModel or models.elastic.ElasticRobot
+        The robot the observer is built for.
+    **gains
+        Keyword arguments of the family's ``build`` (gains, design inputs, options); recorded
+        as plain data in ``spec.build_args`` so that a ``Target`` can rebuild the spec.
+
+    Returns
+    -------
+    codegen.core.spec.ObserverSpec
+    """
+    if family not in FAMILIES:
+        raise KeyError(f"unknown observer family {family!r}; known: {', '.join(FAMILIES)}")
+    spec = importlib.import_module(f"{__name__}.{family}").build(robot, **checked_args(gains))
+    spec.build_args = {k: plain(v) for k, v in gains.items()}
+    return spec
+

@@ -1,0 +1,88 @@
+"""Reduced-order velocity observer of Cristofaro & De Luca (seed 000, SPEC §1.1).
+
+    M(y) z' = -C(y, x2hat) x2hat - F x2hat - g(y) - M(y) (dk/dy) x2hat + tau     [S000 (6)]
+    x2hat   = z + k(y),   k(y) = k0 y                                            [S000 (9)]
+
+so z' = FD(y, x2hat, tau) - k0 x2hat with FD the robot's forward dynamics.
+State x = z, measurement y = q, input u = tau, parameter p = [k0], estimate x2hat.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+from ..design import reduced_order_design, reduced_order_gain
+from ...core.spec import ObserverSpec, split_flow
+from ._design import check_design, design_discretization, stable_report
+
+
+def flow(robot, z, y_cfg, y, tau, k):
+    """(x2hat, z') of the observer with gain k(y) = k y, k a scalar SX  [S000 (6),(9)], for ``robot``
+    at state z, measurement y = q and torque ``tau`` (SX vectors (n,)), the model (M, C, g, F)
+    at the configuration ``y_cfg`` (y itself in the continuous-time observer; ObserverSpec.rhs_split).
+
+    Shared by the hybrid family (reduced_order_hybrid), where k is the scheduled k_r."""
+    x2hat = z + k * y                                                # [S000 (9)]
+    zdot = robot.forward_dynamics(y_cfg, x2hat, tau) - k * x2hat     # [S000 (6)] with dk/dy = k I
+    return x2hat, zdot
+
+
+def build(robot, k0=None, eta=1.0, v_max=2.0, noise=None, quantization=None, uncertainty=0.0,
+          design="noise", dt=None, t_conv=0.2):
+    """Reduced-order observer for ``robot``.
+
+    Parameters
+    ----------
+    robot : RobotModel
+    k0 : float, optional
+        The gain (1/s); given, it bypasses the design (not the stability check at compile time).
+    eta, v_max : float
+        (12)'s error radius and speed bound (rad/s); v_max is also the initial error of the
+        convergence floor (the estimate starts at 0, the robot at up to v_max).
+    noise, quantization : float or None
+        Gaussian std and quantisation step of the measured q (rad); both None: a 2^16 counts/rev
+        encoder (codegen.families.design.noise).
+    uncertainty : float
+        Relative error of the model's masses and inertias (0.1 = 10 %).
+    design : {"noise", "guarantee"}
+        The default k0: the predicted-error minimiser (report: codegen.families.design.NoiseAwareDesign)
+        or (12).
+    dt : float, optional
+        Sample time the default is designed for (default: codegen.core.target.DEFAULT_DISCRETIZATION).
+    t_conv : float
+        Time (s) to fall below 1e-2 rad/s from v_max (the floor of the noise-aware gain).
+    """
+    report = None
+    if k0 is None:
+        disc = design_discretization(dt)
+        if check_design(design) == "guarantee":
+            report = reduced_order_gain(robot, eta=eta, v_max=v_max).as_dict()
+            k0 = report["k0"]
+        else:
+            nd = reduced_order_design(robot, disc.dt, noise, quantization, uncertainty, eta, v_max, t_conv)
+            report, k0 = nd.as_dict(), nd.k0
+    spec = _spec(robot, k0, report)
+    return spec if report is None else stable_report(spec, disc)
+
+
+def _spec(robot, k0, report):
+    n = robot.n
+    z, y, y_cfg, tau = ca.SX.sym("z", n), ca.SX.sym("y", n), ca.SX.sym("y_cfg", n), ca.SX.sym("tau", n)
+    k, k_new = ca.SX.sym("k0"), ca.SX.sym("k0_new")
+    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k)
+    rhs, rhs_split = split_flow(z, y_cfg, y, tau, k, zdot)
+    y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
+    q = [f"q_{j}" for j in robot.joint_names]
+    return ObserverSpec(
+        family="reduced_order", robot=robot,
+        x_names=[f"z_{j}" for j in robot.joint_names], y_names=q,
+        u_names=[f"tau_{j}" for j in robot.joint_names], p_names=["k0"],
+        est_names=[f"qd_hat_{j}" for j in robot.joint_names], p_default=[k0],
+        rhs=rhs, rhs_split=rhs_split,
+        output=ca.Function("output", [z, y, tau, k], [x2hat]),
+        init=ca.Function("init", [y0, est0, k], [est0 - k * y0]),  # [CODE-KUKA] z(0) = x2hat(0) - k0 y(0)
+        # z' = [FD(y, x2hat) - k0^2 y] - k0 z: the gain rate k0 on every z, integrated exactly
+        rate=ca.Function("rate", [z, k], [k]), rate_states=[f"z_{j}" for j in robot.joint_names],
+        # bumpless retuning: z+ = z + (k0_old - k0_new) y keeps x2hat continuous [DERIVED, SPEC §1.3]
+        retune=ca.Function("retune", [z, y, k, k_new], [z + (k - k_new) * y]), gains={"k0": ("k0",)},
+        design=report or {"k0": float(k0), "given": True},
+    )

@@ -1,0 +1,294 @@
+"""ctypes loader: CompiledObserver with step() and run(), the loop of run() in C.
+
+Buffers are preallocated once; ``step`` copies y and u into them and calls the C step.
+Bad input (shape, NaN/Inf) raises before reaching C; a non-zero C status raises
+ObserverError naming the status. A single-precision target (metadata "precision": "float")
+gets float32 buffers: inputs are rounded to float32 at the boundary (a value beyond float32's
+range is refused), results come back as float64 arrays.
+"""
+from __future__ import annotations
+
+import ctypes as ct
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .compile import verify
+
+REALS = {"double": (np.float64, ct.c_double), "float": (np.float32, ct.c_float)}  # precision -> types
+
+
+class ObserverError(RuntimeError):
+    """A C function returned a non-zero status; the observer state is as it was before the call
+    (a failing run() is rolled back to its start)."""
+
+
+def _floats(name, value, expected):
+    """value as a float64 array, or ValueError naming ``name``: text, dicts, complex numbers
+    and integers beyond a double are refused (numpy would raise without the name, or silently
+    drop an imaginary part)."""
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as e:              # ragged nesting
+        raise ValueError(f"{name}: expected {expected}, got {type(value).__name__} ({e})") from None
+    if a.dtype.kind == "c" or (a.dtype.kind == "O" and any(isinstance(v, complex) for v in a.flat)):
+        raise ValueError(f"{name}: expected {expected}, got complex numbers")
+    try:
+        if a.dtype.kind not in "biufO":
+            raise TypeError(a.dtype)
+        return a.astype(float)
+    except OverflowError:
+        raise ValueError(f"{name}: a value is too large for a double (expected {expected})") from None
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected {expected}, got {type(value).__name__} "
+                         f"{str(value)[:60]!r}") from None
+
+
+def _as_real(name, a, dtype):
+    """Finite float64 ``a`` as ``dtype``, or ValueError naming ``name`` if it overflows there."""
+    if dtype == np.float64:
+        return a
+    with np.errstate(over="ignore"):
+        r = a.astype(dtype)
+    if not np.all(np.isfinite(r)):
+        raise ValueError(f"{name}: value {a[~np.isfinite(r)][0]:g} outside the {np.dtype(dtype).name} range")
+    return r
+
+
+def as_vector(name, value, size, dtype=np.float64):
+    """value as a finite vector of length size and type ``dtype``, or ValueError naming ``name``."""
+    a = _floats(name, value, f"{size} real numbers")
+    if a.shape not in ((size,), (size, 1), (1, size)):
+        raise ValueError(f"{name}: expected shape ({size},), got {np.shape(value)}")
+    a = a.reshape(size)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: contains NaN or Inf: {a}")
+    return _as_real(name, a, dtype)
+
+
+def as_matrix(name, value, cols, rows=None, dtype=np.float64):
+    """value as a finite C-contiguous (rows, cols) matrix of type ``dtype``, or ValueError naming ``name``."""
+    a = _floats(name, value, f"an (N, {cols}) array of real numbers")
+    if a.ndim != 2 or a.shape[1] != cols or (rows is not None and a.shape[0] != rows):
+        want = f"({rows if rows is not None else 'N'}, {cols})"
+        raise ValueError(f"{name}: expected shape {want}, got {np.shape(value)}")
+    if not np.all(np.isfinite(a)):
+        bad = np.argwhere(~np.isfinite(a))[0]
+        raise ValueError(f"{name}: NaN or Inf at row {bad[0]}, column {bad[1]}")
+    return np.ascontiguousarray(_as_real(name, a, dtype))
+
+
+class CompiledObserver:
+    """A generated observer loaded from its shared library.
+
+    ``obs.reset(y0, est0=None, p=None)``, ``obs.step(y, u) -> est``, ``obs.run(Y, U) -> EST``,
+    ``obs.rhs(x, y, u)``; ``obs.state``, ``obs.params``; ``obs.meta`` is the target's metadata.
+
+    New parameters (``obs.params = p``, ``reset(..., p=p)``) are checked for discrete stability:
+    with ``obs.spec`` known (``compile_observer`` attaches it) by the full check
+    (codegen.discrete.stability), otherwise against the bounds recorded in the metadata (each gain
+    >= 0 and below its largest stable value, the others at their defaults). Setting them is
+    bumpless: the C transforms the state so that the estimate at the last measurement is kept.
+    Results are float64 arrays whatever the target's precision (``obs.dtype`` is the C's).
+    """
+
+    spec = None
+
+    def __init__(self, lib_path, meta):
+        self.lib_path = Path(lib_path).resolve()
+        self.meta = meta if isinstance(meta, dict) else json.loads(Path(meta).read_text())
+        self.prefix = self.meta["prefix"]
+        s = self.meta["sizes"]
+        self.nx, self.ny, self.nu, self.np, self.nest = s["nx"], s["ny"], s["nu"], s["np"], s["nest"]
+        self.dt = self.meta["discretization"]["dt"]
+        self.status_names = {v: k for k, v in self.meta["status"].items()}
+        self.precision = self.meta.get("precision", "double")
+        self.dtype, ctype = REALS[self.precision]
+        R = ct.POINTER(ctype)
+        self._R = R
+        lib = ct.CDLL(str(verify(self.lib_path)))  # absolute path: never LD_LIBRARY_PATH
+        f = lambda name: getattr(lib, f"{self.prefix}_{name}")  # noqa: E731
+        self._lib = lib
+        self._state_size = f("state_size")
+        self._state_size.restype = ct.c_long
+        self._init, self._step, self._run, self._rhs = f("init"), f("step"), f("run"), f("rhs")
+        self._estimate = f("estimate")
+        self._estimate.argtypes = [ct.c_void_p, R, R, R]
+        self._set_params, self._get_state, self._set_state = f("set_params"), f("get_state"), f("set_state")
+        self._get_params = f("get_params")
+        self._init.argtypes = [ct.c_void_p, R, R, R]
+        self._step.argtypes = [ct.c_void_p, R, R, R]
+        self._run.argtypes = [ct.c_void_p, ct.c_long, R, R, R, ct.POINTER(ct.c_long)]
+        self._rhs.argtypes = [ct.c_void_p, R, R, R, R]
+        for g in (self._set_params, self._get_params, self._get_state, self._set_state):
+            g.argtypes = [ct.c_void_p, R]
+        self._default_params = f("default_params")
+        self._default_params.argtypes = [R]
+        self._default_params.restype = None
+        # preallocated buffers
+        self._s = ct.create_string_buffer(self._state_size())
+        self._buf = {k: np.zeros(max(1, m), self.dtype) for k, m in
+                     (("y", self.ny), ("u", self.nu), ("est", self.nest), ("x", self.nx),
+                      ("xdot", self.nx), ("p", self.np))}
+        self._ptr = {k: v.ctypes.data_as(R) for k, v in self._buf.items()}
+        self._default_params(self._ptr["p"])
+        self.p_default = self._out("p", self.np)
+        self.reset(np.zeros(self.ny))
+
+    # -------------------------------------------------------------- helpers
+    def _check(self, status, what):
+        if status != 0:
+            raise ObserverError(f"{self.prefix}_{what} returned {status} "
+                                f"({self.status_names.get(status, 'unknown')}); state unchanged")
+
+    def _load(self, key, name, value, size):
+        self._buf[key][:size] = as_vector(name, value, size, self.dtype)
+        return self._ptr[key]
+
+    def _out(self, key, size):
+        """A float64 copy of the first ``size`` entries of buffer ``key``."""
+        return self._buf[key][:size].astype(np.float64)
+
+    # -------------------------------------------------------------- API
+    def reset(self, y0, est0=None, p=None):
+        """Initialise from the first measurement y0 (ny,) and an initial estimate est0 (nest,)
+        (default zeros), with parameters ``p`` (np,) (default p_default; checked by
+        :meth:`check_params`)."""
+        y0 = as_vector("y0", y0, self.ny, self.dtype)
+        est0 = as_vector("est0", np.zeros(self.nest) if est0 is None else est0, self.nest, self.dtype)
+        p = as_vector("p", self.p_default if p is None else self.check_params(p), self.np, self.dtype)
+        arr = [np.ascontiguousarray(a) for a in (p, y0, est0)]
+        self._check(self._init(self._s, *(a.ctypes.data_as(self._R) for a in arr)), "init")
+
+    def step(self, y, u):
+        """Estimate at this sample from measurement y and input u; the state advances by dt."""
+        yp = self._load("y", "y", y, self.ny)
+        up = self._load("u", "u", u, self.nu)
+        self._check(self._step(self._s, yp, up, self._ptr["est"]), "step")
+        return self._out("est", self.nest)
+
+    def estimate(self, y, u):
+        """The estimate step(y, u) would return, without advancing the state."""
+        yp = self._load("y", "y", y, self.ny)
+        up = self._load("u", "u", u, self.nu)
+        self._check(self._estimate(self._s, yp, up, self._ptr["est"]), "estimate")
+        return self._out("est", self.nest)
+
+    def bind(self, y, u, est):
+        """Zero-copy calls on caller-owned C-contiguous buffers of ``obs.dtype`` (simulation loops):
+        ``y`` (>= ny), ``u`` (>= nu) and ``est`` (>= nest) entries (at least one each).
+
+        Returns (step, estimate): functions of no argument that run the C on the buffers' current
+        contents, write into ``est`` and raise ObserverError on a non-zero status. Python checks
+        nothing (the C still rejects non-finite input); keep the buffers alive while bound."""
+        for name, a, size in (("y", y, self.ny), ("u", u, self.nu), ("est", est, self.nest)):
+            if not (isinstance(a, np.ndarray) and a.dtype == self.dtype and a.flags.c_contiguous
+                    and a.size >= max(1, size)):
+                raise ValueError(f"{name}: need a C-contiguous {np.dtype(self.dtype).name} array of at "
+                                 f"least {max(1, size)} entries")
+        args = (self._s, *(a.ctypes.data_as(self._R) for a in (y, u, est)))
+        c_step, c_est, check = self._step, self._estimate, self._check
+
+        def step():
+            st = c_step(*args)
+            if st:
+                check(st, "step")
+
+        def estimate():
+            st = c_est(*args)
+            if st:
+                check(st, "estimate")
+        return step, estimate
+
+    def c_step(self, y, u):
+        """The raw C step on measurement ``y`` (ny,) and input ``u`` (nu,), no Python-side checks:
+        returns (status, est). For tests of the C."""
+        self._buf["y"][: self.ny] = np.asarray(y, float).reshape(-1)[: self.ny]
+        self._buf["u"][: self.nu] = np.asarray(u, float).reshape(-1)[: self.nu]
+        st = self._step(self._s, self._ptr["y"], self._ptr["u"], self._ptr["est"])
+        return st, self._out("est", self.nest)
+
+    def run(self, Y, U):
+        """Many samples at once (rows of Y, U); the loop runs in C. Returns EST (N, nest).
+
+        On a non-zero status at sample k, ObserverError names k, and the C has rolled the
+        state back to what it was before the call."""
+        Y = as_matrix("Y", Y, self.ny, dtype=self.dtype)
+        U = as_matrix("U", U, self.nu, rows=len(Y), dtype=self.dtype)
+        EST = np.empty((len(Y), self.nest), self.dtype)
+        done = ct.c_long(0)
+        st = self._run(self._s, len(Y), *(a.ctypes.data_as(self._R) for a in (Y, U, EST)), ct.byref(done))
+        if st != 0:
+            raise ObserverError(f"{self.prefix}_run stopped at sample {done.value} with status {st} "
+                                f"({self.status_names.get(st, 'unknown')}); state rolled back to "
+                                f"before the run")
+        return EST.astype(np.float64, copy=False)
+
+    def rhs(self, x, y, u):
+        """Continuous-time right-hand side xdot (nx,) at state ``x`` (nx,), measurement ``y`` (ny,) and
+        input ``u`` (nu,), with the current parameters."""
+        xp = self._load("x", "x", x, self.nx)
+        yp = self._load("y", "y", y, self.ny)
+        up = self._load("u", "u", u, self.nu)
+        self._check(self._rhs(self._s, xp, yp, up, self._ptr["xdot"]), "rhs")
+        return self._out("xdot", self.nx)
+
+    @property
+    def state(self):
+        """The observer state (nx,) (a float64 copy)."""
+        self._check(self._get_state(self._s, self._ptr["x"]), "get_state")
+        return self._out("x", self.nx)
+
+    @state.setter
+    def state(self, x):
+        """Set the observer state to ``x`` (nx,) (finite)."""
+        self._check(self._set_state(self._s, self._load("x", "x", x, self.nx)), "set_state")
+
+    @property
+    def params(self):
+        """The runtime parameters (np,) in the order of meta["names"]["p"]."""
+        self._check(self._get_params(self._s, self._ptr["p"]), "get_params")
+        return self._out("p", self.np)
+
+    @params.setter
+    def params(self, p):
+        """Set the runtime parameters to ``p`` (np,), checked by :meth:`check_params` (bumpless)."""
+        p = self.check_params(p)
+        self._check(self._set_params(self._s, self._load("p", "p", p, self.np)), "set_params")
+
+    def check_params(self, p):
+        """p as a finite vector, refused (codegen.discrete.stability.UnstableDiscretization, a ValueError)
+        when the discrete observer would be unstable with it (see the class docstring)."""
+        from ..discrete.stability import UnstableDiscretization, require_stable
+        from ..core.target import Discretization
+        p = as_vector("p", p, self.np)
+        disc = Discretization.from_dict({k: v for k, v in self.meta["discretization"].items() if k != "hybrid"})
+        if self.spec is not None:
+            require_stable(self.spec, disc, p)
+            return p
+        names = self.meta["names"]["p"]
+        for gain, g in ((self.meta.get("stability") or {}).get("gains") or {}).items():
+            idx = [names.index(s) for s in g["slots"]]
+            value = float(np.max(p[idx]))
+            top = g["max_stable"] if g["limit_found"] else None
+            if np.any(p[idx] < 0) or (top is not None and value > top):
+                raise UnstableDiscretization(
+                    f"{self.prefix}: {gain} = {value:.6g} at dt = {disc.dt:g} with {disc.method}: outside the "
+                    f"recorded stable range 0 <= {gain} <= {top if top is not None else 'inf'} (the other "
+                    f"parameters at their defaults)")
+        return p
+
+    def __repr__(self):
+        return f"<CompiledObserver {self.prefix} nx={self.nx} dt={self.dt} {self.precision}>"
+
+
+def load(target_dir, lib_path):
+    """CompiledObserver from the generated folder ``target_dir`` and its built library ``lib_path``,
+    with the metadata the library was built from (kept beside it by ``codegen.pipeline.compile.build``; else
+    the folder's)."""
+    lib_path = Path(lib_path)
+    meta = lib_path.parent / f"{lib_path.stem.removeprefix('lib')}.json"
+    if not meta.is_file():
+        meta = next(iter(sorted(Path(target_dir).glob("*.json"))))
+    return CompiledObserver(lib_path, json.loads(meta.read_text()))

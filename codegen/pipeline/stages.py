@@ -1,0 +1,125 @@
+"""The one sequence every target goes through: design, emit, compile, then load.
+
+``compile_observer`` (Python), ``jobs.make`` (`generate`, `build`, `check`) and the cross-check
+all run ``make``; ``STAGES`` names its steps in order (``report`` hears each as it starts).
+
+    made = make(target, out_dir)                  # Made(target, spec, folder, lib)
+    obs = compile_observer(spec, dt=1e-3)         # make, then load: a CompiledObserver
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from ..core.cache import work_dir
+from ..core.target import Target
+from .compile import compile_library
+from .emit import check_folder, emit, with_params
+from .load import load
+from .targets_file import build_spec
+
+STAGES = ("design", "emit", "compile")
+
+
+@dataclass(frozen=True)
+class Made:
+    """What ``make`` produced: the target, its spec (parameters applied), the generated folder
+    and the compiled library."""
+
+    target: Target
+    spec: object
+    folder: Path
+    lib: Path
+
+
+def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), report=lambda stage: None):
+    """Design (unless ``spec`` is given), emit and compile ``target`` into ``out_dir/<prefix>/``.
+
+    Parameters
+    ----------
+    target : codegen.core.target.Target
+    out_dir : path
+        Parent folder of the generated folder.
+    spec : codegen.core.spec.ObserverSpec, optional
+        The spec ``target`` describes, when already built.
+    force : bool
+        Replace a folder generated from another target; False: raise FolderTaken, before the
+        (slow) design.
+    native : bool
+        Compile with -march=native.
+    cflags : sequence of str
+        Extra compiler flags.
+    report : callable
+        Called with each stage's name as it starts.
+
+    Returns
+    -------
+    Made
+    """
+    folder = Path(out_dir) / target.prefix
+    if not force:
+        check_folder(folder, target)
+    report("design")
+    spec = with_params(spec if spec is not None else build_spec(target), target.params)
+    report("emit")
+    emit(target, out_dir, spec=spec, force=True)
+    report("compile")
+    return Made(target, spec, folder, compile_library(folder, native=native, extra_flags=cflags))
+
+
+def compile_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,
+                     out_dir=None, prefix=None, native=False, inline="auto", precision=None, cflags=()):
+    """Emit, compile and load an observer as C.
+
+    Parameters
+    ----------
+    spec : codegen.core.spec.ObserverSpec or codegen.core.target.Target
+        What to build (a Target is built into its spec first).
+    discretization : codegen.core.target.Discretization or dict, optional
+        How to step it; default ``codegen.core.target.DEFAULT_DISCRETIZATION`` (or the Target's own).
+        ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields;
+        ``substeps="auto"``: the fewest substeps that make the discrete observer stable.
+    out_dir : path, optional
+        Where the generated folder goes (default build/targets in the working folder).
+    prefix : str, optional
+        Symbol prefix and folder name (default ``<robot>_<family>[_<variant>]``).
+    native : bool
+        Add -march=native.
+    inline : "auto" or bool
+        Code shape of the step (see codegen.discrete.discretize).
+    precision : {"double", "float"}, optional
+        Real type of the C (default "double", or the Target's own).
+    cflags : sequence of str
+        Extra compiler flags (e.g. ("-O1",) to compile a very large kernel quickly).
+
+    Returns
+    -------
+    codegen.pipeline.load.CompiledObserver
+        Loaded from the content-hash cache: compiling the same target twice costs one generation.
+        Its ``spec`` is attached, so ``obs.params = ...`` runs the full stability check.
+
+    Raises
+    ------
+    codegen.discrete.stability.UnstableDiscretization
+        (a ValueError) when the discretised observer is unstable for its parameters, naming the
+        gain, dt and the fix.
+    """
+    from ..discrete.stability import auto_substeps
+
+    auto = substeps == "auto"
+    over = dict(dt=dt, method=method, substeps=None if auto else substeps, hold=hold)
+    if isinstance(spec, Target):
+        changes = {k: v for k, v in (("name", prefix), ("precision", precision)) if v is not None}
+        changes.update({} if inline == "auto" else {"inline": inline})
+        target = replace(spec.with_discretization(discretization, **over), **changes)
+        spec = build_spec(target)
+    else:
+        target = spec.target(discretization, name=prefix, inline=inline, precision=precision or "double",
+                             **over)
+    if auto:
+        checked = with_params(spec, target.params) if target.params else spec
+        target = replace(target, discretization=auto_substeps(checked, target.discretization))
+    made = make(target, out_dir or (work_dir() / "targets"), spec=spec, native=native, cflags=cflags)
+    obs = load(made.folder, made.lib)
+    obs.spec = spec
+    return obs
