@@ -1,5 +1,5 @@
 """observer-codegen (python -m codegen): list | generate | build | check | simulate | compare |
-sweep | bench | sanitize | embedded.
+sweep | bench | sanitize | cortex_m.
 
 `generate`, `build`, `check` and `embedded` take the same targets: catalog robots or a URDF with
 options, a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the
@@ -224,8 +224,8 @@ def cmd_embedded(args):
     RAM, peak stack, instructions per step and the difference from the host build, recorded in
     each target's JSON and printed as a table.
     ``args``: the parsed argparse namespace; returns the exit status."""
-    from .verify import cortex_m as embedded
-    missing = embedded.missing_packages()
+    from .verify import cortex_m
+    missing = cortex_m.missing_packages()
     if missing:
         print(f"error: ARM toolchain missing; install it with: apt-get install {' '.join(missing)} "
               "(`make embedded` does)", file=sys.stderr)
@@ -239,7 +239,7 @@ def cmd_embedded(args):
     rows, targets = [], _targets(args)
     for target, out in tqdm(targets, desc="embedded", unit="target", file=sys.stderr, leave=False, disable=None):
         spec = with_params(build_spec(target), target.params)
-        for prefix, rec in embedded.verify_target(spec, target, out, steps=args.steps):
+        for prefix, rec in cortex_m.verify_target(spec, target, out, steps=args.steps):
             rows.append(rec)
             tqdm.write(f"{prefix:46s} {rec['cpu']:10s} {rec['flash_bytes'] / 1024:8.1f} {rec['static_ram_bytes']:7d} "
                        f"{rec['stack_peak_bytes']:7d} {rec['instructions_per_step']:9d} "

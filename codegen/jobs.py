@@ -94,7 +94,7 @@ def make(job, report=lambda stage: None):
 def _run(spec, target, folder, lib, T):
     """The C harness (run_csv) and ctypes over T seconds of ``check.trajectory_inputs``; the
     estimate's error against the truth at the first and last sample, when there is one."""
-    from .verify import c_programs as harness
+    from .verify import c_programs
     from .pipeline.compile import work_dir
     from .verify.inputs import trajectory_inputs
     from .pipeline.load import load
@@ -104,9 +104,9 @@ def _run(spec, target, folder, lib, T):
     work = work_dir() / "demo"
     work.mkdir(parents=True, exist_ok=True)
     csv_in, csv_out = work / f"{target.prefix}_in.csv", work / f"{target.prefix}_out.csv"
-    harness.write_csv(csv_in, t, run.Y, run.U)
-    harness.run_csv(folder, csv_in, csv_out)
-    _, EST = harness.read_csv(csv_out)
+    c_programs.write_csv(csv_in, t, run.Y, run.U)
+    c_programs.run_csv(folder, csv_in, csv_out)
+    _, EST = c_programs.read_csv(csv_out)
     obs = load(folder, lib)
     obs.reset(run.Y[0])
     out = {"harness_equal": bool(np.array_equal(obs.run(run.Y, run.U), EST)), "T": float(t[-1])}

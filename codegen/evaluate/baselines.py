@@ -19,17 +19,7 @@ import math
 
 import numpy as np
 
-from ..pipeline.load import as_matrix, as_vector
-
-
-def _positive(name, value):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}") from None
-    if isinstance(value, bool) or not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return v
+from ..core.arrays import as_matrix, as_vector, positive
 
 
 class Baseline:
@@ -50,7 +40,7 @@ class Baseline:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"n must be a positive integer (joints), got {n!r}")
         self.n = self.ny = self.nu = self.nest = int(n)
-        self.dt = _positive("dt", dt)
+        self.dt = positive("dt", dt)
         self._x = np.zeros(self.nx)
         self.reset(np.zeros(self.n))
 
@@ -152,8 +142,8 @@ class Butterworth(Baseline):
 
     def __init__(self, n, dt, cutoff=50.0, order=2):
         from scipy import signal
-        dt = _positive("dt", dt)
-        self.cutoff = _positive("cutoff", cutoff)
+        dt = positive("dt", dt)
+        self.cutoff = positive("cutoff", cutoff)
         if self.cutoff >= 0.5 / dt:
             raise ValueError(f"cutoff must be below the Nyquist frequency {0.5 / dt:g} Hz "
                              f"(dt = {dt:g} s), got {cutoff!r}")
@@ -228,9 +218,9 @@ class Kalman(Baseline):
     tuned = "q"
 
     def __init__(self, n, dt, q=1e3, r=1e-8, v0=10.0, a0=100.0):
-        self.q, self.r = _positive("q", q), _positive("r", r)
-        self.v0, self.a0 = _positive("v0", v0), _positive("a0", a0)
-        dt = _positive("dt", dt)
+        self.q, self.r = positive("q", q), positive("r", r)
+        self.v0, self.a0 = positive("v0", v0), positive("a0", a0)
+        dt = positive("dt", dt)
         self._A = np.array([[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
         self._Q = white_jerk_covariance(dt, self.q)
         super().__init__(n, dt)
@@ -312,7 +302,7 @@ class Levant(Baseline):
     tuned = "L"
 
     def __init__(self, n, dt, L=100.0, order=2):
-        self.L = _positive("L", L)
+        self.L = positive("L", L)
         if order not in LEVANT_LAMBDAS:
             raise ValueError(f"order must be one of {sorted(LEVANT_LAMBDAS)}, got {order!r}")
         self.order = int(order)
@@ -320,7 +310,7 @@ class Levant(Baseline):
         lam = LEVANT_LAMBDAS[m]
         self._gain = np.array([lam[m - i] * self.L ** ((i + 1) / (m + 1)) for i in range(m + 1)])
         self._power = np.array([(m - i) / (m + 1) for i in range(m + 1)])
-        dt = _positive("dt", dt)
+        dt = positive("dt", dt)
         # Taylor matrix T[i, j] = dt^(j-i) / (j-i)! for j >= i
         self._T = np.array([[dt ** (j - i) / math.factorial(j - i) if j >= i else 0.0
                              for j in range(m + 1)] for i in range(m + 1)])

@@ -80,8 +80,8 @@ def _time_rhs(fn, args, repeat=20):
 
 # ---------------------------------------------------------------------------- observer RHS vs pin
 def observer_rhs(robots=("ur5", "panda"), native=False):
-    """Default reduced-order targets timed by the C program (``harness.time_target``) against
-    pinocchio's ``aba`` (``harness.time_pin``): the default discretisation (ETD-RK4, first-order
+    """Default reduced-order targets timed by the C program (``c_programs.time_target``) against
+    pinocchio's ``aba`` (``c_programs.time_pin``): the default discretisation (ETD-RK4, first-order
     hold, dt = 1e-3) and, in the same run, the plain RK4 zero-order-hold step it replaced.
 
     Parameters
@@ -97,7 +97,7 @@ def observer_rhs(robots=("ur5", "panda"), native=False):
     """
     from models import load_robot
 
-    from ..verify import c_programs as harness
+    from ..verify import c_programs
     from ..pipeline.targets_file import default_spec
     rows = []
     for name in robots:
@@ -107,8 +107,8 @@ def observer_rhs(robots=("ur5", "panda"), native=False):
                           ("rk4_zoh", Discretization(dt=1e-3, method="rk4", substeps=1, hold="zoh"))):
             target, _ = _emit(spec, disc)
             compile_library(target, native=native)
-            ns[key] = harness.time_target(target)
-        pin = harness.time_pin(src["path"], list(src.get("locked_joints", {})))
+            ns[key] = c_programs.time_target(target)
+        pin = c_programs.time_pin(src["path"], list(src.get("locked_joints", {})))
         ours = ns["default"]
         rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_step": ours["ns_per_step"],
                      "ns_rk4_zoh_step": ns["rk4_zoh"]["ns_per_step"], "ns_pin_aba": pin["ns_aba"],
@@ -210,7 +210,7 @@ def seed004_cg(robots=("seed004_3r", "ur5"), method="rk4", dt=1e-4, checks=5):
     """CG O1 on elastic robots: spec and C generation time, C size, compile time, a cross-check
     of the C rhs against the reference (exact hyper-duals for DH robots; for URDF robots
     pinocchio's first-order ABA derivatives with central differences for the y4 rows of Q),
-    ns per C rhs call from the C timing program (``harness.time_target``: medians of blocks,
+    ns per C rhs call from the C timing program (``c_programs.time_target``: medians of blocks,
     no Python in the loop), and ns per rhs of the reference path (numpy/pinocchio). Gates:
     BENCH_GATES_NS, and the kernel file compiled by gcc -O2 -c in <= 30 s CPU
     (``compile_kernels``). With RK4 the step calls the RHS routine (discretize.INLINE_LIMIT);

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.arrays import as_matrix, as_vector
 from .compile import verify
 
 REALS = {"double": (np.float64, ct.c_double), "float": (np.float32, ct.c_float)}  # precision -> types
@@ -22,61 +23,6 @@ REALS = {"double": (np.float64, ct.c_double), "float": (np.float32, ct.c_float)}
 class ObserverError(RuntimeError):
     """A C function returned a non-zero status; the observer state is as it was before the call
     (a failing run() is rolled back to its start)."""
-
-
-def _floats(name, value, expected):
-    """value as a float64 array, or ValueError naming ``name``: text, dicts, complex numbers
-    and integers beyond a double are refused (numpy would raise without the name, or silently
-    drop an imaginary part)."""
-    try:
-        a = np.asarray(value)
-    except (TypeError, ValueError) as e:              # ragged nesting
-        raise ValueError(f"{name}: expected {expected}, got {type(value).__name__} ({e})") from None
-    if a.dtype.kind == "c" or (a.dtype.kind == "O" and any(isinstance(v, complex) for v in a.flat)):
-        raise ValueError(f"{name}: expected {expected}, got complex numbers")
-    try:
-        if a.dtype.kind not in "biufO":
-            raise TypeError(a.dtype)
-        return a.astype(float)
-    except OverflowError:
-        raise ValueError(f"{name}: a value is too large for a double (expected {expected})") from None
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected {expected}, got {type(value).__name__} "
-                         f"{str(value)[:60]!r}") from None
-
-
-def _as_real(name, a, dtype):
-    """Finite float64 ``a`` as ``dtype``, or ValueError naming ``name`` if it overflows there."""
-    if dtype == np.float64:
-        return a
-    with np.errstate(over="ignore"):
-        r = a.astype(dtype)
-    if not np.all(np.isfinite(r)):
-        raise ValueError(f"{name}: value {a[~np.isfinite(r)][0]:g} outside the {np.dtype(dtype).name} range")
-    return r
-
-
-def as_vector(name, value, size, dtype=np.float64):
-    """value as a finite vector of length size and type ``dtype``, or ValueError naming ``name``."""
-    a = _floats(name, value, f"{size} real numbers")
-    if a.shape not in ((size,), (size, 1), (1, size)):
-        raise ValueError(f"{name}: expected shape ({size},), got {np.shape(value)}")
-    a = a.reshape(size)
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: contains NaN or Inf: {a}")
-    return _as_real(name, a, dtype)
-
-
-def as_matrix(name, value, cols, rows=None, dtype=np.float64):
-    """value as a finite C-contiguous (rows, cols) matrix of type ``dtype``, or ValueError naming ``name``."""
-    a = _floats(name, value, f"an (N, {cols}) array of real numbers")
-    if a.ndim != 2 or a.shape[1] != cols or (rows is not None and a.shape[0] != rows):
-        want = f"({rows if rows is not None else 'N'}, {cols})"
-        raise ValueError(f"{name}: expected shape {want}, got {np.shape(value)}")
-    if not np.all(np.isfinite(a)):
-        bad = np.argwhere(~np.isfinite(a))[0]
-        raise ValueError(f"{name}: NaN or Inf at row {bad[0]}, column {bad[1]}")
-    return np.ascontiguousarray(_as_real(name, a, dtype))
 
 
 class CompiledObserver:

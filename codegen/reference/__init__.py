@@ -32,6 +32,7 @@ import pkgutil
 
 import numpy as np
 
+from ..core.arrays import as_matrix, as_vector
 from ..core.options import options_from_dict
 from ..core.target import discretization as as_discretization
 from . import discretize, families
@@ -70,20 +71,6 @@ def reference_observer(spec, discretization=None, *, dt=None, method=None, subst
     return ReferenceObserver(desc, disc)
 
 
-def _vector(value, n, name):
-    """A finite float64 vector of n entries, or ValueError naming the argument."""
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a float vector of shape ({n},): {exc}") from None
-    if a.shape not in ((n,), (n, 1), (1, n)) and not (n == 0 and a.size == 0):
-        raise ValueError(f"{name} must have shape ({n},), got {a.shape}")
-    a = a.reshape(n)
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be a finite vector of shape ({n},), got {a}")
-    return a
-
-
 def _jacobian(f, x, rel=1e-6):
     """Central-difference Jacobian of f at x (steps rel max(1, |x_j|))."""
     cols = []
@@ -93,23 +80,6 @@ def _jacobian(f, x, rel=1e-6):
         e[j] = h
         cols.append((np.asarray(f(x + e), float) - np.asarray(f(x - e), float)) / (2 * h))
     return np.column_stack(cols) if cols else np.zeros((0, 0))
-
-
-def _matrix(value, N, n, name, n_rows_name="N"):
-    """A finite float64 array of shape (N, n) (N None: any), or ValueError naming it."""
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a float array of shape ({n_rows_name}, {n}): {exc}") from None
-    if n == 0 and a.size == 0:
-        return np.zeros((N if N is not None else 0, 0))
-    if a.ndim != 2 or a.shape[1] != n or (N is not None and a.shape[0] != N):
-        rows = n_rows_name if N is None else N
-        raise ValueError(f"{name} must have shape ({rows}, {n}), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        bad = np.argwhere(~np.isfinite(a))[0]
-        raise ValueError(f"{name} must be finite, got {a[tuple(bad)]} at row {bad[0]}")
-    return a
 
 
 class ReferenceObserver:
@@ -163,7 +133,7 @@ class ReferenceObserver:
                              f"reference family does not")
 
         self.gains = {g: list(slots) for g, slots in (desc.get("gains") or {}).items()}
-        self.p_default = _vector(desc["p_default"], self.np, "p_default")
+        self.p_default = as_vector("p_default", desc["p_default"], self.np)
         self._p = self.p_default.copy()
         self._x = None
         self._y_last = None   # the last measurement (set by reset and step), for retuning
@@ -180,7 +150,7 @@ class ReferenceObserver:
         unstable at the current state (``check_params``); the state is then transformed
         (``retune`` of the family, if any) so that the estimate at the last measurement is
         unchanged (bumpless retuning)."""
-        p = _vector(p, self.np, "p")
+        p = as_vector("p", p, self.np)
         x = self._retuned(p)
         self.check_params(p, x)
         self._x, self._p = x, p
@@ -199,7 +169,7 @@ class ReferenceObserver:
         (central differences) at most that of the exact linearised flow, exp(dt max Re eig J),
         J = (J(x) + J(x_next))/2 by central differences, or 1 (relative slack 1e-5).
         ValueError naming the gain, dt and method otherwise."""
-        p = _vector(p, self.np, "p")
+        p = as_vector("p", p, self.np)
         where = f"at dt = {self.dt:g} with {self.method}"
         for gain, slots in self.gains.items():
             values = p[[self.p_names.index(s) for s in slots]]
@@ -226,7 +196,7 @@ class ReferenceObserver:
                              f"{rho:.4g} > {rho_c:.4g} (the continuous-time observer's) at the current state")
 
     def _p_or(self, p):
-        return self._p if p is None else _vector(p, self.np, "p")
+        return self._p if p is None else as_vector("p", p, self.np)
 
     def rhs(self, x, y, u, p=None):
         """Flow xdot = rhs(x, y, u, p) of the continuous-time observer.
@@ -243,21 +213,21 @@ class ReferenceObserver:
         -------
         (nx,) array
         """
-        return self.family.rhs(self.robot, _vector(x, self.nx, "x"), _vector(y, self.ny, "y"),
-                               _vector(u, self.nu, "u"), self._p_or(p))
+        return self.family.rhs(self.robot, as_vector("x", x, self.nx), as_vector("y", y, self.ny),
+                               as_vector("u", u, self.nu), self._p_or(p))
 
     def output(self, x, y, u, p=None):
         """Estimate est = output(x, y, u, p) (nest,); arguments as in ``rhs``."""
-        return self.family.output(self.robot, _vector(x, self.nx, "x"), _vector(y, self.ny, "y"),
-                                  _vector(u, self.nu, "u"), self._p_or(p))
+        return self.family.output(self.robot, as_vector("x", x, self.nx), as_vector("y", y, self.ny),
+                                  as_vector("u", u, self.nu), self._p_or(p))
 
     def jump(self, x, y, p=None):
         """Hybrid jump map x+ = jump(x, y, p) (nx,), the identity for non-hybrid families;
         arguments as in ``rhs``."""
-        x = _vector(x, self.nx, "x")
+        x = as_vector("x", x, self.nx)
         if not self.hybrid:
             return x
-        return self.family.jump(self.robot, x, _vector(y, self.ny, "y"), self._p_or(p))
+        return self.family.jump(self.robot, x, as_vector("y", y, self.ny), self._p_or(p))
 
     # ------------------------------------------------------------ discrete time
     @property
@@ -268,7 +238,7 @@ class ReferenceObserver:
     @state.setter
     def state(self, x):
         """Set the state to ``x`` (nx,) (ValueError naming x on a bad size or value)."""
-        self._x = _vector(x, self.nx, "x")
+        self._x = as_vector("x", x, self.nx)
 
     def reset(self, y0, est0=None, p=None):
         """Start the observer: x = init(y0, est0, p).
@@ -287,9 +257,9 @@ class ReferenceObserver:
         (nx,) array
             A copy of the state.
         """
-        y0 = _vector(y0, self.ny, "y0")
-        est0 = np.zeros(self.nest) if est0 is None else _vector(est0, self.nest, "est0")
-        p = self.p_default.copy() if p is None else _vector(p, self.np, "p")
+        y0 = as_vector("y0", y0, self.ny)
+        est0 = np.zeros(self.nest) if est0 is None else as_vector("est0", est0, self.nest)
+        p = self.p_default.copy() if p is None else as_vector("p", p, self.np)
         x0 = np.asarray(self.family.init(self.robot, y0, est0, p), dtype=float).reshape(self.nx)
         if not np.all(np.isfinite(x0)):
             raise FloatingPointError(f"non-finite initial state {x0}")
@@ -340,8 +310,8 @@ class ReferenceObserver:
         (nest,) array
         """
         self._require_reset()
-        y = _vector(y, self.ny, "y")
-        u = _vector(u, self.nu, "u")
+        y = as_vector("y", y, self.ny)
+        u = as_vector("u", u, self.nu)
         est, self._x = self._advance(self._x, self._prev, y, u)
         self._prev, self._y_last = (y, u), y
         return est
@@ -349,7 +319,7 @@ class ReferenceObserver:
     def estimate(self, y, u):
         """The estimate (nest,) ``step(y, u)`` would return, without advancing the state."""
         self._require_reset()
-        y, u = _vector(y, self.ny, "y"), _vector(u, self.nu, "u")
+        y, u = as_vector("y", y, self.ny), as_vector("u", u, self.nu)
         return self._advance(self._x, self._prev, y, u)[0]
 
     def run(self, Y, U):
@@ -365,8 +335,8 @@ class ReferenceObserver:
         (N, nest) array
         """
         self._require_reset()
-        Y = _matrix(Y, None, self.ny, "Y")
-        U = _matrix(U, Y.shape[0], self.nu, "U")
+        Y = as_matrix("Y", Y, self.ny)
+        U = as_matrix("U", U, self.nu, rows=Y.shape[0])
         x, prev = self._x, self._prev
         EST = np.empty((Y.shape[0], self.nest))
         for k in range(Y.shape[0]):

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.recording import read_columns, write_columns
 from ..pipeline.compile import (CompileError, ToolError, c_flags, cached_build, compiler, digest, package_data,
                     read_target, run_tool)
 from ..pipeline.compile import work_dir as default_build_dir
@@ -305,14 +306,14 @@ def time_pin(urdf, locked_joints=(), blocks=51, block_ms=15.0, work_dir=None, mo
 # CSV files
 
 def write_csv(path, t, Y, U, y_names=None, u_names=None):
-    """Write the run_csv input: header, then rows t, y_1..y_NY, u_1..u_NU (%.17g, exact).
+    """Write the run_csv input: header, then rows t, y_1..y_NY, u_1..u_NU (exact decimal form;
+    ``codegen.core.recording.write_columns``).
 
     path: the CSV written; t: (n,) s; Y: (n, NY) (a 1-D Y is one column); U: (n, NU) likewise
     (NU may be 0); y_names, u_names: column names (default y0.., u0..)."""
     t = np.asarray(t, dtype=float).ravel()
     n = t.size
-    cols = [t[:, None]]
-    names = ["t"]
+    columns = {"t": t}
     for label, A, given in (("Y", Y, y_names), ("U", U, u_names)):
         A = np.asarray(A, dtype=float)
         if A.ndim == 1:
@@ -325,25 +326,13 @@ def write_csv(path, t, Y, U, y_names=None, u_names=None):
         nm = list(given) if given is not None else [f"{base}{i}" for i in range(k)]
         if len(nm) != k:
             raise ValueError(f"{base}_names: expected {k} names, got {len(nm)}")
-        cols.append(A)
-        names += nm
-    data = np.hstack(cols)
-    with open(path, "w") as f:
-        f.write(",".join(names) + "\n")
-        np.savetxt(f, data, fmt="%.17g", delimiter=",")
-    return Path(path)
+        columns.update({name: A[:, i] for i, name in enumerate(nm)})
+    return write_columns(path, columns)
 
 
 def read_csv(path):
     """Read run_csv's output file ``path``: returns (t of shape (n,), EST of shape (n, NEST))."""
-    with open(path) as f:
-        header = f.readline()
-        if not header:
-            raise ValueError(f"{path}: empty file")
-        ncol = header.count(",") + 1
-        data = np.loadtxt(f, delimiter=",", ndmin=2)
-    if data.size == 0:
-        data = np.zeros((0, ncol))
+    _, data = read_columns(path, error=ValueError)
     return data[:, 0].copy(), data[:, 1:].copy()
 
 

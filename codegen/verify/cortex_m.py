@@ -4,8 +4,8 @@
 Bytes room: this module knows CPUs, boards and files, nothing of any particular observer.
 
     from codegen import embedded
-    embedded.missing_packages()                       # Debian packages still to install
-    rec = embedded.verify("generated/ur5_reduced_order_float", "m4f", Y, U)
+    cortex_m.missing_packages()                       # Debian packages still to install
+    rec = cortex_m.verify("generated/ur5_reduced_order_float", "m4f", Y, U)
     rec["instructions_per_step"], rec["rel_diff_host"], rec["stack_peak_bytes"]
 
 The firmware (``firmware.c``, ``startup.c``, ``mps2.ld``) is built, and its QEMU command line
@@ -32,11 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import newlib_libm as embedded_libm
+from . import newlib_libm
 from ..pipeline.compile import CompileError, ToolError, compile_library, package_data, run_tool
 from ..pipeline.compile import work_dir as default_build_dir
 from ..pipeline.emit import MATH_FUNCTIONS
 from ..pipeline.load import load
+from .measure import run_relative_error
 
 FIRMWARE_SRC = package_data("c_harness") / "cortex_m"
 # CPU of the firmware Makefile -> (name, the precision its FPU runs)
@@ -64,7 +65,7 @@ def missing_packages():
     missing = []
     for pkg, probe in PACKAGES.items():
         if probe.endswith(".tar.xz"):
-            ok = bool(sorted(embedded_libm.NEWLIB_SOURCE.glob(probe)))
+            ok = bool(sorted(newlib_libm.NEWLIB_SOURCE.glob(probe)))
         elif probe == "libc.a":
             gcc = shutil.which("arm-none-eabi-gcc")
             ok = gcc and Path(subprocess.run([gcc, "-print-file-name=libc.a"], capture_output=True,
@@ -207,14 +208,6 @@ def run(fw, Y, U, precision, timeout=120):
     return rec
 
 
-def run_relative_error(a, b):
-    """max |a - b| / max |b| over a whole run (NaN if anything is not finite)."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
-        return float("nan")
-    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), np.finfo(float).tiny))
-
-
 def verify(target_dir, cpu, Y, U, host=None, double=None, work_dir=None):
     """Build, run and measure a target on an emulated Cortex-M; compare with the host build.
 
@@ -265,13 +258,13 @@ def verify(target_dir, cpu, Y, U, host=None, double=None, work_dir=None):
            "rel_diff_host": run_relative_error(out["est"], host), "tolerance": TOLERANCE[precision],
            "bit_identical": bool(np.array_equal(out["est"], host)),
            "double_routines": linked_double_routines(fw["elf"]) if precision == "float" else [],
-           "libm_members": embedded_libm.linked_members(fw["elf"].parent / "firmware.map"),
+           "libm_members": newlib_libm.linked_members(fw["elf"].parent / "firmware.map"),
            "rel_diff_host_newlib": None, "bit_identical_newlib": None}
-    reason = embedded_libm.unavailable()
+    reason = newlib_libm.unavailable()
     if reason:
         rec["newlib_unavailable"] = reason
     else:
-        newlib = host_run(target_dir, Y, U, libm=embedded_libm.host_libm(fw))
+        newlib = host_run(target_dir, Y, U, libm=newlib_libm.host_libm(fw))
         rec["rel_diff_host_newlib"] = run_relative_error(out["est"], newlib)
         rec["bit_identical_newlib"] = bool(np.array_equal(out["est"], newlib))
     if double is not None:
@@ -293,13 +286,13 @@ def host_run(target_dir, Y, U, libm=None):
         Measurements and inputs.
     libm : path, optional
         An object serving the math functions instead of the system's libm
-        (``embedded_libm.host_libm``); CompileError if the build still calls a rounding one of glibc.
+        (``newlib_libm.host_libm``); CompileError if the build still calls a rounding one of glibc.
 
     Returns
     -------
     ndarray (N, nest)"""
     lib = compile_library(target_dir, extra_flags=[str(libm)] if libm else ())
-    leaked = embedded_libm.glibc_calls(lib) if libm else []
+    leaked = newlib_libm.glibc_calls(lib) if libm else []
     if leaked:
         raise CompileError(f"{lib} still calls the system's {', '.join(leaked)} (not in {libm})")
     obs = load(target_dir, lib)

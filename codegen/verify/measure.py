@@ -1,4 +1,6 @@
-"""The error measure of every cross-check."""
+"""The error measures of every check: C against the reference (``relative_error``, per sample)
+and one build against another over a run (``run_relative_error``, scaled by the run's largest
+value: a float run's samples near zero have no relative meaning)."""
 from __future__ import annotations
 
 import numpy as np
@@ -23,3 +25,11 @@ def relative_error(a, b):
         return float("nan")
     nb = np.linalg.norm(b, axis=1)
     return float(np.max(np.linalg.norm(a - b, axis=1) / np.where(nb > 0, nb, 1.0)))
+
+
+def run_relative_error(a, b):
+    """max |a - b| / max |b| over a whole run (NaN if anything is not finite)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return float("nan")
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), np.finfo(float).tiny))

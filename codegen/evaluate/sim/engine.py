@@ -15,13 +15,12 @@ between blocks and calls the C entry points without per-step allocation or argum
 """
 from __future__ import annotations
 
-import csv
 import sys
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
+from ...core.recording import write_columns
 from .blocks import bind
 
 
@@ -59,46 +58,12 @@ class Result:
         return self.x[:, self.n:]
 
     def write_csv(self, path):
-        """Write the run to the CSV file ``path`` (see :func:`write_columns`), one row per sample:
+        """Write the run to the CSV file ``path`` (``codegen.core.recording.write_columns``), one row per sample:
         t, q, qd, y, u, then each observer's estimate and each logged state; returns the path."""
         cols = {"t": self.t, "q": self.q, "qd": self.qd, "y": self.y, "u": self.u}
         cols.update({f"{name}_est": E for name, E in self.est.items()})
         cols.update({f"{name}_x": S for name, S in self.states.items()})
         return write_columns(path, cols)
-
-
-def write_columns(path, columns):
-    """A CSV with one row per sample, written through a temporary file (nothing half-written).
-
-    Parameters
-    ----------
-    path : path of the CSV
-    columns : dict
-        name -> (N,) array (one column ``name``) or (N, k) array (columns ``name0`` ..
-        ``name{k-1}``); every array has the same N.
-
-    Returns
-    -------
-    pathlib.Path
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    names, blocks = [], []
-    for name, a in columns.items():
-        a = np.asarray(a, dtype=float)
-        if a.ndim == 1:
-            names.append(name)
-            blocks.append(a[:, None])
-        else:
-            names.extend(f"{name}{i}" for i in range(a.shape[1]))
-            blocks.append(a)
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(names)
-        w.writerows(np.hstack(blocks).tolist())
-    tmp.replace(path)
-    return path
 
 
 class Port:

@@ -13,7 +13,7 @@ from codegen.discrete.stability import UnstableDiscretization, auto_substeps, ch
 from codegen.core.target import DEFAULT_DISCRETIZATION, Discretization
 from models import load_robot
 
-DAMPED = Path(__file__).parent / "data" / "damped_arm.urdf"
+DAMPED = Path(__file__).parents[1] / "data" / "damped_arm.urdf"
 RK4 = Discretization(method="rk4")
 
 

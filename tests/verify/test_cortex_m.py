@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from codegen import compile_observer
-from codegen.verify import cortex_m as embedded, newlib_libm as embedded_libm
+from codegen.verify import cortex_m, newlib_libm
 from codegen.pipeline.compile import compile_library
 from codegen.pipeline.emit import emit
 
@@ -25,10 +25,10 @@ ARM_CFLAGS = "-mthumb -mcpu=cortex-m4 -mfpu=fpv4-sp-d16 -mfloat-abi=hard"
 def arm():
     """The ARM toolchain and QEMU, installed through `make arm-toolchain` (apt-get) when missing;
     the tests skip only when they are absent and cannot be installed (not root, no apt-get)."""
-    missing = embedded.missing_packages()
+    missing = cortex_m.missing_packages()
     if missing and shutil.which("apt-get") and os.geteuid() == 0:
         subprocess.run(["make", "-s", "-C", str(ROOT), "arm-toolchain"], capture_output=True)
-        missing = embedded.missing_packages()
+        missing = cortex_m.missing_packages()
     if missing:
         pytest.skip(f"ARM toolchain absent and not installable here: apt-get install {' '.join(missing)}")
 
@@ -71,9 +71,9 @@ def test_float_target_has_one_real_type_and_float_math(seed000, tmp_path):
     for kernels in (f"{f.name}_kernels.c", f"{f.name}_kernels.h"):     # casadi_real from the header
         assert f'#include "{f.name}.h"' in src[kernels] and f"#define casadi_real {f.name}_real" in src[kernels]
     need = _undefined(f, tmp_path)
-    assert need and not any(embedded.DOUBLE_ROUTINES.match(s) for s in need), need   # cosf, sincosf
+    assert need and not any(cortex_m.DOUBLE_ROUTINES.match(s) for s in need), need   # cosf, sincosf
     assert "double" in _sources(d)[f"{d.name}.h"]
-    assert any(embedded.DOUBLE_ROUTINES.match(s) for s in _undefined(d, tmp_path))   # cos, sincos
+    assert any(cortex_m.DOUBLE_ROUTINES.match(s) for s in _undefined(d, tmp_path))   # cos, sincos
     assert compile_library(f, strict=True, cache=tmp_path / "cache").exists()
 
 
@@ -87,7 +87,7 @@ def test_float_ii_quadrature_loops_stay_single_precision(tmp_path):
     f = emit(spec.target(precision="float"), tmp_path / "t", spec=spec)
     assert not any(re.search(r"\bdouble\b", text) for text in _sources(f).values())
     need = _undefined(f, tmp_path)
-    assert {"sinf", "sqrtf"} <= need and not any(embedded.DOUBLE_ROUTINES.match(s) for s in need), need
+    assert {"sinf", "sqrtf"} <= need and not any(cortex_m.DOUBLE_ROUTINES.match(s) for s in need), need
 
 
 def test_float_runtime_converts_at_the_boundary(spec_of):
@@ -117,14 +117,14 @@ def test_float_runtime_converts_at_the_boundary(spec_of):
 
 def test_c_harness_runs_a_float_target(seed000, tmp_path):
     """run_csv (no Python) on a float target gives the ctypes loader's estimates bit for bit."""
-    from codegen.verify import c_programs as harness
+    from codegen.verify import c_programs
     from codegen.pipeline.load import load
     folder = seed000["float"]
     t = np.arange(50) * 1e-3
     Y, U = np.column_stack([np.sin(t), np.cos(t)]), np.ones((50, 2))
-    harness.write_csv(tmp_path / "in.csv", t, Y, U)
-    harness.run_csv(folder, tmp_path / "in.csv", tmp_path / "out.csv", work_dir=tmp_path / "h")
-    _, est = harness.read_csv(tmp_path / "out.csv")
+    c_programs.write_csv(tmp_path / "in.csv", t, Y, U)
+    c_programs.run_csv(folder, tmp_path / "in.csv", tmp_path / "out.csv", work_dir=tmp_path / "h")
+    _, est = c_programs.read_csv(tmp_path / "out.csv")
     obs = load(folder, compile_library(folder))
     obs.reset(Y[0])
     assert np.array_equal(est, obs.run(Y, U))
@@ -154,7 +154,7 @@ def test_float_c_against_double_reference_over_10s(name, method, spec_of):
     obs = compile_observer(spec, precision="float", method=method)
     ref.reset(Q[0]), obs.reset(Q[0])
     want, got = ref.run(Q, TAU), obs.run(Q, TAU)
-    err = embedded.run_relative_error(got, want)
+    err = cortex_m.run_relative_error(got, want)
     cond = spec.params["k0"] * np.max(np.abs(Q)) / np.max(np.abs(want))
     bound = FLOAT_FACTOR[method] * EPS32 * (1 + cond)
     assert EPS32 / 2 < err <= bound, (err, bound, cond)    # float indeed, and within the bound
@@ -164,12 +164,12 @@ def test_float_c_against_double_reference_over_10s(name, method, spec_of):
 def test_firmware_runs_float_on_m4f_and_double_on_m7(arm, seed000, spec_of, tmp_path):
     from codegen.verify import run_inputs
     Y, U = run_inputs(spec_of("seed000_2r"), 200, 1e-3)
-    recs = {cpu: embedded.verify(seed000[prec], cpu, Y, U, work_dir=tmp_path)
-            for cpu, (_, prec) in embedded.CPUS.items()}
+    recs = {cpu: cortex_m.verify(seed000[prec], cpu, Y, U, work_dir=tmp_path)
+            for cpu, (_, prec) in cortex_m.CPUS.items()}
     for cpu, rec in recs.items():
         assert rec["ok"] and rec["steps"] == 200
         assert rec["rel_diff_host"] <= rec["tolerance"]
-        assert rec["bit_identical_newlib"] is (None if embedded_libm.unavailable() else True)
+        assert rec["bit_identical_newlib"] is (None if newlib_libm.unavailable() else True)
         assert abs(rec["instructions_per_tick"] - 40.0) < 0.4     # -icount shift=0 at 25 MHz
         assert 100 < rec["instructions_per_step"] <= rec["instructions_per_step_max"] < 5000
         assert 0 < rec["stack_peak_bytes"] < rec["stack_size_bytes"]
@@ -179,10 +179,10 @@ def test_firmware_runs_float_on_m4f_and_double_on_m7(arm, seed000, spec_of, tmp_
     dis = subprocess.run(["arm-none-eabi-objdump", "-d", str(elf)], capture_output=True, text=True).stdout
     called = set(re.findall(r"\tbl?\w*\s+[0-9a-f]+ <([\w.]+)>", dis))
     assert "sincosf" in called or "cosf" in called
-    assert not {c for c in called if embedded.DOUBLE_ROUTINES.match(c)}
+    assert not {c for c in called if cortex_m.DOUBLE_ROUTINES.match(c)}
     assert not re.search(r"\bv\w+\.f64\b", dis)                     # no double FPU instruction
     with pytest.raises(ValueError, match="cpu: m4f runs float targets"):
-        embedded.verify(seed000["double"], "m4f", Y, U, work_dir=tmp_path)
+        cortex_m.verify(seed000["double"], "m4f", Y, U, work_dir=tmp_path)
 
 
 def test_host_build_with_newlibs_math_is_the_m7_bit_for_bit(arm, tmp_path):
@@ -192,36 +192,36 @@ def test_host_build_with_newlibs_math_is_the_m7_bit_for_bit(arm, tmp_path):
     on this machine's glibc; whether a run meets one depends on the gains and on the glibc)."""
     from codegen.verify import run_inputs
     from codegen.pipeline.targets_file import build_spec, make_target
-    reason = embedded_libm.unavailable()
+    reason = newlib_libm.unavailable()
     if reason:
         pytest.skip(reason)
     target, _ = make_target({"robot": "seed000_2r", "family": "nicosia_tomei"})
     spec = build_spec(target)
     folder = emit(target, tmp_path / "gen", spec=spec)
     Y, U = run_inputs(spec, 300, target.discretization.dt)
-    rec = embedded.verify(folder, "m7", Y, U, work_dir=tmp_path / "fw")
+    rec = cortex_m.verify(folder, "m7", Y, U, work_dir=tmp_path / "fw")
     assert {"s_sin", "k_sin", "s_cos", "k_cos", "e_rem_pio2"} <= set(rec["libm_members"])
     assert rec["bit_identical_newlib"] and rec["rel_diff_host_newlib"] == 0.0 and rec["ok"]
-    assert rec["rel_diff_host"] <= embedded.TOLERANCE["double"]
-    fw = embedded.firmware(folder, "m7", tmp_path / "fw")
-    lib = compile_library(folder, extra_flags=[str(embedded_libm.host_libm(fw))])
-    assert embedded_libm.glibc_calls(lib) == [] and embedded_libm.glibc_calls(compile_library(folder)) != []
+    assert rec["rel_diff_host"] <= cortex_m.TOLERANCE["double"]
+    fw = cortex_m.firmware(folder, "m7", tmp_path / "fw")
+    lib = compile_library(folder, extra_flags=[str(newlib_libm.host_libm(fw))])
+    assert newlib_libm.glibc_calls(lib) == [] and newlib_libm.glibc_calls(compile_library(folder)) != []
 
 
 def test_newlib_settings_follow_the_multilib(arm):
     """The M7's multilib (double-precision FPU) has newlib's new math, the M4F's the old fdlibm
     single-precision code; both FPUs fuse multiply-adds."""
     m7 = "-mthumb -mcpu=cortex-m7 -mfpu=fpv5-d16 -mfloat-abi=hard"
-    assert embedded_libm.arm_config(m7) == ["-D__OBSOLETE_MATH=0", "-DHAVE_FAST_FMA=1"]
-    assert embedded_libm.arm_config(ARM_CFLAGS) == ["-D__OBSOLETE_MATH=1", "-DHAVE_FAST_FMA=1"]
+    assert newlib_libm.arm_config(m7) == ["-D__OBSOLETE_MATH=0", "-DHAVE_FAST_FMA=1"]
+    assert newlib_libm.arm_config(ARM_CFLAGS) == ["-D__OBSOLETE_MATH=1", "-DHAVE_FAST_FMA=1"]
 
 
 def test_firmware_reports_an_observer_failure(arm, seed000, tmp_path):
     Y, U = np.zeros((5, 2)), np.zeros((5, 2))
     Y[3] = 1e306                                   # finite double, overflows in the step
-    fw = embedded.firmware(seed000["double"], "m7", tmp_path)
-    with pytest.raises(embedded.EmbeddedError, match="ERR_NONFINITE_RESULT"):
-        embedded.run(fw, Y, U, "double")
+    fw = cortex_m.firmware(seed000["double"], "m7", tmp_path)
+    with pytest.raises(cortex_m.EmbeddedError, match="ERR_NONFINITE_RESULT"):
+        cortex_m.run(fw, Y, U, "double")
 
 
 def test_ur5_float_on_m4f_within_budget(arm, spec_of, tmp_path):
@@ -231,8 +231,8 @@ def test_ur5_float_on_m4f_within_budget(arm, spec_of, tmp_path):
     spec = spec_of("ur5")
     folder = emit(spec.target(precision="float"), tmp_path / "gen", spec=spec)
     Y, U = run_inputs(spec, 300, 1e-3)
-    rec = embedded.verify(folder, "m4f", Y, U, work_dir=tmp_path / "fw")
-    embedded.record(folder, rec)
+    rec = cortex_m.verify(folder, "m4f", Y, U, work_dir=tmp_path / "fw")
+    cortex_m.record(folder, rec)
     assert rec["instructions_per_step"] <= 10_000 and rec["rel_diff_host"] <= 1e-4 and rec["ok"]
     meta = json.loads((folder / f"{folder.name}.json").read_text())
     assert meta["embedded"]["cortex-m4f"]["instructions_per_step"] == rec["instructions_per_step"]
@@ -247,7 +247,7 @@ def test_cli_embedded_prints_a_table_and_records_both_cpus(arm, tmp_path, capsys
     for name, cpu in (("seed002_2r_reduced_order", "cortex-m7"), ("seed002_2r_reduced_order_float", "cortex-m4f")):
         rec = json.loads((tmp_path / name / f"{name}.json").read_text())["embedded"][cpu]
         assert rec["ok"] and rec["steps"] == 50 and rec["bit_identical"] in (True, False)
-        assert rec["bit_identical_newlib"] is (None if embedded_libm.unavailable() else True)
+        assert rec["bit_identical_newlib"] is (None if newlib_libm.unavailable() else True)
 
 
 # ------------------------------------------------------------------ generated build files

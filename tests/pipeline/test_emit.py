@@ -124,8 +124,8 @@ def test_templates_are_package_data():
     """Every template emit fills is declared in pyproject.toml's package data (so a wheel has it)."""
     globs = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
     for name in TEMPLATES:
-        assert (resources.files("codegen") / "templates" / name).is_file(), name
-        assert any(fnmatch(f"templates/{name}", g) for g in globs["codegen"]), name
+        assert (resources.files("codegen.pipeline") / "templates" / name).is_file(), name
+        assert any(fnmatch(f"templates/{name}", g) for g in globs["codegen.pipeline"]), name
 
 
 def test_render_names_a_missing_placeholder():

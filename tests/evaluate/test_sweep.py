@@ -14,7 +14,7 @@ from codegen.evaluate import sweep
 from codegen.evaluate.sweep import maps, plan
 from codegen.evaluate.sweep.store import Store
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SMALL = {"name": "small", "robot": "seed000_2r", "plant": "model", "T": 0.5,
          "observers": ["reduced_order"], "baselines": ["backward", "butterworth"], "batch": 4,
          "axes": {"k0": {"log": [2, 200, 4]}, "noise": [0, 1e-4], "seed": [0, 1]}}

@@ -24,7 +24,7 @@ from models.urdf import UrdfRobot, example_robot_data_dir, load_urdf  # noqa: E4
 TOL = 1e-10
 N_SAMPLES = 200
 PANDA_LOCKED = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
-DATA = pathlib.Path(__file__).parent / "data"
+DATA = pathlib.Path(__file__).parents[1] / "data"
 
 
 def _rel(a, b):

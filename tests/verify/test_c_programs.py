@@ -9,7 +9,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from codegen.verify import c_programs as harness
+from codegen.verify import c_programs
 from codegen.pipeline.compile import CompileError
 
 FAKE_H = """\
@@ -123,7 +123,7 @@ def fake(tmp_path_factory):
 @pytest.fixture(scope="module")
 def exe(fake):
     d, build = fake
-    return harness.build_harness(d, work_dir=build)
+    return c_programs.build_harness(d, work_dir=build)
 
 
 def trajectory(n=400, seed=0):
@@ -143,7 +143,7 @@ def test_build_is_cached_and_outside_target(fake, exe):
     assert exe["run_csv"].is_file() and exe["time_step"].is_file()
     assert build in exe["run_csv"].parents
     before = exe["run_csv"].stat().st_mtime_ns
-    again = harness.build_harness(d, work_dir=build)
+    again = c_programs.build_harness(d, work_dir=build)
     assert again == exe and again["run_csv"].stat().st_mtime_ns == before
     assert sorted(p.name for p in d.iterdir()) == ["fakeobs.c", "fakeobs.h", "fakeobs.json",
                                                    "fakeobs_kernels.c"]
@@ -152,11 +152,11 @@ def test_build_is_cached_and_outside_target(fake, exe):
 def test_run_csv_matches_python(fake, exe, tmp_path):
     d, build = fake
     t, Y, U = trajectory()
-    harness.write_csv(tmp_path / "in.csv", t, Y, U)
+    c_programs.write_csv(tmp_path / "in.csv", t, Y, U)
     for est0 in (None, [0.5, -0.25, 7.0]):
-        out = harness.run_csv(d, tmp_path / "in.csv", tmp_path / "out.csv", est0=est0,
+        out = c_programs.run_csv(d, tmp_path / "in.csv", tmp_path / "out.csv", est0=est0,
                               work_dir=build)
-        t2, EST = harness.read_csv(out)
+        t2, EST = c_programs.read_csv(out)
         assert out.read_text().splitlines()[0] == "t,est0,est1,est2"
         np.testing.assert_array_equal(t2, t)
         assert EST.shape == (len(t), 3)
@@ -168,7 +168,7 @@ def test_run_csv_tolerant_formatting(exe, tmp_path):
     (tmp_path / "in.csv").write_text("time,a,b,c\r\n0, 1 ,2,0.5\r\n\n1e-3,\t1.5,2,5e-1\n")
     r = run(exe["run_csv"], tmp_path / "in.csv", tmp_path / "out.csv")
     assert r.returncode == 0, r.stderr
-    t, EST = harness.read_csv(tmp_path / "out.csv")
+    t, EST = c_programs.read_csv(tmp_path / "out.csv")
     np.testing.assert_array_equal(t, [0.0, 1e-3])
     np.testing.assert_allclose(EST, fake_reference([[1, 2], [1.5, 2]], [[0.5], [0.5]]),
                                rtol=1e-15, atol=1e-15)
@@ -211,8 +211,8 @@ def test_run_csv_status_error(exe, fake, tmp_path, row, status):
     assert r.returncode == 3
     assert "in.csv:3: data row 2 (t=0.001): fakeobs_step " + status in r.stderr
     assert not (tmp_path / "out.csv").exists()
-    with pytest.raises(harness.HarnessError, match="data row 2") as e:
-        harness.run_csv(d, tmp_path / "in.csv", tmp_path / "out.csv", work_dir=build)
+    with pytest.raises(c_programs.HarnessError, match="data row 2") as e:
+        c_programs.run_csv(d, tmp_path / "in.csv", tmp_path / "out.csv", work_dir=build)
     assert e.value.returncode == 3
 
 
@@ -225,7 +225,7 @@ def test_time_step_json(fake, exe):
     assert (res["nx"], res["ny"], res["nu"], res["nest"], res["dt"]) == (2, 2, 1, 3, DT)
     for key in ("ns_per_step", "ns_per_rhs", "calls_per_block", "calls_per_block_rhs"):
         assert np.isfinite(res[key]) and res[key] > 0, key
-    res = harness.time_target(d, blocks=3, block_ms=1, work_dir=build)
+    res = c_programs.time_target(d, blocks=3, block_ms=1, work_dir=build)
     assert res["ns_per_step"] > 0 and res["ns_per_rhs"] > 0 and res["blocks"] == 3
 
 
@@ -235,7 +235,7 @@ def test_compile_error_is_reported(tmp_path):
     (d / "broken.h").write_text(FAKE_H.replace("fakeobs", "broken").replace("FAKEOBS", "BROKEN"))
     (d / "broken.c").write_text("int broken_step(void) { return syntax error; }\n")
     with pytest.raises(CompileError, match=r"compiling broken\.c failed[\s\S]*error") as e:
-        harness.build_harness(d, work_dir=tmp_path / "build")
+        c_programs.build_harness(d, work_dir=tmp_path / "build")
     assert e.value.returncode != 0 and "error" in e.value.stderr
     assert str(d / "broken.c") in str(e.value)          # the source folder, not the private copy
     assert sorted(p.name for p in (tmp_path / "build").iterdir()) == []   # nothing half-built
@@ -243,37 +243,37 @@ def test_compile_error_is_reported(tmp_path):
 
 def test_csv_helpers_round_trip(tmp_path):
     t, Y, U = trajectory(50)
-    path = harness.write_csv(tmp_path / "x.csv", t, Y, U, y_names=["q1", "q2"])
+    path = c_programs.write_csv(tmp_path / "x.csv", t, Y, U, y_names=["q1", "q2"])
     assert path.read_text().splitlines()[0] == "t,q1,q2,u0"
-    t2, rest = harness.read_csv(path)
+    t2, rest = c_programs.read_csv(path)
     np.testing.assert_array_equal(t2, t)
     np.testing.assert_array_equal(rest, np.hstack([Y, U]))
     with pytest.raises(ValueError, match="Y: expected shape"):
-        harness.write_csv(tmp_path / "y.csv", t, Y[:-1], U)
+        c_programs.write_csv(tmp_path / "y.csv", t, Y[:-1], U)
 
 
 # ---- pinocchio peer benchmark -----------------------------------------------------------------
 
-PIN_MISSING = harness.pin_bench_missing()
+PIN_MISSING = c_programs.pin_bench_missing()
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(PIN_MISSING is not None, reason=f"pin_aba cannot be built: {PIN_MISSING}")
 def test_pin_bench():
-    exe = harness.build_pin_bench()
+    exe = c_programs.build_pin_bench()
     assert exe.is_file()
-    res = harness.time_pin("robots/ur_description/urdf/ur5_robot.urdf", blocks=3, block_ms=2)
+    res = c_programs.time_pin("robots/ur_description/urdf/ur5_robot.urdf", blocks=3, block_ms=2)
     assert res["nv"] == 6 and res["pin_mode"] == "library"
     for key in ("ns_aba", "ns_rnea", "ns_crba"):
         assert np.isfinite(res[key]) and res[key] > 0, key
-    res = harness.time_pin("robots/panda_description/urdf/panda.urdf",
+    res = c_programs.time_pin("robots/panda_description/urdf/panda.urdf",
                            ["panda_finger_joint1", "panda_finger_joint2"], blocks=3, block_ms=2)
     assert res["nv"] == 7 and res["locked_joints"] == ["panda_finger_joint1",
                                                        "panda_finger_joint2"]
-    res = harness.time_pin("robots/panda_description/urdf/panda.urdf",
+    res = c_programs.time_pin("robots/panda_description/urdf/panda.urdf",
                            {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.02},
                            blocks=1, block_ms=1)
     assert res["nv"] == 7
-    with pytest.raises(harness.HarnessError, match="no joint named 'nope'"):
-        harness.time_pin("robots/panda_description/urdf/panda.urdf", ["nope"], blocks=1,
+    with pytest.raises(c_programs.HarnessError, match="no joint named 'nope'"):
+        c_programs.time_pin("robots/panda_description/urdf/panda.urdf", ["nope"], blocks=1,
                          block_ms=1)

@@ -147,7 +147,7 @@ def test_urdf_continuous_joints_match_seed000_closed_form():
     in the vertical x-z plane (rotation about -y maps x to (cos q, 0, sin q)): pinocchio's
     M, C, g, F, forward dynamics equal the closed form of SPEC §11.1 (tests/data/seed000_2r.urdf:
     I1 = m1 l1^2/12 = 10/12, I2 = m2 l2^2/12 = 3.75)."""
-    path = Path(__file__).parent / "data" / "seed000_2r.urdf"
+    path = Path(__file__).parents[1] / "data" / "seed000_2r.urdf"
     urdf = reference_robot({"kind": "urdf", "path": str(path), "sha256": file_sha256(path),
                             "locked_joints": {}, "snap_tol": 1e-9})
     closed = reference_robot(SEED_SOURCES["seed000_2r"])

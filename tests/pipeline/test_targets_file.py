@@ -9,7 +9,7 @@ from codegen.pipeline.emit import FolderTaken, check_folder, emit
 from codegen.core.target import Target
 from codegen.pipeline.targets_file import KEYS, TargetError, build_spec, load_targets, make_target
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 URDF = ROOT / "tests" / "data" / "gripper_arm.urdf"
 
 

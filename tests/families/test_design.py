@@ -62,8 +62,9 @@ def _imported_modules(path, package):
 def test_design_and_symbolic_never_import_observers():
     """design imports only symbolic and the disk cache (and numerics); neither reaches
     codegen.families.observers."""
-    root = Path(__file__).parents[1] / "codegen"
-    files = [(f, "codegen.families.design") for f in (root / "design").glob("*.py")] + [(root / "symbolic.py", "codegen")]
+    root = Path(__file__).parents[2] / "codegen"
+    files = [(f, "codegen.families.design") for f in (root / "families" / "design").glob("*.py")] + \
+        [(root / "core" / "symbolic.py", "codegen.core")]
     assert len(files) >= 6
     for f, package in files:
         bad = [m for m in _imported_modules(f, package)
@@ -72,7 +73,7 @@ def test_design_and_symbolic_never_import_observers():
     code = ("import sys, codegen.families.design, codegen.core.symbolic; "
             "print([m for m in sys.modules if m.startswith('codegen.families.observers')])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                         cwd=Path(__file__).parents[1])
+                         cwd=Path(__file__).parents[2])
     assert out.stdout.strip() == "[]"
 
 
