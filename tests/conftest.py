@@ -1,10 +1,30 @@
 """Shared fixtures. The packages are imported as installed (``pip install -e .``), never through
-sys.path edits."""
+sys.path edits.
+
+No test writes into the repository: unless the caller set them, ``CODEGEN_BUILD`` and
+``CODEGEN_CACHE`` point to a folder of the system's temporary directory, one per user and
+checkout, kept between runs (the compile cache is keyed by content and written atomically, so the
+parallel workers of ``pytest -n`` share it safely and a second run reuses the libraries).
+"""
+import hashlib
+import os
+import tempfile
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+
+def pytest_configure(config):
+    """Outputs and caches outside the repository (set before xdist starts its workers, which
+    inherit the environment)."""
+    if not os.environ.get("CODEGEN_BUILD"):
+        tag = hashlib.sha256(str(ROOT).encode()).hexdigest()[:8]
+        os.environ["CODEGEN_BUILD"] = str(Path(tempfile.gettempdir()) / f"codegen-tests-{os.getuid()}-{tag}")
+    os.environ.setdefault("CODEGEN_CACHE", str(Path(os.environ["CODEGEN_BUILD"]) / "cache"))
+
 
 CLOSED_FORM = ["seed000_2r", "seed002_2r", "seed003_2r_abs"]
 DEFAULT = CLOSED_FORM + ["ur5", "panda"]

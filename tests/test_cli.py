@@ -20,9 +20,10 @@ CHEAP = ["seed002_2r", "--family", "su_nonsmooth"]        # no design, a small k
 
 @pytest.fixture(autouse=True)
 def workdir(tmp_path, monkeypatch):
-    """Each test in its own working folder; compiled libraries shared through the repo's cache."""
+    """Each test in its own working folder; compiled libraries shared through the tests' cache
+    (conftest: outside the repository, kept when the working folder changes)."""
+    monkeypatch.setenv("CODEGEN_CACHE", str(Path(os.environ["CODEGEN_CACHE"]).resolve()))
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("CODEGEN_CACHE", str(ROOT / "build" / "cache"))
     return tmp_path
 
 

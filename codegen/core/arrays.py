@@ -72,6 +72,7 @@ def as_matrix(name, value, cols, rows=None, dtype=np.float64):
 
 
 def positive(name, value):
+    """``value`` as a positive finite float, or ValueError naming ``name`` (booleans refused)."""
     try:
         v = float(value)
     except (TypeError, ValueError):

@@ -32,7 +32,8 @@ class Made:
     lib: Path
 
 
-def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), report=lambda stage: None):
+def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), check=True,
+         report=lambda stage: None):
     """Design (unless ``spec`` is given), emit and compile ``target`` into ``out_dir/<prefix>/``.
 
     Parameters
@@ -49,6 +50,9 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), rep
         Compile with -march=native.
     cflags : sequence of str
         Extra compiler flags.
+    check : bool
+        Refuse discretely unstable parameters (False: emit records "not checked"; for tests and
+        benchmarks of the C alone).
     report : callable
         Called with each stage's name as it starts.
 
@@ -62,13 +66,14 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), rep
     report("design")
     spec = with_params(spec if spec is not None else build_spec(target), target.params)
     report("emit")
-    emit(target, out_dir, spec=spec, force=True)
+    emit(target, out_dir, spec=spec, force=True, check=check)
     report("compile")
     return Made(target, spec, folder, compile_library(folder, native=native, extra_flags=cflags))
 
 
 def compile_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,
-                     out_dir=None, prefix=None, native=False, inline="auto", precision=None, cflags=()):
+                     out_dir=None, prefix=None, native=False, inline="auto", precision=None, cflags=(),
+                     check=True):
     """Emit, compile and load an observer as C.
 
     Parameters
@@ -91,6 +96,9 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         Real type of the C (default "double", or the Target's own).
     cflags : sequence of str
         Extra compiler flags (e.g. ("-O1",) to compile a very large kernel quickly).
+    check : bool
+        Refuse a discretely unstable observer (the default); False skips the check and records
+        it as not done (to test or time the C alone).
 
     Returns
     -------
@@ -119,7 +127,8 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     if auto:
         checked = with_params(spec, target.params) if target.params else spec
         target = replace(target, discretization=auto_substeps(checked, target.discretization))
-    made = make(target, out_dir or (work_dir() / "targets"), spec=spec, native=native, cflags=cflags)
+    made = make(target, out_dir or (work_dir() / "targets"), spec=spec, native=native, cflags=cflags,
+                check=check)
     obs = load(made.folder, made.lib)
     obs.spec = spec
     return obs
