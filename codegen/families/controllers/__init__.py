@@ -10,18 +10,23 @@
 """
 from __future__ import annotations
 
+import importlib
+import pkgutil
+
+
+def _modules():
+    return [importlib.import_module(f"{__name__}.{m.name}") for m in pkgutil.iter_modules(__path__)
+            if not m.name.startswith("_")]
+
 
 def _laws():
-    from . import seed000, spong
-    return {"seed000_torque_ex1": lambda robot, **kw: seed000.open_loop(robot, example=1, **kw),
-            "seed000_torque_ex2": lambda robot, **kw: seed000.open_loop(robot, example=2, **kw),
-            "seed000_tracking": seed000.tracking,
-            "spong_fl": spong.feedback_linearization,
-            "spong_manifold": spong.integral_manifold}
+    """law name -> builder, from the ``LAWS`` of every module of this package."""
+    return {name: law for module in _modules() for name, law in module.LAWS.items()}
 
 
-FAMILIES = ("seed000_torque_ex1", "seed000_torque_ex2", "seed000_tracking", "spong_fl", "spong_manifold")
-ELASTIC = ("spong_fl", "spong_manifold")   # laws for an ElasticRobot (the others: a rigid one)
+# a module's ELASTIC = True: its laws need an ElasticRobot (the others: a rigid one)
+FAMILIES = tuple(sorted(_laws()))
+ELASTIC = tuple(sorted(name for m in _modules() if getattr(m, "ELASTIC", False) for name in m.LAWS))
 
 
 def build(family, robot, **kwargs):

@@ -136,3 +136,8 @@ def tracking(robot, q_start, q_goal=Q_GOAL, T=T_MOVE, lam=LAMBDA, kp=KP, kd=KD):
                                + [np.broadcast_to(np.asarray(v, float), (n,)) for v in (kp, kd)])
     return _law(robot, "seed000_tracking", names, ca.vertcat(q, x2hat, t), p_names,
                 ca.vertcat(q0, q1, T_s, lam_s, kp_s, kd_s), p_default, tau)
+
+
+LAWS = {"seed000_torque_ex1": lambda robot, **kw: open_loop(robot, example=1, **kw),
+        "seed000_torque_ex2": lambda robot, **kw: open_loop(robot, example=2, **kw),
+        "seed000_tracking": tracking}

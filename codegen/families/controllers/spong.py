@@ -174,3 +174,7 @@ def cubic_reference(t, q0, qf, T):
                      dq * (6 - 12 * s) / T ** 2 if moving else 0 * dq,
                      -12 * dq / T ** 3 if moving else 0 * dq,
                      0 * dq])
+
+
+ELASTIC = True       # both laws act on an ElasticRobot
+LAWS = {"spong_fl": feedback_linearization, "spong_manifold": integral_manifold}

@@ -30,6 +30,9 @@ from ...core.options import InputRanges
 from ...core.spec import ObserverSpec, split_flow
 from ._design import design_discretization, stable_report
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed000_2r"}]
+
 
 def design_omega(robot, dt, noise=None, quantization=None, uncertainty=0.0, v_max=2.0, t_conv=0.2):
     """(omega, report): the default pole of the error dynamics for ``robot`` at sample time

@@ -36,6 +36,9 @@ from ._ii_common import (DEFAULT_N, beta_directional, column_routines, designed_
                          filter_symbols, frobenius_sq, ii_spec, lemma2_bound, lemma2_names,
                          lemma2_values, quadrature_beta, resolve_wrap, split_params)
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed003_2r_abs", "design": {"N": 4}}]
+
 SCALARS = ("k1", "k2", "k3", "c_r", "deltabar_p", "r0")
 
 

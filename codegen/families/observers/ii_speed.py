@@ -46,6 +46,9 @@ from ._ii_common import (beta_directional, column_routines, designed_bounds, fil
                          frobenius_sq, ii_spec, lemma2_bound, lemma2_names, lemma2_values,
                          quadrature_beta, resolve_wrap, split_params)
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed003_2r_abs", "design": {"N": 4}}]
+
 SCALARS = ("k1", "k2", "k3", "c_r", "k_m", "k_M", "deltabar_x", "r0")
 
 

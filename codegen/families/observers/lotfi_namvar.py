@@ -36,6 +36,9 @@ from ...core.options import InputRanges, NonMinimalOptions
 from ...core.spec import ObserverSpec
 from ._nonminimal import nonminimal  # public: p rows, J_n and the CoM forces f_f of a robot (SPEC §3.1)
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed002_2r"}, {"robot": "seed002_2r", "design": {"rows": [1, 2, 3]}}]
+
 # [S002 Table II]: alpha, lambda, gamma, thetahat(0) for j = 1..4 (zhat(0) = 0, zeta(0) = 0)
 TABLE_II = {"alpha": [30.0, 30.0, 30.0, 30.0], "lambda": [12.0, 12.0, 12.0, 12.0],
             "gamma": [200.0, 250.0, 250.0, 100.0], "thetahat0": [3.0, 3.0, 0.5, 0.5]}

@@ -22,6 +22,9 @@ from ...core.options import InputRanges
 from ...core.spec import ObserverSpec, split_flow
 from ._design import check_design, design_discretization, stable_report
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed000_2r"}]
+
 KP_DEFAULT = 500.0   # [ASSUMPTION SPEC §2, A0-4], the "guarantee" design's k_P
 
 

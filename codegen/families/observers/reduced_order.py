@@ -14,6 +14,9 @@ from ..design import reduced_order_design, reduced_order_gain
 from ...core.spec import ObserverSpec, split_flow
 from ._design import check_design, design_discretization, stable_report
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed000_2r"}]
+
 
 def flow(robot, z, y_cfg, y, tau, k):
     """(x2hat, z') of the observer with gain k(y) = k y, k a scalar SX  [S000 (6),(9)], for ``robot``

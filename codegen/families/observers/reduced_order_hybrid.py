@@ -26,6 +26,9 @@ from ...core.spec import ObserverSpec, split_flow
 from ._design import check_design, design_discretization, stable_report
 from .reduced_order import flow
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed000_2r"}]
+
 
 def gain_names(r_max):
     """Parameter names of the scheduled gains: k_1 .. k_{r_max}."""

@@ -17,6 +17,9 @@ import numpy as np
 from ..design.reduced_order_nonlinear import feature_count, features, nonlinear_gain
 from ...core.spec import ObserverSpec, split_flow
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed000_2r"}]
+
 
 def build(robot, k0=None, C=None, eta=1.0, v_max=2.0):
     """Reduced-order observer with k(y) = k0 C phi(y) for ``robot``; K1 and k0 designed by

@@ -31,6 +31,9 @@ from ._design import design_discretization, stable_report
 from . import reduced_order
 from .reduced_order import flow
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed000_2r"}]
+
 P_NAMES = ["k0", "k0_final", "t_switch"]
 
 

@@ -30,6 +30,9 @@ import numpy as np
 from ...core.options import InputRanges
 from ...core.spec import ObserverSpec
 
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
+EXAMPLES = [{"robot": "seed002_2r"}, {"robot": "seed002_2r", "design": {"form": "xian", "smoothing_eps": 1e-4}}]
+
 FORMS = ("literal", "xian")
 SEED_GAINS = {"K0": 500.0, "K1": 10.0, "K2": 2000.0}   # [S002 §V-B]
 
