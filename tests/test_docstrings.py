@@ -1,4 +1,4 @@
-"""Every public callable of ``models`` and ``codegen`` is documented (issue 10 item 9), in the
+"""Every public callable of ``models`` and ``codegen`` is documented, in the
 manner of python-control's docstring test: a public function or class defined in a module (not
 imported into it) has a docstring, and a public function or method with parameters documents each
 of them, in a numpy-style "Parameters" section or, for small helpers, by naming it in the text."""

@@ -1,4 +1,4 @@
-"""Every bad argument gets an error naming it (issue 13, item 8): one table, one row per case."""
+"""Every bad argument gets an error naming it: one table, one row per case."""
 import math
 
 import numpy as np

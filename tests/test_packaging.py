@@ -1,4 +1,4 @@
-"""The installable package (issue 12 item 4): a wheel installed in a fresh venv generates,
+"""The installable package: a wheel installed in a fresh venv generates,
 builds and loads a target from a temp folder through the console script, with the C harness
 shipped as package data, and writes nothing inside site-packages.
 

@@ -1,4 +1,4 @@
-"""Faults found under attack (issue 13), each reproduced: colliding slot names, two processes
+"""Faults found under attack, each reproduced: colliding slot names, two processes
 building one target, run() on error, rhs on NaN, a corrupt cached library."""
 import ctypes as ct
 import json

@@ -3,7 +3,7 @@ never none and never a mix (``emit``'s target folders, ``build``'s cache folders
 
 Linux: ``renameat2(..., RENAME_EXCHANGE)`` (kernel >= 3.15; ext4, xfs, btrfs, tmpfs, overlayfs)
 through ctypes on the C library. Elsewhere, or on a filesystem without the exchange, two
-renames: the folder is briefly absent (the fault of issue 13 item 4, kept only as a fallback).
+renames: the folder is briefly absent (kept only as a fallback).
 """
 from __future__ import annotations
 

@@ -143,7 +143,7 @@ def seed000_loop(T=20.0):
 def seed003_ii_ur5(family="ii_speed", robot="ur5", N=8, native=False, wrap="auto", opt="-O2"):
     """ur5 I&I RHS in C vs the numpy/pin reference (``family``: "ii_speed" or "ii_aov"): generation,
     emit and compile times, C size, the kernel file's compile time alone (``compile_kernels``:
-    ``opt``, one job) and ns per RHS and per step, at the default discretisation. Gate (issue 12):
+    ``opt``, one job) and ns per RHS and per step, at the default discretisation. Gate:
     <= 1 MB of C and <= 30 s CPU at -O2. ``wrap``: the interval reduction of the quadrature
     (ii_speed.build; "auto": ur5's revolute joints).
 
@@ -322,7 +322,7 @@ def sweep_ur5(path=None, modes=(0, 1, 2)):
     (cluster start and worker imports excluded, true runs included), cells per CPU-second of the
     cell computations (what a mode costs per cell, whatever else the machine runs), their ratio
     (the cores the mode had: on a shared machine the 2 workers may get no more than 1), the
-    2-vs-1-worker ratio (issue 14 asks >= 1.7) and whether every mode gave identical rows.
+    2-vs-1-worker ratio (target >= 1.7) and whether every mode gave identical rows.
     ``path``: the sweep file (default the example); ``modes``: worker counts (0: in-process)."""
     import tempfile
 

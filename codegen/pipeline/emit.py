@@ -1,6 +1,6 @@
 """Step Function -> generated/<target>/ : CasADi kernels, C wrapper, header, build files, metadata.
 
-Bytes room: nothing here knows any particular observer. The C wrapper, header, Makefile and
+Bytes only: nothing here knows any particular observer. The C wrapper, header, Makefile and
 CMakeLists.txt are the template files of ``codegen/pipeline/templates/`` (package data) with their
 ``{{name}}`` placeholders filled from the metadata (``template_values``); CasADi writes the kernels.
 The folder is written to a temporary sibling and swapped into place in one step

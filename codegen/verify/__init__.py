@@ -1,4 +1,4 @@
-"""Verification in its own room: random inputs per family, the error measure, and the
+"""Verification, owned by neither side: random inputs per family, the error measure, and the
 C-vs-reference cross-check (DESIGN §3). The CLI and the tests call it from here.
 
     from codegen.verify import cross_check

@@ -1,6 +1,6 @@
 """Standalone C harness: run a generated target over a CSV, time it, time pinocchio's peers.
 
-Bytes room: this module compiles and runs the programs of ``c_harness/`` and knows nothing
+Bytes only: this module compiles and runs the programs of ``c_harness/`` and knows nothing
 of any particular observer.
 
     from codegen import harness

@@ -1,7 +1,7 @@
 """Cortex-M verification: a generated target cross-compiled into the example firmware of
 ``c_harness/cortex_m/``, run on QEMU's mps2 boards, compared with the host build, measured.
 
-Bytes room: this module knows CPUs, boards and files, nothing of any particular observer.
+Bytes only: this module knows CPUs, boards and files, nothing of any particular observer.
 
     from codegen import embedded
     cortex_m.missing_packages()                       # Debian packages still to install

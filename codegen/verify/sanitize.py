@@ -1,4 +1,4 @@
-"""The generated C under sanitizers and a fuzzer (issue 13), run by ``make test``.
+"""The generated C under sanitizers and a fuzzer, run by ``make test``.
 
     python -m codegen sanitize [--runs N] [--seconds S]      (codegen.verify.sanitize.run)
 

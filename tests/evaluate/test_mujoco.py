@@ -162,7 +162,7 @@ def test_observer_beats_the_tuned_baselines_on_mujoco(ur5_quantised):
 def test_switched_gain_is_a_third_of_the_best_baseline_on_mujoco(ur5_quantised):
     """The time-switched observer designed for the encoder (k0 = 29.4 until 0.23 s, then 2.65):
     the convergence of the fixed gain, and an RMS error at most 1/3 of the best tuned baseline's
-    (issue 11; 0.07 on the 20 s run of the README), unbiased."""
+    (0.07 on the 20 s run of the README), unbiased."""
     entry = ur5_quantised["reduced_order_switched"]
     assert entry.params["k0"] == pytest.approx(np.log(200) / 0.18)
     assert entry.params["k0_final"] < entry.params["k0"] / 5
@@ -198,7 +198,7 @@ def ur5_mismatched():
 def test_extended_state_within_1_5_of_the_best_baseline_when_the_model_is_off(ur5_mismatched):
     """With 10 % mass error the reduced-order observer keeps a bias ~ e / k0 (8x the best tuned
     baseline on the 20 s run); the extended-state observer estimates the model error and stays
-    within 1.5x of the best tuned baseline (issue 11; 0.86 on ur5, 1.29 on panda over 20 s)."""
+    within 1.5x of the best tuned baseline (0.86 on ur5, 1.29 on panda over 20 s)."""
     eso, best = ur5_mismatched["extended_state"].metrics, ur5_mismatched.best_baseline()
     assert eso["rms"] <= 1.5 * best.metrics["rms"]
     assert eso["rms"] < ur5_mismatched["reduced_order"].metrics["rms"] / 3

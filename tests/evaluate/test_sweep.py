@@ -1,4 +1,4 @@
-"""Sweeps (issue 14): the plan, results identical on Dask and in-process, nothing lost when the
+"""Sweeps: the plan, results identical on Dask and in-process, nothing lost when the
 client or a worker is killed. Small: the 2R of seed 000 on our model, T = 0.5 s."""
 import os
 import signal

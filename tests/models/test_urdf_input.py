@@ -1,4 +1,4 @@
-"""URDF input the parser underneath would misread (issue 13): inertial values it cannot parse
+"""URDF input the parser underneath would misread: inertial values it cannot parse
 (the link would be dropped silently), and locking a joint whose name is also a link's name."""
 import numpy as np
 import pytest

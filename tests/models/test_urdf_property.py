@@ -1,4 +1,4 @@
-"""Property test over random URDFs (issue 13): serial chains of revolute, continuous, prismatic
+"""Property test over random URDFs: serial chains of revolute, continuous, prismatic
 and fixed joints with random names (unicode, C keywords, names that collide before or after
 sanitising) and random inertial values (good, zero, negative, not positive definite, junk).
 Each URDF either loads, and then M (crba), C v + g (nle) and the forward dynamics (aba) match

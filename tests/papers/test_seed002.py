@@ -229,7 +229,7 @@ def test_ur5_tracking_run_converges():
     assert np.abs(np.array(s["thetahat_final"]) / s["theta_true"] - 1).max() < 0.1, s
 
 
-# ------------------------------------------------------------------ the two open claims (issue 15)
+# ------------------------------------------------------------------ the two open claims
 def test_transient_is_set_by_the_adaptation():
     """Noise-free, [0.5, 1) s: with Table II the adaptive observer trails (35) (measured 5.84 vs
     3.56 rad/s); with the adaptation four times faster, or thetahat(0) = theta, it leads. So the

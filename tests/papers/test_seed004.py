@@ -259,7 +259,7 @@ def test_sim1_o1_converges_within_50ms():
     assert s.convergence_time(t, X - s.run_observer(spec, obs, X, U, s.SIM1_XHAT0)) == np.inf
 
 
-# ---------------------------------------------------------------- figures (issue 15, item 2)
+# ---------------------------------------------------------------- figures
 def test_sim1_figures_one_per_paper_figure(tmp_path):
     """Sim 1 writes Figs. 2-4 as PNG + CSV named after the paper's figures; Fig. 4's CSV holds
     the per-component errors x - xhat of run.csv's O1 estimate, over the paper's span."""

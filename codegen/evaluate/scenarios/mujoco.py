@@ -1,4 +1,4 @@
-"""Observers and baselines on a plant we did not write: MuJoCo's ur5 and panda (issue 11).
+"""Observers and baselines on a plant we did not write: MuJoCo's ur5 and panda.
 
 Plant: the catalog URDF simulated by MuJoCo (codegen.evaluate.sim.mujoco_plant: RK4 at 1e-4 s, no
 contacts), computed-torque tracking of 0.15-0.35 Hz sinusoids (amplitude 0.6 rad, peak speed

@@ -19,7 +19,7 @@ smoothing; RK4 with the measurement held over the step).
 
 Scenarios: ``seed002`` (noise-free, Figs. 1–2 plus the comparison), ``seed002-noisy``
 (std = 0.3 RMS(q_i), Figs. 3–4), ``seed002-noise-3mrad`` (std = 0.003 rad), ``seed002-ur5``,
-``seed002-claims`` (the paper's two comparisons with (35) examined, issue 15: the noise-free
+``seed002-claims`` (the paper's two comparisons with (35) examined: the noise-free
 transient per 0.5 s window with one setting changed at a time, and the noise std at which the
 steady-state ordering flips, by bisection, per noise realisation).
 """
@@ -203,7 +203,7 @@ def summarize(d):
 
 
 # ---------------------------------------------------------------------------- the two open claims
-WINDOWS = ((0.0, 0.5), (0.5, 1.0), (1.0, 1.5), (1.5, 2.0))   # s, the transient (issue 15, 4a)
+WINDOWS = ((0.0, 0.5), (0.5, 1.0), (1.0, 1.5), (1.5, 2.0))   # s, the transient
 TABLE_II_GAMMA = np.array([200.0, 250.0, 250.0, 100.0])
 TRANSIENT_CASES = {   # name -> (adaptive gains, (35)'s initial estimate); None = the paper's
     "paper (Table II, (35) from [2, 2, -1, -1])": (None, None),
@@ -227,7 +227,7 @@ def windowed_rms(d, windows=WINDOWS):
 
 
 def transient_study(T=2.0, cases=TRANSIENT_CASES):
-    """Issue 15, 4a: the noise-free transient of the adaptive observer (13) against (35) per
+    """The noise-free transient of the adaptive observer (13) against (35) per
     window WINDOWS, for the paper's setting and one change at a time (thetahat(0), gamma, alpha,
     lambda, zhat(0), (35)'s initial estimate); plus the conditioning of J_n along the run.
     ``cases``: name -> (adaptive gains, (35)'s est0), see TRANSIENT_CASES; runs of ``T`` s."""
@@ -248,7 +248,7 @@ def ordering(std, T=5.0, seed=0):
 
 
 def flip_noise(lo=0.03, hi=0.3, rel_tol=0.02, T=5.0, seed=0):
-    """Issue 15, 4b: the noise std (rad, 1 kHz, held) at which the steady-state ordering of the
+    """The noise std (rad, 1 kHz, held) at which the steady-state ordering of the
     adaptive observer and (35) flips, by bisection on log(std) between lo (adaptive quieter) and
     hi (adaptive noisier), until hi / lo <= 1 + ``rel_tol``; runs of ``T`` s, noise drawn with ``seed``.
     Returns {"std_rad", "bracket", "evaluations"}."""

@@ -1,4 +1,4 @@
-"""Monte-Carlo sweeps of observers and baselines on Dask, resumable (issue 14).
+"""Monte-Carlo sweeps of observers and baselines on Dask, resumable.
 
     python -m codegen sweep sweeps/ur5_quantisation.toml --workers 2 --out build/sweeps/ur5
     res = sweep.run("sweeps/ur5_quantisation.toml", workers=2)      # or a dict; workers=0: in-process
