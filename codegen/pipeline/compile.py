@@ -1,7 +1,7 @@
 """The toolchain: compiler lookup, flags, content-hash cached compiles (DESIGN §4 "Build and runtime").
 
 ``compile_library`` turns generated/<prefix>/ into lib<prefix>.so; ``codegen.verify.c_programs`` compiles its
-programs through the same ``compiler``, ``c_flags`` and ``cached_build``. Default flags -O3
+programs through the same ``compiler``, ``c_flags`` and ``cached_compile``. Default flags -O3
 (portable); ``native=True`` adds -march=native; never -ffast-math. A failed compile raises
 CompileError carrying the compiler's command line and message.
 """
@@ -75,7 +75,7 @@ def c_flags(native=False, strict=False, shared=False, extra=()):
 
 
 def digest(data):
-    """sha256 hex digest of the bytes ``data`` (for ``cached_build`` keys)."""
+    """sha256 hex digest of the bytes ``data`` (for ``cached_compile`` keys)."""
     return hashlib.sha256(data).hexdigest()
 
 
@@ -133,7 +133,7 @@ def verify(path):
     return path
 
 
-def cached_build(name, key, files, products, commands, cache, shown=None, keep=()):
+def cached_compile(name, key, files, products, commands, cache, shown=None, keep=()):
     """Compile once per content: ``<cache>/<name>-<hash>/`` holding ``products``.
 
     Parameters
@@ -242,7 +242,7 @@ def compile_library(target_dir, native=False, strict=False, cc=None, extra_flags
         yield ([tool.path, *flags, "-I", work, "-o", out / lib, work / f"{prefix}.c",
                 work / f"{prefix}_kernels.c", "-lm"], f"compiling {prefix}")
 
-    out = cached_build(prefix, [tool, flags], files, [lib], commands, cache or cache_dir(),
+    out = cached_compile(prefix, [tool, flags], files, [lib], commands, cache or cache_dir(),
                        shown=target_dir, keep=[f"{prefix}.json"])
     return out.resolve() / lib
 

@@ -4,14 +4,14 @@ Bytes only: this module compiles and runs the programs of ``c_harness/`` and kno
 of any particular observer.
 
     from codegen import harness
-    exe = harness.build_harness("generated/ur5_reduced_order")     # {"run_csv": Path, "time_step": Path}
+    exe = harness.compile_harness("generated/ur5_reduced_order")     # {"run_csv": Path, "time_step": Path}
     harness.write_csv("traj.csv", t, Y, U)
     harness.run_csv("generated/ur5_reduced_order", "traj.csv", "est.csv", est0=None)
     t, EST = harness.read_csv("est.csv")
     harness.time_target("generated/ur5_reduced_order")   # {"ns_per_step": ..., "ns_per_rhs": ..., ...}
     harness.time_pin("robots/ur_description/urdf/ur5_robot.urdf")  # {"ns_aba": ..., "ns_rnea": ..., ...}
 
-Builds go through codegen.pipeline.compile's toolchain (``compiler``, ``c_flags``, ``cached_build``) and
+Builds go through codegen.pipeline.compile's toolchain (``compiler``, ``c_flags``, ``cached_compile``) and
 are cached in ``<work_dir>/<prefix>-<hash>/`` (default build dir ``build/harness`` in the working folder);
 the hash covers the harness sources, every .c/.h file of the target, the flags and the
 compiler, so repeated calls cost one process start only. Nothing is written into the target
@@ -35,9 +35,9 @@ from pathlib import Path
 import numpy as np
 
 from ..core.recording import read_columns, write_columns
-from ..pipeline.compile import (CompileError, ToolError, c_flags, cached_build, compiler, digest, package_data,
+from ..pipeline.compile import (CompileError, ToolError, c_flags, cached_compile, compiler, digest, package_data,
                     read_target, run_tool)
-from ..pipeline.compile import work_dir as default_build_dir
+from ..pipeline.compile import work_dir as default_work_dir
 
 HARNESS_SRC = package_data("c_harness")
 
@@ -66,8 +66,8 @@ def _run(cmd, what):
     return run_tool(cmd, what, error=HarnessError)
 
 
-def _build_root(work_dir):
-    return Path(work_dir).resolve() if work_dir is not None else default_build_dir() / "harness"
+def _compile_root(work_dir):
+    return Path(work_dir).resolve() if work_dir is not None else default_work_dir() / "harness"
 
 
 def target_info(target_dir):
@@ -107,7 +107,7 @@ HARNESS_FILES = ("obs_bind.h", "run_csv.c", "time_step.c")
 PROGRAMS = ("run_csv", "time_step")
 
 
-def build_harness(target_dir, work_dir=None, native=False, cc=None, extra_flags=()):
+def compile_harness(target_dir, work_dir=None, native=False, cc=None, extra_flags=()):
     """Compile run_csv and time_step against a generated target.
 
     Parameters
@@ -147,7 +147,7 @@ def build_harness(target_dir, work_dir=None, native=False, cc=None, extra_flags=
                 f"compiling c_harness/{prog}.c for {prefix}"
             yield [tool.path, *flags, obj, *objs, "-lm", "-o", out / prog], f"linking {prog}"
 
-    out = cached_build(prefix, key, files, PROGRAMS, commands, _build_root(work_dir), shown=d)
+    out = cached_compile(prefix, key, files, PROGRAMS, commands, _compile_root(work_dir), shown=d)
     return {prog: out / prog for prog in PROGRAMS}
 
 
@@ -155,10 +155,10 @@ def run_csv(target_dir, csv_in, csv_out, est0=None, work_dir=None, native=False)
     """Run the target in ``target_dir`` over ``csv_in`` (header, then rows t, y.., u..) into ``csv_out``.
 
     ``est0``: initial estimate (NEST numbers; default zeros); ``work_dir``, ``native``: as in
-    :func:`build_harness`. Returns Path(csv_out).
+    :func:`compile_harness`. Returns Path(csv_out).
     Raises HarnessError with run_csv's message (row number, status name) on failure;
     ``csv_out`` is then not written."""
-    exe = build_harness(target_dir, work_dir, native=native)["run_csv"]
+    exe = compile_harness(target_dir, work_dir, native=native)["run_csv"]
     cmd = [exe, Path(csv_in), Path(csv_out)]
     if est0 is not None:
         est0 = np.asarray(est0, dtype=float).ravel()
@@ -170,12 +170,12 @@ def run_csv(target_dir, csv_in, csv_out, est0=None, work_dir=None, native=False)
 def time_target(target_dir, blocks=51, block_ms=15.0, work_dir=None, native=False, extra_flags=()):
     """ns per <prefix>_step and per <prefix>_rhs of the target in ``target_dir`` (medians over
     ``blocks`` blocks of ~``block_ms`` ms); ``work_dir``, ``native``, ``extra_flags``: as in
-    :func:`build_harness`.
+    :func:`compile_harness`.
 
     Returns the program's JSON line as a dict: target, ns_per_step, ns_per_rhs, blocks,
     calls_per_block, calls_per_block_rhs, nx, ny, nu, nest, dt, errors (step calls that
     returned a non-zero status; non-zero means the timing is not representative)."""
-    exe = build_harness(target_dir, work_dir, native=native, extra_flags=extra_flags)["time_step"]
+    exe = compile_harness(target_dir, work_dir, native=native, extra_flags=extra_flags)["time_step"]
     proc = _run([exe, f"--blocks={int(blocks)}", f"--block-ms={float(block_ms)!r}"], "time_step")
     res = json.loads(proc.stdout.strip().splitlines()[-1])
     if res.get("errors"):
@@ -231,7 +231,7 @@ def pin_bench_missing():
     return None
 
 
-def build_pin_bench(work_dir=None, mode="library", cxx=None):
+def compile_pin_bench(work_dir=None, mode="library", cxx=None):
     """Compile c_harness/pin_aba.cpp against the pin wheel; returns the executable's Path.
 
     mode "library" (default) calls the wheel's precompiled instantiations in
@@ -257,7 +257,7 @@ def build_pin_bench(work_dir=None, mode="library", cxx=None):
                *(f"-l{n}" for n in PIN_LIBS), "-o", out / "pin_aba"], "compiling pin_aba.cpp"
 
     files = {"pin_aba.cpp": (HARNESS_SRC / "pin_aba.cpp").read_bytes()}
-    return cached_build(f"pin_aba-{mode}", key, files, ["pin_aba"], commands, _build_root(work_dir),
+    return cached_compile(f"pin_aba-{mode}", key, files, ["pin_aba"], commands, _compile_root(work_dir),
                         shown=HARNESS_SRC) / "pin_aba"
 
 
@@ -278,7 +278,7 @@ def resolve_urdf(urdf):
 
 def time_pin(urdf, locked_joints=(), blocks=51, block_ms=15.0, work_dir=None, mode="library"):
     """ns per pinocchio aba, rnea and crba on ``urdf`` (medians over ``blocks`` blocks of
-    ~``block_ms`` ms), pin_aba built by :func:`build_pin_bench` with ``work_dir`` and ``mode``.
+    ~``block_ms`` ms), pin_aba built by :func:`compile_pin_bench` with ``work_dir`` and ``mode``.
 
     ``locked_joints``: joint names (held at the neutral configuration, 0 for revolute and
     prismatic joints) or a dict {name: value} (one-coordinate joints held at value); they
@@ -296,7 +296,7 @@ def time_pin(urdf, locked_joints=(), blocks=51, block_ms=15.0, work_dir=None, mo
     for a in args:
         if a.startswith("--"):
             raise ValueError(f"locked_joints: {a!r} is not a joint name")
-    exe = build_pin_bench(work_dir, mode=mode)
+    exe = compile_pin_bench(work_dir, mode=mode)
     proc = _run([exe, f"--blocks={int(blocks)}", f"--block-ms={float(block_ms)!r}",
                  resolve_urdf(urdf), *args], "pin_aba")
     return json.loads(proc.stdout.strip().splitlines()[-1])

@@ -34,7 +34,7 @@ import numpy as np
 
 from . import newlib_libm
 from ..pipeline.compile import CompileError, ToolError, compile_library, package_data, run_tool
-from ..pipeline.compile import work_dir as default_build_dir
+from ..pipeline.compile import work_dir as default_work_dir
 from ..pipeline.emit import MATH_FUNCTIONS
 from ..pipeline.load import load
 from .measure import run_relative_error
@@ -89,7 +89,7 @@ def _make(target_dir, cpu, work_dir, goal):
     missing = missing_packages()
     if missing:
         raise CompileError(f"ARM toolchain missing: apt-get install {' '.join(missing)} (or `make embedded`)")
-    work_dir = Path(work_dir or default_build_dir() / "embedded").resolve()
+    work_dir = Path(work_dir or default_work_dir() / "embedded").resolve()
     cmd = ["make", "-s", "-C", FIRMWARE_SRC, f"TARGET={Path(target_dir).resolve()}",
            f"PREFIX={_meta(target_dir)['prefix']}", f"CPU={cpu}", f"BUILD={work_dir}", goal]
     return run_tool(cmd, f"{goal} of the firmware of {Path(target_dir).name} for {cpu}").stdout

@@ -23,7 +23,7 @@ import tarfile
 import tempfile
 from pathlib import Path
 
-from ..pipeline.compile import CompileError, cached_build, compiler, digest, run_tool
+from ..pipeline.compile import CompileError, cached_compile, compiler, digest, run_tool
 from ..core.cache import cache_dir
 
 # Debian's newlib-source: the sources of the libnewlib-arm-none-eabi it builds
@@ -184,7 +184,7 @@ def host_libm(fw, cache=None):
         yield ([tool.path, "-r", "-nostdlib", "-o", out / "newlib_libm.o",
                 *(work / f"{stem}.o" for stem in stems)], "linking newlib's libm for the host")
 
-    out = cached_build("newlib-libm", [tool, flags, IEEEFP_H], files, ["newlib_libm.o"], commands,
+    out = cached_compile("newlib-libm", [tool, flags, IEEEFP_H], files, ["newlib_libm.o"], commands,
                        cache or cache_dir())
     return out.resolve() / "newlib_libm.o"
 

@@ -22,7 +22,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..pipeline.compile import cache_dir, cached_build, compiler, package_data, read_target
+from ..pipeline.compile import cache_dir, cached_compile, compiler, package_data, read_target
 
 HARNESS = package_data("c_harness")
 SAN_FLAGS = ["-g", "-O1", "-fno-omit-frame-pointer", "-fsanitize=address,undefined",
@@ -130,7 +130,7 @@ def sanitized(target_dir, program, tool, flags, cache):
     flags : list of str
         Compiler flags (sanitizers, libFuzzer).
     cache : pathlib.Path
-        Cache folder; the build is cached by content (``codegen.pipeline.compile.cached_build``).
+        Cache folder; the build is cached by content (``codegen.pipeline.compile.cached_compile``).
 
     Returns
     -------
@@ -146,7 +146,7 @@ def sanitized(target_dir, program, tool, flags, cache):
         yield ([tool.path, *flags, f"-DOBS={prefix}", f"-DOBS_UPPER={prefix.upper()}",
                 f'-DOBS_HEADER="{prefix}.h"', "-I", work, "-o", out / program, work / f"{program}.c",
                 *(work / s for s in sources), "-lm"], f"compiling {program} for {prefix} ({tool.path})")
-    return cached_build(f"{prefix}-{program}", [tool, flags], files, [program], commands, cache,
+    return cached_compile(f"{prefix}-{program}", [tool, flags], files, [program], commands, cache,
                         shown=target_dir) / program
 
 

@@ -4,7 +4,7 @@ import shutil
 
 import pytest
 
-from codegen.pipeline.compile import CompileError, compile_library, c_flags, cached_build, compiler
+from codegen.pipeline.compile import CompileError, compile_library, c_flags, cached_compile, compiler
 from codegen.pipeline.emit import emit
 
 
@@ -60,15 +60,15 @@ def test_cached_build_compiles_once_per_content(tmp_path):
         yield [tool.path, *c_flags(shared=True, strict=True), "-o", out / "libf.so", work / "f.c"], "compiling f.c"
 
     files = {"f.c": b"int f(void) { return 1; }\n"}
-    first = cached_build("f", [tool, "k"], files, ["libf.so"], commands, tmp_path)
+    first = cached_compile("f", [tool, "k"], files, ["libf.so"], commands, tmp_path)
     assert (first / "libf.so").is_file() and not (first / ".work").exists()
-    assert cached_build("f", [tool, "k"], files, ["libf.so"], commands, tmp_path) == first
+    assert cached_compile("f", [tool, "k"], files, ["libf.so"], commands, tmp_path) == first
     assert len(calls) == 1
-    other = cached_build("f", [tool, "k"], {"f.c": b"int f(void) { return 2; }\n"}, ["libf.so"],
+    other = cached_compile("f", [tool, "k"], {"f.c": b"int f(void) { return 2; }\n"}, ["libf.so"],
                          commands, tmp_path)
     assert other != first and len(calls) == 2
     with pytest.raises(CompileError, match="compiling f.c failed") as e:
-        cached_build("f", [tool, "k"], {"f.c": b"int f(void) { return }\n"}, ["libf.so"], commands,
+        cached_compile("f", [tool, "k"], {"f.c": b"int f(void) { return }\n"}, ["libf.so"], commands,
                      tmp_path, shown="/somewhere/src")
     assert e.value.returncode != 0 and "error" in e.value.stderr
     assert "/somewhere/src/f.c" in str(e.value) and str(calls[-1]) not in str(e.value)

@@ -123,7 +123,7 @@ def fake(tmp_path_factory):
 @pytest.fixture(scope="module")
 def exe(fake):
     d, build = fake
-    return c_programs.build_harness(d, work_dir=build)
+    return c_programs.compile_harness(d, work_dir=build)
 
 
 def trajectory(n=400, seed=0):
@@ -143,7 +143,7 @@ def test_build_is_cached_and_outside_target(fake, exe):
     assert exe["run_csv"].is_file() and exe["time_step"].is_file()
     assert build in exe["run_csv"].parents
     before = exe["run_csv"].stat().st_mtime_ns
-    again = c_programs.build_harness(d, work_dir=build)
+    again = c_programs.compile_harness(d, work_dir=build)
     assert again == exe and again["run_csv"].stat().st_mtime_ns == before
     assert sorted(p.name for p in d.iterdir()) == ["fakeobs.c", "fakeobs.h", "fakeobs.json",
                                                    "fakeobs_kernels.c"]
@@ -235,7 +235,7 @@ def test_compile_error_is_reported(tmp_path):
     (d / "broken.h").write_text(FAKE_H.replace("fakeobs", "broken").replace("FAKEOBS", "BROKEN"))
     (d / "broken.c").write_text("int broken_step(void) { return syntax error; }\n")
     with pytest.raises(CompileError, match=r"compiling broken\.c failed[\s\S]*error") as e:
-        c_programs.build_harness(d, work_dir=tmp_path / "build")
+        c_programs.compile_harness(d, work_dir=tmp_path / "build")
     assert e.value.returncode != 0 and "error" in e.value.stderr
     assert str(d / "broken.c") in str(e.value)          # the source folder, not the private copy
     assert sorted(p.name for p in (tmp_path / "build").iterdir()) == []   # nothing half-built
@@ -260,7 +260,7 @@ PIN_MISSING = c_programs.pin_bench_missing()
 @pytest.mark.slow
 @pytest.mark.skipif(PIN_MISSING is not None, reason=f"pin_aba cannot be built: {PIN_MISSING}")
 def test_pin_bench():
-    exe = c_programs.build_pin_bench()
+    exe = c_programs.compile_pin_bench()
     assert exe.is_file()
     res = c_programs.time_pin("robots/ur_description/urdf/ur5_robot.urdf", blocks=3, block_ms=2)
     assert res["nv"] == 6 and res["pin_mode"] == "library"
