@@ -107,9 +107,20 @@ def stack(items, axis=0):
     return HyperDual(*(np.stack([getattr(i, k) for i in items], axis=axis) for k in "abcd"))
 
 
+_NEXT, _PREV = [1, 2, 0], [2, 0, 1]
+
+
+def _cross3(x, y):
+    """x x y of float arrays whose first axis has length 3 (the components)."""
+    return x[_NEXT] * y[_PREV] - x[_PREV] * y[_NEXT]
+
+
 def cross(u, v):
-    """u x v for 3-vectors (floats or hyper-duals)."""
-    return stack([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
+    """u x v for 3-vectors (floats or hyper-duals): bilinear, so the parts follow the Leibniz
+    rule of ``HyperDual._product`` on the float cross product."""
+    if isinstance(u, HyperDual) or isinstance(v, HyperDual):
+        return HyperDual._product(HyperDual.lift(u), HyperDual.lift(v), _cross3)
+    return _cross3(np.asarray(u, dtype=float), np.asarray(v, dtype=float))
 
 
 def dot(u, v):
