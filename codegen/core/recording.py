@@ -64,9 +64,9 @@ def write_columns(path, columns):
 
 
 def read_columns(path, error=RecordingError):
-    """(header, data): the names of the first row and the numbers below it, (N, columns) float64
-    (N may be 0). Raises ``error`` naming the file for a missing or empty file, a non-numeric
-    value or a ragged row."""
+    """(header, data): the names of the first row of the CSV ``path`` and the numbers below it,
+    (N, columns) float64 (N may be 0). Raises ``error`` naming the file for a missing or empty
+    file, a non-numeric value or a ragged row."""
     path = Path(path)
     if not path.is_file():
         raise error(f"{path}: no such file")

@@ -33,6 +33,7 @@ from . import baselines, metrics, smoothing
 DEFAULT_FAMILIES = ("reduced_order_switched", "reduced_order", "extended_state", "nicosia_tomei")
 SIGNAL = "robot's velocity signal"          # the row of the qdm_<joint> columns
 UNRANKED = "within the reference's uncertainty: cannot be ranked"
+MEDIAN_STEP = "stepped at the median step"  # the note of an observer run at dt over jittered stamps
 
 
 @dataclass
@@ -168,6 +169,12 @@ class Comparison:
         of the RMS norm); taking that error as u, the observer is better by at least
         (b - u) / (a + u), and it is said to win only when that bound exceeds 1.
         """
+        line = self._verdict()
+        if any(e.kind == "observer" and e.note.startswith(MEDIAN_STEP) for e in self.entries):
+            line += " (the observers ran at the median step, not at the log's stamps)"
+        return line
+
+    def _verdict(self):
         obs, bl, u = self.best_observer(), self.best_baseline(), self.uncertainty
         if bl is None:
             return "no tuned filter ran: nothing to compare the observers with"
@@ -212,10 +219,11 @@ class Comparison:
             lines.append(f"reference: {self.ref.label}")
             if not self.ref.is_truth:
                 u = self.uncertainty
+                first = self.t[self.ref.valid][0]
                 lines.append(f"reference uncertainty: {u:.3g} rad/s RMS for t >= {self.t_ss:g} s; an "
-                             f"RMS error at most this is marked ({UNRANKED})"
-                             + (f"; convergence below {self.level:g} rad/s is not measurable"
-                                if u > self.level else ""))
+                             f"RMS error at most this is marked ({UNRANKED}); convergence times "
+                             f"count from t = {first:.6g} s, its first valid sample"
+                             + (f" (below {self.level:g} rad/s: not measurable)" if u > self.level else ""))
         return lines
 
     def table(self):
@@ -253,7 +261,9 @@ class Comparison:
         m = (t >= zoom[0]) & (t <= zoom[1])
         label = "true" if self.ref is None or self.ref.is_truth else "reference"
         curves = {label: truth[m, joint], **{e.name: e.est[v][m, joint] for e in self.entries}}
-        return [plots.error_norms(out / "errors.png", t, errs, levels=(self.level,), title=self.title),
+        ylabel = "||qd - qd_hat|| [rad/s]" if label == "true" else "||qd_ref - qd_hat|| [rad/s]"
+        return [plots.error_norms(out / "errors.png", t, errs, levels=(self.level,), ylabel=ylabel,
+                                  title=self.title),
                 plots.panels(out / f"joint{joint}.png", t[m],
                              [plots.Panel(curves, ylabel=f"qd{joint + 1} [rad/s]")],
                              title=f"{self.title}, joint {joint + 1}", cell=(8, 3.4))]
@@ -318,7 +328,7 @@ def _median_step_note(t, dt):
     """The note of an observer stepped at ``dt`` over stamps ``t`` that are not uniform at dt."""
     if t is None or np.all(np.abs(np.diff(t) - dt) <= 1e-6 * dt):
         return ""
-    return f"stepped at the median step {1e3 * dt:.4g} ms, not at the stamps"
+    return f"{MEDIAN_STEP} {1e3 * dt:.4g} ms, not at the stamps"
 
 
 def tune(name, Y, t, truth, t_ss, dt, grid=None, valid=None):
