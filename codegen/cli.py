@@ -472,7 +472,8 @@ def parser():
     cp.add_argument("--mismatch", type=float, default=0.0,
                     help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
     cp.add_argument("--T", type=float, help="scenario length (s, default 20)")
-    cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, default half the run)")
+    cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, on the log's clock; "
+                    "default the middle of the run)")
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     cp.add_argument("--out", metavar="DIR", help="folder of the figures and compare.json (default build/compare)")

@@ -17,8 +17,7 @@ import pytest
 
 from codegen.core.recording import Recording
 from codegen.evaluate import baselines
-from codegen.evaluate.compare import (SIGNAL, UNRANKED, Comparison, Entry, Reference, reference_of,
-                                      tune)
+from codegen.evaluate.compare import SIGNAL, UNRANKED, Comparison, Entry, Reference, reference_of, tune
 from models import load_robot
 
 ROBOT = "seed000_2r"
