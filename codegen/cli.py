@@ -20,6 +20,8 @@ from .core.target import HOLDS, METHODS, PRECISIONS
 from .pipeline.targets_file import DEFAULT_FAMILY, TargetError, check_unique, load_targets, make_target
 
 TARGETS_FILE = "targets.toml"
+# optional packages -> the extra of pyproject.toml that installs them (tests/test_cli.py checks)
+EXTRAS = {"mujoco": "mujoco", "dask": "sweep", "distributed": "sweep", "pyarrow": "sweep", "pandas": "sweep"}
 USER_ERRORS = (TargetError, FolderTaken, ToolError, ValueError, KeyError, FileNotFoundError)
 
 
@@ -33,6 +35,25 @@ class Parser(argparse.ArgumentParser):
 
 def _message(e):
     return str(e.args[0]) if isinstance(e, KeyError) and e.args else str(e)
+
+
+class MissingPackage(ImportError):
+    """An optional package is not installed; the message names the extra that installs it."""
+
+
+def _missing(module, what="this"):
+    """The MissingPackage for the optional ``module`` (top-level name) that ``what`` needs."""
+    extra = EXTRAS.get(module)
+    how = f"pip install 'observer-codegen[{extra}]'" if extra else f"pip install {module}"
+    return MissingPackage(f"{what} needs the optional package {module}: {how}")
+
+
+def _require(module, what):
+    """Raise MissingPackage (one line naming the extra) when the optional ``module`` is not
+    installed; ``what`` needs it (for the message)."""
+    import importlib.util
+    if importlib.util.find_spec(module) is None:
+        raise _missing(module, what)
 
 
 # ------------------------------------------------------------------------------------ targets
@@ -259,38 +280,55 @@ def cmd_simulate(args):
     """`simulate`: run a scenario of the seed papers (codegen.evaluate.scenarios).
     ``args``: the parsed argparse namespace; returns the exit status."""
     from .evaluate import scenarios
+    if args.name.startswith("mujoco-"):
+        _require("mujoco", f"scenario {args.name}")
     options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T")
                if getattr(args, k) is not None}
     return scenarios.run(args.name, reference=args.reference, out=args.out or work_dir() / "sim", **options)
 
 
+def _compare_robot(args):
+    """The robot of ``compare``'s CSV: ``--robot NAME`` or ``--urdf PATH [--lock JOINT=VALUE ...]``,
+    read as ``build`` reads them (``targets_file.robot_source``)."""
+    from models import from_source
+
+    from .pipeline.targets_file import robot_source
+    if args.robot is None and args.urdf is None:
+        raise ValueError("robot: a CSV needs --robot NAME or --urdf PATH (the robot it was recorded on)")
+    return from_source(robot_source(args.robot, urdf=args.urdf, lock=_pairs(args.lock, "--lock", _number)))
+
+
 def _compare_source(args):
     """(Recording, robot, title) of ``compare``'s source: a mujoco-* scenario run with the
-    sensor and mismatch options, or a recorded CSV of ``--robot``."""
-    from .evaluate.compare import robot_by_name
+    sensor and mismatch options, or a recorded CSV of ``--robot`` / ``--urdf``."""
     from .core.recording import read_csv
-    from .evaluate.scenarios import mujoco
-    if args.source in mujoco.SCENARIOS:
+    from .evaluate.scenarios.mujoco import SCENARIOS
+    if args.source in SCENARIOS:
+        from models import load_robot
+
+        from .evaluate.scenarios import mujoco
         name = args.source.removeprefix("mujoco-")
-        if args.robot not in (None, name):
-            raise ValueError(f"robot: scenario {args.source} is {name}, got --robot {args.robot}")
+        if args.robot not in (None, name) or args.urdf or args.lock:
+            given = f"--robot {args.robot}" if args.robot not in (None, name) else "--urdf/--lock"
+            raise ValueError(f"robot: scenario {args.source} is {name}, got {given}")
+        _require("mujoco", f"scenario {args.source}")
         # a simulated sensor is what the options say: unstated means exact
         args.quantization, args.noise = args.quantization or 0.0, args.noise or 0.0
         rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
-        return rec, robot_by_name(name), mujoco.title(name, args.quantization, args.noise, args.mismatch)
+        return rec, load_robot(name), mujoco.title(name, args.quantization, args.noise, args.mismatch)
     if not str(args.source).endswith(".csv"):
-        raise ValueError(f"source: expected a scenario ({', '.join(mujoco.SCENARIOS)}) or a .csv file, "
+        raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}) or a .csv file, "
                          f"got {args.source!r}")
-    if args.robot is None:
-        raise ValueError("robot: a CSV needs --robot (the robot it was recorded on)")
-    robot = robot_by_name(args.robot)
+    robot = _compare_robot(args)
     return read_csv(args.source, robot.joint_names), robot, f"{Path(args.source).name} ({robot.name})"
 
 
 def cmd_compare(args):
-    """Observers and tuned baselines on a scenario or a CSV: table, figures, JSON.
+    """Observers and tuned baselines on a scenario or a CSV: a progress bar (stderr), the table
+    (every parameter, the reference and its uncertainty, the verdict line), figures, JSON.
     ``args``: the parsed argparse namespace; returns the exit status."""
     from .evaluate.compare import DEFAULT_FAMILIES, compare, design_inputs
+    from .evaluate.smoothing import DEFAULT_CUTOFF
     from .core.recording import RecordingError
     try:
         rec, robot, title = _compare_source(args)
@@ -298,15 +336,19 @@ def cmd_compare(args):
         bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
         cmp = compare(rec, robot, families=families, t_ss=args.t_ss, level=args.level,
                       design=design_inputs(args.quantization, args.noise, args.mismatch),
-                      baseline_names=bl, reference=args.reference, title=title)
+                      baseline_names=bl, reference=args.reference, title=title,
+                      ref_cutoff=args.ref_cutoff or DEFAULT_CUTOFF, progress=True)
     except (RecordingError, ValueError, KeyError) as e:
         print(f"error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
         return 2
     print(cmp.table())
     out = Path(args.out or work_dir() / "compare")
     paths = cmp.figures(out)
-    (out / "compare.json").write_text(json.dumps({"title": title, "t_ss": cmp.t_ss, "level": cmp.level,
-                                                  "rows": cmp.rows()}, indent=2, default=float) + "\n")
+    ref = cmp.ref
+    (out / "compare.json").write_text(json.dumps(
+        {"title": title, "t_ss": cmp.t_ss, "level": cmp.level, "recording": cmp.info.get("recording"),
+         "reference": {"label": ref.label, "cutoff": ref.cutoff, "uncertainty": cmp.uncertainty},
+         "verdict": cmp.verdict(), "rows": cmp.rows()}, indent=2, default=float) + "\n")
     print(f"figures and compare.json in {out.resolve()} ({', '.join(p.name for p in paths)})")
     return 0
 
@@ -410,8 +452,15 @@ def parser():
     s.add_argument("--mismatch", type=float, help="plant masses and inertias x (1 + mismatch) (mujoco-*)")
     s.add_argument("--T", type=float, help="length (s; mujoco-* scenarios)")
     cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a scenario or a CSV")
-    cp.add_argument("source", help="mujoco-ur5, mujoco-panda, or a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>])")
-    cp.add_argument("--robot", help="robot of a CSV: catalog name or a .urdf path")
+    cp.add_argument("source", help="mujoco-ur5, mujoco-panda, or a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>]"
+                    "[, qdm_<joint>]; jittered stamps and gaps allowed)")
+    cp.add_argument("--robot", help="robot of a CSV: a catalog name (see `list`)")
+    cp.add_argument("--urdf", metavar="PATH", help="robot of a CSV: a URDF file")
+    cp.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint at VALUE "
+                    "(rad or m); repeatable")
+    cp.add_argument("--ref-cutoff", type=float, metavar="HZ",
+                    help="CSV without qd_<joint>: cut-off of the zero-phase reference velocity the methods "
+                         "are measured and tuned against (Hz, default 10)")
     cp.add_argument("--observers", help="comma-separated families, each optionally with gains "
                     "(family:name=value:...); default reduced_order_switched,reduced_order,extended_state,"
                     "nicosia_tomei")
@@ -423,7 +472,8 @@ def parser():
     cp.add_argument("--mismatch", type=float, default=0.0,
                     help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
     cp.add_argument("--T", type=float, help="scenario length (s, default 20)")
-    cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, default half the run)")
+    cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, on the log's clock; "
+                    "default the middle of the run)")
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     cp.add_argument("--out", metavar="DIR", help="folder of the figures and compare.json (default build/compare)")
@@ -451,4 +501,11 @@ def main(argv=None):
         if args.debug:
             raise
         print(f"error: {_message(e)}", file=sys.stderr)
+        return 2
+    except ImportError as e:           # an optional package: one line naming the extra
+        top = (e.name or "").partition(".")[0]
+        if args.debug or not (isinstance(e, MissingPackage) or top in EXTRAS):
+            raise
+        print(f"error: {e if isinstance(e, MissingPackage) else _missing(top, f'`{args.cmd}`')}",
+              file=sys.stderr)
         return 2

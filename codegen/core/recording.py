@@ -1,12 +1,15 @@
 """The one CSV module: a recorded run (sample times, positions, applied torques and, when known,
-true velocities), and the plain column files every other CSV of ours is (the C harness's input
-and output, a simulation's log).
+true velocities or the robot's own velocity signal), and the plain column files every other CSV
+of ours is (the C harness's input and output, a simulation's log).
 
 The recording form ``codegen compare`` reads and the MuJoCo scenarios write has a header row
 
-    t, q_<joint>..., tau_<joint>...[, qd_<joint>...]
+    t, q_<joint>..., tau_<joint>...[, qd_<joint>...][, qdm_<joint>...]
 
-with the robot's joint names, one row per sample, uniform time stamps (column order free).
+with the robot's joint names, one row per sample (column order free). ``qd`` is the true
+velocity (a simulation has it, a real log does not), ``qdm`` the velocity the robot itself logs
+(its drive's or controller's estimate). Time stamps are what a real log has: jitter and dropped
+samples are allowed, they must be finite and strictly increasing.
 ``write_columns`` / ``read_columns`` write and read any header + rows of numbers, exactly
 (shortest round-trip decimal form) and atomically (a temporary file, then a rename).
 """
@@ -90,14 +93,16 @@ class Recording:
     Attributes
     ----------
     t : (N,) array
-        Uniform sample times (s).
+        Sample times (s), strictly increasing; jitter and gaps allowed.
     q : (N, n) array
         Measured positions (rad or m), what an observer receives as y.
     tau : (N, n) array
         Torque applied over [t_k, t_k+1] (N m), the observer's u.
     qd : (N, n) array or None
-        True velocities (rad/s), when known.
+        True velocities (rad/s), when known (a simulation).
     joint_names : list of str
+    qdm : (N, n) array or None
+        The robot's own velocity signal (rad/s), when it logs one.
     """
 
     t: np.ndarray
@@ -105,29 +110,88 @@ class Recording:
     tau: np.ndarray
     qd: np.ndarray | None
     joint_names: list
+    qdm: np.ndarray | None = None
+
+    def __post_init__(self):
+        self.t = np.asarray(self.t, dtype=float)
+        n, N = len(self.joint_names), len(self.t)
+        if self.t.ndim != 1 or N < 2:
+            raise ValueError(f"t: expected (N,) sample times with N >= 2, got shape {self.t.shape}")
+        for name in ("q", "tau", "qd", "qdm"):
+            a = getattr(self, name)
+            if a is None:
+                continue
+            a = np.asarray(a, dtype=float)
+            if a.shape != (N, n):
+                raise ValueError(f"{name}: expected shape ({N}, {n}) (samples, joints), got {a.shape}")
+            setattr(self, name, a)
+        if not np.all(np.isfinite(self.t)):
+            raise ValueError(f"t: NaN or Inf at index {int(np.argmax(~np.isfinite(self.t)))}")
+        back = np.nonzero(np.diff(self.t) <= 0)[0]
+        if len(back):
+            k = back[0]
+            raise ValueError(f"t: time stamps must increase; t[{k + 1}] = {self.t[k + 1]:.9g} <= "
+                             f"t[{k}] = {self.t[k]:.9g}")
+
+    @property
+    def steps(self):
+        """The time steps t_k+1 - t_k (N-1,) (s)."""
+        return np.diff(self.t)
 
     @property
     def dt(self):
-        return float(self.t[1] - self.t[0])
+        """The median step (s), rounded to 12 significant digits (the float noise of differencing
+        decimal stamps: a uniform 1 kHz log gives exactly 1e-3). What the observers and the
+        baselines' filters are designed at."""
+        return float(f"{np.median(self.steps):.12g}")
+
+    @property
+    def dt_min(self):
+        """The shortest step (s)."""
+        return float(np.min(self.steps))
+
+    @property
+    def dt_max(self):
+        """The longest step (s)."""
+        return float(np.max(self.steps))
+
+    @property
+    def gaps(self):
+        """Number of steps longer than 1.5 median steps (dropped samples)."""
+        return int(np.sum(self.steps > 1.5 * self.dt))
+
+    @property
+    def uniform(self):
+        """True when every step is the median step to 1e-6 relative (a simulated or a
+        hardware-timed log)."""
+        return bool(np.all(np.abs(self.steps - self.dt) <= 1e-6 * self.dt))
 
     @property
     def n(self):
+        """Number of joints."""
         return len(self.joint_names)
+
+    def describe(self):
+        """One line about the time stamps: samples, span, median/min/max step and the gaps."""
+        return (f"{len(self.t)} samples over {self.t[-1] - self.t[0]:.6g} s; step median "
+                f"{1e3 * self.dt:.4g} ms ({1 / self.dt:.6g} Hz), min {1e3 * self.dt_min:.4g} ms, "
+                f"max {1e3 * self.dt_max:.4g} ms; {self.gaps} gap{'s' * (self.gaps != 1)} > 1.5 median"
+                + ("" if not self.uniform else " (uniform)"))
 
     def columns(self):
         """Header names in file order."""
-        groups = ["q", "tau"] + (["qd"] if self.qd is not None else [])
+        groups = ["q", "tau"] + [g for g in ("qd", "qdm") if getattr(self, g) is not None]
         return ["t"] + [f"{g}_{j}" for g in groups for j in self.joint_names]
 
     def write_csv(self, path):
         """Write the CSV of the module docstring to ``path`` (atomically; parent folders
         created); returns the path."""
         names = self.columns()
-        data = np.column_stack([self.t] + [a for a in (self.q, self.tau, self.qd) if a is not None])
+        data = np.column_stack([self.t] + [a for a in (self.q, self.tau, self.qd, self.qdm) if a is not None])
         return write_columns(path, {name: data[:, i] for i, name in enumerate(names)})
 
 
-def read_csv(path, joint_names, rtol=1e-6):
+def read_csv(path, joint_names):
     """A Recording from a CSV with the header of the module docstring.
 
     Parameters
@@ -135,15 +199,14 @@ def read_csv(path, joint_names, rtol=1e-6):
     path : path-like
         The file.
     joint_names : list of str
-        The robot's joints, in model order (q_<joint> and tau_<joint> must exist for each).
-    rtol : float
-        Largest relative deviation of a time step from the mean step.
+        The robot's joints, in model order (q_<joint> and tau_<joint> must exist for each;
+        qd_<joint> and qdm_<joint> for all joints or none).
 
     Raises
     ------
     RecordingError
-        Missing file or columns, non-numeric or non-finite values, fewer than 2 rows,
-        time stamps that are not increasing and uniform.
+        Missing file or columns, non-numeric or non-finite values, fewer than 2 rows, time
+        stamps that repeat or go back (the message names the file's rows).
     """
     path = Path(path)
     header, data = read_columns(path)
@@ -151,7 +214,13 @@ def read_csv(path, joint_names, rtol=1e-6):
     missing = [c for c in need if c not in header]
     if missing:
         raise RecordingError(f"{path}: missing columns {', '.join(missing)} (expected t, q_<joint>, "
-                             f"tau_<joint>[, qd_<joint>] for joints {', '.join(joint_names)})")
+                             f"tau_<joint>[, qd_<joint>][, qdm_<joint>] for joints {', '.join(joint_names)})")
+    for g in ("qd", "qdm"):
+        have = [f"{g}_{j}" for j in joint_names if f"{g}_{j}" in header]
+        if have and len(have) < len(joint_names):
+            lack = [f"{g}_{j}" for j in joint_names if f"{g}_{j}" not in header]
+            raise RecordingError(f"{path}: has {', '.join(have)} but not {', '.join(lack)} "
+                                 f"({g}_<joint> for every joint or none)")
     if data.ndim != 2 or len(data) < 2 or data.shape[1] != len(header):
         raise RecordingError(f"{path}: need at least 2 rows of {len(header)} values")
     if not np.all(np.isfinite(data)):
@@ -160,13 +229,14 @@ def read_csv(path, joint_names, rtol=1e-6):
     col = {h: data[:, i] for i, h in enumerate(header)}
     t = col["t"]
     steps = np.diff(t)
-    mean = (t[-1] - t[0]) / (len(t) - 1)
-    bad = np.nonzero(~(np.abs(steps - mean) <= rtol * abs(mean)) | (steps <= 0))[0]
+    bad = np.nonzero(steps <= 0)[0]
     if len(bad):
-        k = bad[0]
-        raise RecordingError(f"{path}: time stamps are not uniform: step {steps[k]:.6g} s between rows "
-                             f"{k + 2} and {k + 3} (t = {t[k]:.6g}), mean step {mean:.6g} s")
+        k = bad[0]                  # file rows: the header is row 1, sample k is row k + 2
+        what = "repeats" if steps[k] == 0 else "goes back"
+        raise RecordingError(f"{path}: time stamp {what} between rows {k + 2} and {k + 3}: t = "
+                             f"{t[k]:.9g} then {t[k + 1]:.9g} s (stamps must strictly increase"
+                             f"{f'; {len(bad)} such rows' if len(bad) > 1 else ''})")
     stack = lambda g: np.column_stack([col[f"{g}_{j}"] for j in joint_names])  # noqa: E731
-    has_qd = all(f"qd_{j}" in col for j in joint_names)
-    return Recording(t=t, q=stack("q"), tau=stack("tau"), qd=stack("qd") if has_qd else None,
-                     joint_names=list(joint_names))
+    has = {g: all(f"{g}_{j}" in col for j in joint_names) for g in ("qd", "qdm")}
+    return Recording(t=t, q=stack("q"), tau=stack("tau"), qd=stack("qd") if has["qd"] else None,
+                     joint_names=list(joint_names), qdm=stack("qdm") if has["qdm"] else None)

@@ -4,6 +4,12 @@ Same shape as an observer (``codegen.pipeline.load.CompiledObserver``): ``reset(
 ``step(y, u) -> qd_hat``, ``estimate(y, u)``, ``run(Y, U) -> QD_HAT``, ``state``, and the sizes
 ``ny = nu = nest = n``. The torque u is accepted and ignored: none of these uses a model.
 
+A real log's stamps jitter and drop samples: ``run(Y, U, t=t)`` takes the sample times and uses
+each sample's own step h_k = t_k - t_k-1 where a user would (the differences divide by h_k, the
+Kalman filter and Levant's differentiator advance by h_k); the Butterworth filter stays designed
+at the nominal ``dt`` (the median step: what a user designs it at). Stamps uniform at ``dt`` to
+1e-9 take the constant-step path, bit for bit what ``run(Y)`` gives.
+
 | name           | what                                                                 | tuned over |
 |----------------|----------------------------------------------------------------------|------------|
 | ``backward``   | backward difference (y_k - y_k-1) / dt                               | --         |
@@ -57,6 +63,7 @@ class Baseline:
         """Start from the first measurement y0 (rad) and an initial velocity est0 (default 0)."""
         y0 = as_vector("y0", y0, self.n)
         est0 = np.zeros(self.n) if est0 is None else as_vector("est0", est0, self.n)
+        self._t_last = None                 # the last stamp seen by run(..., t=...)
         self._reset(y0, est0)
 
     def step(self, y, u=None):
@@ -70,15 +77,48 @@ class Baseline:
         self._x[:] = saved
         return est
 
-    def run(self, Y, U=None):
-        """Many samples (rows of Y, (N, n)); U is ignored. Returns QD_HAT (N, n)."""
+    def run(self, Y, U=None, t=None):
+        """Many samples (rows of Y, (N, n)); U is ignored. Returns QD_HAT (N, n).
+
+        ``t`` (N,), optional: the samples' time stamps (s), strictly increasing; each sample then
+        advances by its own step h_k = t_k - t_k-1 (the first by t_0 minus the last stamp of a
+        previous ``run`` with stamps since ``reset``, else by ``dt``). None: every step is ``dt``.
+        """
         Y = as_matrix("Y", Y, self.n)
-        return self._run(Y)
+        H = self._steps(t, len(Y))
+        if H is None:
+            return self._run(Y)
+        out = self._run_steps(Y, H)
+        self._t_last = float(t[-1])
+        return out
+
+    def _steps(self, t, N):
+        """The steps h_k (N,) of the stamps ``t``, or None for no stamps or stamps uniform at dt."""
+        if t is None:
+            self._t_last = None
+            return None
+        t = as_vector("t", t, N)
+        H = np.diff(t, prepend=t[0] - self.dt if self._t_last is None else self._t_last)
+        if np.any(H <= 0):
+            k = int(np.argmax(H <= 0))
+            prev = f"t[{k - 1}] = {t[k - 1]:.9g}" if k else f"the previous run's last stamp {self._t_last:.9g}"
+            raise ValueError(f"t: time stamps must increase; t[{k}] = {t[k]:.9g} <= {prev}")
+        if np.all(np.abs(H - self.dt) <= 1e-9 * self.dt):
+            self._t_last = float(t[-1])
+            return None
+        return H
 
     def _run(self, Y):
         out = np.empty_like(Y)
         for k in range(len(Y)):
             out[k] = self._step(Y[k])
+        return out
+
+    def _run_steps(self, Y, H):
+        """As _run with the step H[k] (s) before sample k."""
+        out = np.empty_like(Y)
+        for k in range(len(Y)):
+            out[k] = self._step(Y[k], H[k])
         return out
 
     @property
@@ -97,7 +137,8 @@ class Baseline:
 
 
 class BackwardDifference(Baseline):
-    """qd_hat_k = (y_k - y_k-1) / dt: the velocity at t_k - dt/2 (a lag of half a sample).
+    """qd_hat_k = (y_k - y_k-1) / h_k, h_k = dt or t_k - t_k-1 (stamped ``run``): the velocity
+    at t_k - h_k/2 (a lag of half a sample).
 
     State: the previous sample y_k-1."""
 
@@ -106,15 +147,21 @@ class BackwardDifference(Baseline):
     def _reset(self, y0, est0):
         self._x[:] = y0
 
-    def _step(self, y):
-        est = (y - self._x) / self.dt
+    def _step(self, y, h=None):
+        est = (y - self._x) / (self.dt if h is None else h)
         self._x[:] = y
         return est
 
     def _run(self, Y):
+        return self._run_steps(Y, self.dt)
+
+    def _run_steps(self, Y, H):
+        """(y_k - y_k-1) / h_k for all rows at once; H: (N,) steps or the scalar dt."""
+        H = np.asarray(H, dtype=float)
+        H = H[:, None] if H.ndim else H
         out = np.empty_like(Y)
-        out[0] = (Y[0] - self._x) / self.dt
-        out[1:] = np.diff(Y, axis=0) / self.dt
+        out[0] = (Y[0] - self._x) / (H[0] if H.ndim else H)
+        out[1:] = np.diff(Y, axis=0) / (H[1:] if H.ndim else H)
         self._x[:] = Y[-1]
         return out
 
@@ -122,7 +169,8 @@ class BackwardDifference(Baseline):
 class Butterworth(Baseline):
     """Backward difference filtered by a causal Butterworth low-pass, per joint.
 
-    The filter is ``scipy.signal.butter(order, cutoff, fs=1/dt, output="sos")`` run as
+    The difference divides by each sample's own step (stamped ``run``); the filter is designed
+    at the nominal rate, ``scipy.signal.butter(order, cutoff, fs=1/dt, output="sos")``, run as
     second-order sections (direct form II transposed, ``scipy.signal.sosfilt``) whose state
     is kept across steps. Its group delay at low frequency is about sqrt(2)/(2 pi cutoff) s
     for order 2 (4.5 ms at 50 Hz), plus the half sample of the difference.
@@ -171,17 +219,23 @@ class Butterworth(Baseline):
         zi[:] = self._zi1[:, :, None] * est0                  # settled at the initial velocity
 
     def _run(self, Y):
+        return self._run_steps(Y, self.dt)
+
+    def _run_steps(self, Y, H):
+        """Differences (y_k - y_k-1) / h_k (H: (N,) steps or the scalar dt), then the filter."""
         from scipy import signal
         prev, zi = self._split()
+        H = np.asarray(H, dtype=float)
+        H = H[:, None] if H.ndim else H
         D = np.empty_like(Y)
-        D[0] = (Y[0] - prev) / self.dt
-        D[1:] = np.diff(Y, axis=0) / self.dt
+        D[0] = (Y[0] - prev) / (H[0] if H.ndim else H)
+        D[1:] = np.diff(Y, axis=0) / (H[1:] if H.ndim else H)
         out, zi[:] = signal.sosfilt(self._sos, D, axis=0, zi=zi)
         prev[:] = Y[-1]
         return out
 
-    def _step(self, y):
-        return self._run(y[None, :])[0]
+    def _step(self, y, h=None):
+        return self._run_steps(y[None, :], np.array([self.dt if h is None else h]))[0]
 
 
 def white_jerk_covariance(dt, q):
@@ -199,7 +253,8 @@ class Kalman(Baseline):
         y_k = q_k + v,      v ~ N(0, r)
 
     with Q the white-jerk covariance (``white_jerk_covariance``). Every joint has the same
-    model, so they share one covariance P; the estimate is the filtered qd after y_k.
+    model, so they share one covariance P; the estimate is the filtered qd after y_k. A stamped
+    ``run`` uses A(h_k) and Q(h_k) with each sample's own step h_k = t_k - t_k-1.
 
     Parameters
     ----------
@@ -257,6 +312,51 @@ class Kalman(Baseline):
         X += np.outer(K, y - X[0])
         return X[1]
 
+    def _run_steps(self, Y, H):
+        """The filter with the transition A(h_k) and the process noise Q(h_k) of each step:
+        P (symmetric, 6 entries) in scalars, the state (3, n) vectorised over the joints."""
+        X, P = self._split()
+        q, r = self.q, self.r
+        p00, p01, p02, p11, p12, p22 = P[0, 0], P[0, 1], P[0, 2], P[1, 1], P[1, 2], P[2, 2]
+        x0, x1, x2 = X[0].copy(), X[1].copy(), X[2].copy()
+        out = np.empty_like(Y)
+        for k in range(len(Y)):
+            h = float(H[k])
+            h2 = h * h
+            # predict: P <- A P A' + Q(h), A = [[1, h, h^2/2], [0, 1, h], [0, 0, 1]]
+            a01, a02, a12 = h, 0.5 * h2, h
+            m00 = p00 + a01 * p01 + a02 * p02
+            m01 = p01 + a01 * p11 + a02 * p12
+            m02 = p02 + a01 * p12 + a02 * p22
+            m11 = p11 + a12 * p12
+            m12 = p12 + a12 * p22
+            n00 = m00 + m01 * a01 + m02 * a02
+            n01 = m01 + m02 * a12
+            n02 = m02
+            n11 = m11 + m12 * a12
+            n12 = m12
+            n22 = p22
+            n00 += q * h2 * h2 * h / 20
+            n01 += q * h2 * h2 / 8
+            n02 += q * h2 * h / 6
+            n11 += q * h2 * h / 3
+            n12 += q * h2 / 2
+            n22 += q * h
+            # update with H = [1, 0, 0]
+            s = n00 + r
+            k0, k1, k2 = n00 / s, n01 / s, n02 / s
+            p00, p01, p02 = n00 - k0 * n00, n01 - k0 * n01, n02 - k0 * n02
+            p11, p12, p22 = n11 - k1 * n01, n12 - k1 * n02, n22 - k2 * n02
+            # the state, every joint at once
+            x0 = x0 + h * x1 + 0.5 * h2 * x2
+            x1 = x1 + h * x2
+            e = Y[k] - x0
+            x0, x1, x2 = x0 + k0 * e, x1 + k1 * e, x2 + k2 * e
+            out[k] = x1
+        X[0], X[1], X[2] = x0, x1, x2
+        P[:] = [[p00, p01, p02], [p01, p11, p12], [p02, p12, p22]]
+        return out
+
     def _run(self, Y):
         """As _step per row; once the gain has settled (P does not depend on the data) it is
         reused instead of advancing P."""
@@ -286,7 +386,9 @@ class Levant(Baseline):
     Int. J. Control 76, 2003, non-recursive form; M. Livne, A. Levant, "Proper discretization
     of homogeneous differentiators", Automatica 50, 2014: the Taylor terms keep the accuracy
     of the continuous differentiator, |z_1 - qd| = O(L dt^m) without noise). The estimate at
-    t_k is z_1 before the update with y_k, so it uses samples up to y_k-1.
+    t_k is z_1 before the update with y_k, so it uses samples up to y_k-1. A stamped ``run``
+    advances each update by the sample's own step h_k = t_k+1 - t_k in place of dt (the next
+    stamp, the last update by the previous step).
 
     Parameters
     ----------
@@ -311,10 +413,17 @@ class Levant(Baseline):
         self._gain = np.array([lam[m - i] * self.L ** ((i + 1) / (m + 1)) for i in range(m + 1)])
         self._power = np.array([(m - i) / (m + 1) for i in range(m + 1)])
         dt = positive("dt", dt)
-        # Taylor matrix T[i, j] = dt^(j-i) / (j-i)! for j >= i
+        # Taylor matrix T[i, j] = dt^(j-i) / (j-i)! for j >= i (the uniform path; _taylor: stamps)
         self._T = np.array([[dt ** (j - i) / math.factorial(j - i) if j >= i else 0.0
                              for j in range(m + 1)] for i in range(m + 1)])
+        D = np.subtract.outer(np.arange(m + 1), np.arange(m + 1)).T                  # j - i
+        self._upper, self._powers = D >= 0, np.maximum(D, 0)
+        self._factorials = np.vectorize(math.factorial)(self._powers).astype(float)
         super().__init__(n, dt)
+
+    def _taylor(self, h):
+        """Taylor matrix T[i, j] = h^(j-i) / (j-i)! for j >= i, else 0 (h in s)."""
+        return np.where(self._upper, h ** self._powers / self._factorials, 0.0)
 
     @property
     def nx(self):
@@ -329,13 +438,19 @@ class Levant(Baseline):
         Z[:] = 0.0
         Z[0], Z[1] = y0, est0
 
-    def _step(self, y):
+    def _step(self, y, h=None):
         Z = self._x.reshape(self.order + 1, self.n)
         est = Z[1].copy()
         e = Z[0] - y
         corr = -self._gain[:, None] * np.abs(e) ** self._power[:, None] * np.sign(e)
-        Z[:] = self._T @ Z + self.dt * corr
+        T, h = (self._T, self.dt) if h is None else (self._taylor(h), h)
+        Z[:] = T @ Z + h * corr
         return est
+
+    def _run_steps(self, Y, H):
+        """Each update advances to the next sample: by h_k+1 (the last one by h_N-1)."""
+        ahead = np.append(H[1:], H[-1])
+        return super()._run_steps(Y, ahead)
 
 
 BASELINES = {cls.name: cls for cls in (BackwardDifference, Butterworth, Kalman, Levant)}

@@ -1,32 +1,118 @@
 """Observers against the baselines a user would otherwise write, on one recorded run.
 
     cmp = compare(recording, robot)        # observers compiled (loop in C), baselines tuned
-    print(cmp.table())
+    print(cmp.table())                     # ends with the verdict line
     cmp.figures(out_dir)
 
 Every observer family in ``families`` is built with its designed gains (``design`` is passed to
-``observers.build``), compiled at the recording's sample time with the default discretisation
-and run over the samples. Every baseline of ``codegen.evaluate.baselines`` is run once per value of its
-own parameter grid (``baselines.GRIDS``) on the same samples and the value with the lowest RMS
-after ``t_ss`` is kept: the baselines are tuned with the truth, the observers are not.
+``observers.build``), compiled at the recording's (median) sample time with the default
+discretisation and run over the samples (``run_observer``). Every baseline of
+``codegen.evaluate.baselines`` is run once per value of its own parameter grid
+(``baselines.GRIDS``) on the same samples, with the log's own time stamps, and the value with the
+lowest RMS after ``t_ss`` is kept: the baselines are tuned, the observers are not. The robot's own
+velocity signal (``qdm_<joint>`` columns), when logged, is one more row.
+
+What the estimates are measured against (``Reference``): the true velocity when the recording
+has it (a simulation); otherwise, as on every real log, the offline zero-phase reference of
+``codegen.evaluate.smoothing.reference_velocity`` (4th-order Butterworth forward and backward at
+``ref_cutoff`` Hz on a uniform resampling), on the samples away from its edges. Its uncertainty u
+(RMS of its spread between cutoff/sqrt 2 and cutoff sqrt 2) is reported; an estimate whose RMS
+error against it is at most u cannot be ranked. The baselines are tuned on the same reference.
 Measures are those of ``codegen.evaluate.metrics``.
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from . import baselines, metrics
+from . import baselines, metrics, smoothing
 
 DEFAULT_FAMILIES = ("reduced_order_switched", "reduced_order", "extended_state", "nicosia_tomei")
+SIGNAL = "robot's velocity signal"          # the row of the qdm_<joint> columns
+UNRANKED = "within the reference's uncertainty: cannot be ranked"
+MEDIAN_STEP = "stepped at the median step"  # the note of an observer run at dt over jittered stamps
+
+
+@dataclass
+class Reference:
+    """The velocity the estimates are measured against.
+
+    Attributes
+    ----------
+    qd : (N, n) array
+        The true velocity, or the zero-phase reference (rad/s).
+    valid : (N,) bool array
+        The samples measured on (all for the truth; away from the filter's edges otherwise).
+    spread : (N, n) array or None
+        The reference's spread |qd(fc/sqrt 2) - qd(fc sqrt 2)| (rad/s); None for the truth.
+    cutoff : float or None
+        Cut-off of the zero-phase reference (Hz); None for the truth.
+    label : str
+        What it is, for the table.
+    """
+
+    qd: np.ndarray
+    valid: np.ndarray
+    spread: np.ndarray | None
+    cutoff: float | None
+    label: str
+
+    @property
+    def is_truth(self):
+        """True when the reference is the true velocity."""
+        return self.spread is None
+
+    def uncertainty(self, t, t0):
+        """u = sqrt(mean_k ||spread_k||^2) over the valid samples with t_k >= t0 (rad/s); 0 for
+        the truth. ``t`` (N,) sample times (s)."""
+        if self.spread is None:
+            return 0.0
+        return metrics.rms_after(t[self.valid], self.spread[self.valid], t0)
+
+    def measure(self, t, est, t_ss, level):
+        """``metrics.summarize`` of the estimate ``est`` (N, n) against this reference on its
+        valid samples; ``t`` (N,) s, ``t_ss`` (s) and ``level`` (rad/s) as there."""
+        v = self.valid
+        return metrics.summarize(t[v], est[v], self.qd[v], t_ss, level)
+
+
+def reference_of(rec, cutoff=smoothing.DEFAULT_CUTOFF):
+    """The Reference of a recording: its true velocity when it has one, else the zero-phase
+    reference of ``smoothing.reference_velocity`` at ``cutoff`` Hz.
+
+    Parameters
+    ----------
+    rec : codegen.core.recording.Recording
+    cutoff : float
+        Cut-off of the zero-phase reference (Hz), used when ``rec.qd`` is None.
+
+    Returns
+    -------
+    Reference
+    """
+    if rec.qd is not None:
+        return Reference(rec.qd, np.ones(len(rec.t), bool), None, None,
+                         "the true velocity (qd_<joint> columns)")
+    qd, spread, valid = smoothing.reference_velocity(rec.t, rec.q, cutoff)
+    if not valid.any():
+        raise ValueError(f"rec: {rec.t[-1] - rec.t[0]:g} s is too short for the zero-phase reference "
+                         f"at {cutoff:g} Hz (it drops {2 / cutoff:g} s at each end)")
+    lo, hi = cutoff / np.sqrt(2), min(cutoff * np.sqrt(2), 0.45 / rec.dt)
+    label = (f"zero-phase Butterworth (order {smoothing.ORDER}, forward and backward) at {cutoff:g} Hz of "
+             f"q resampled at the median step (no qd_<joint> columns); uncertainty: RMS of "
+             f"|qd({lo:.3g} Hz) - qd({hi:.3g} Hz)|; measured on t in [{rec.t[valid][0]:.6g}, "
+             f"{rec.t[valid][-1]:.6g}] s")
+    return Reference(qd, valid, spread, float(cutoff), label)
 
 
 @dataclass
 class Entry:
-    """One method on the run: its name, kind ("observer" or "baseline"), the parameters it ran
-    with (for a tuned baseline: the best of its grid), its estimate (N, n) and its metrics."""
+    """One method on the run: its name, kind ("observer", "baseline" or "signal": the robot's
+    own velocity), the parameters it ran with (for a tuned baseline: the best of its grid), its
+    estimate (N, n) and its metrics."""
 
     name: str
     kind: str
@@ -38,7 +124,8 @@ class Entry:
 
 @dataclass
 class Comparison:
-    """The entries of one run, with the run's t, truth and the windows the metrics used."""
+    """The entries of one run, with the run's t, the velocity measured against (``truth``: the
+    true velocity or the reference's, ``ref`` says which) and the windows the metrics used."""
 
     t: np.ndarray
     truth: np.ndarray
@@ -47,6 +134,7 @@ class Comparison:
     level: float
     title: str = ""
     info: dict = field(default_factory=dict)
+    ref: Reference | None = None
 
     def __getitem__(self, name):
         for e in self.entries:
@@ -54,55 +142,129 @@ class Comparison:
                 return e
         raise KeyError(f"no method {name!r}; have {', '.join(e.name for e in self.entries)}")
 
-    def best_baseline(self):
-        """The baseline entry with the lowest RMS after t_ss (NaN/diverged ones excluded)."""
-        ok = [e for e in self.entries if e.kind == "baseline" and np.isfinite(e.metrics["rms"])
+    @property
+    def uncertainty(self):
+        """The reference's uncertainty over the steady-state window (rad/s); 0 for the truth."""
+        return 0.0 if self.ref is None else self.ref.uncertainty(self.t, self.t_ss)
+
+    def _best(self, kind):
+        ok = [e for e in self.entries if e.kind == kind and np.isfinite(e.metrics["rms"])
               and not e.metrics["diverged"]]
         return min(ok, key=lambda e: e.metrics["rms"]) if ok else None
 
+    def best_baseline(self):
+        """The baseline entry with the lowest RMS after t_ss (NaN/diverged ones excluded)."""
+        return self._best("baseline")
+
+    def best_observer(self):
+        """The observer entry with the lowest RMS after t_ss (NaN/diverged ones excluded)."""
+        return self._best("observer")
+
+    def verdict(self):
+        """One line: ``use X: N x better than the best tuned filter (Y)`` or ``no observer beats
+        the best tuned filter here``.
+
+        Against a reference of uncertainty u, the RMS errors a (observer) and b (filter) are each
+        off their true values by at most the reference's own RMS error (the triangle inequality
+        of the RMS norm); taking that error as u, the observer is better by at least
+        (b - u) / (a + u), and it is said to win only when that bound exceeds 1.
+        """
+        line = self._verdict()
+        if any(e.kind == "observer" and e.note.startswith(MEDIAN_STEP) for e in self.entries):
+            line += " (the observers ran at the median step, not at the log's stamps)"
+        return line
+
+    def _verdict(self):
+        obs, bl, u = self.best_observer(), self.best_baseline(), self.uncertainty
+        if bl is None:
+            return "no tuned filter ran: nothing to compare the observers with"
+        b = bl.metrics["rms"]
+        if obs is None:
+            return f"no observer beats the best tuned filter here ({bl.name}): no observer ran"
+        a = obs.metrics["rms"]
+        if not a < b:
+            return (f"no observer beats the best tuned filter here ({bl.name}, RMS {b:.3g} rad/s; "
+                    f"best observer {obs.name}, {a:.3g} rad/s)")
+        if u == 0:
+            return f"use {obs.name}: {b / a:.3g} x better than the best tuned filter ({bl.name})"
+        low = (b - u) / (a + u)
+        if low > 1:
+            return (f"use {obs.name}: {b / a:.3g} x better than the best tuned filter ({bl.name}) "
+                    f"against the reference; at least {low:.3g} x if the reference is off by its "
+                    f"uncertainty {u:.3g} rad/s")
+        return (f"no observer beats the best tuned filter here beyond the reference's uncertainty "
+                f"({obs.name} {a:.3g}, {bl.name} {b:.3g}, uncertainty {u:.3g} rad/s)")
+
     def rows(self):
-        """Plain-data rows (JSON-able): name, kind, params, the metrics and the RMS ratio to
-        the best baseline."""
-        best = self.best_baseline()
+        """Plain-data rows (JSON-able): name, kind, params, the metrics, the RMS ratio to the
+        best baseline and, against a reference, whether the RMS is within its uncertainty."""
+        best, u = self.best_baseline(), self.uncertainty
         out = []
         for e in self.entries:
             r = {"name": e.name, "kind": e.kind, "params": e.params, **e.metrics}
             r["rms_over_best_baseline"] = (e.metrics["rms"] / best.metrics["rms"]) if best else float("nan")
+            r["within_uncertainty"] = bool(u > 0 and e.metrics["rms"] <= u)
             if e.note:
                 r["note"] = e.note
             out.append(r)
         return out
 
+    def header(self):
+        """The lines above the table: title, the recording's stamps, what the estimates are
+        measured against and its uncertainty."""
+        lines = [self.title] if self.title else []
+        if "recording" in self.info:
+            lines.append(f"recording: {self.info['recording']}")
+        if self.ref is not None:
+            lines.append(f"reference: {self.ref.label}")
+            if not self.ref.is_truth:
+                u = self.uncertainty
+                first = self.t[self.ref.valid][0]
+                lines.append(f"reference uncertainty: {u:.3g} rad/s RMS for t >= {self.t_ss:g} s; an "
+                             f"RMS error at most this is marked ({UNRANKED}); convergence times "
+                             f"count from t = {first:.6g} s, its first valid sample"
+                             + (f" (below {self.level:g} rad/s: not measurable)" if u > self.level else ""))
+        return lines
+
     def table(self):
-        """The metrics table as text (one line per method)."""
+        """The metrics table as text: the header lines, one line per method (every parameter,
+        in full, last), then the verdict line."""
         rows = self.rows()
         w = max([16] + [len(r["name"]) for r in rows])
-        head = (f"{'method':{w}s} {'parameters':26s} {'RMS t>=' + format(self.t_ss, 'g') + 's':>12s} "
+        head = (f"{'method':{w}s} {'RMS t>=' + format(self.t_ss, 'g') + 's':>12s} "
                 f"{'max':>9s} {'t<' + format(self.level, 'g'):>9s} {'gain':>8s} {'lag ms':>8s} "
-                f"{'/best bl':>8s}")
-        lines = [self.title, head] if self.title else [head]
+                f"{'/best bl':>8s}  parameters")
+        lines = self.header() + [head]
         for r in rows:
-            par = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+            par = ", ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
                             for k, v in r["params"].items())
+            notes = [n for n in (r.get("note"), UNRANKED if r["within_uncertainty"] else "") if n]
             lines.append(
-                f"{r['name']:{w}s} {par[:26]:26s} {r['rms']:12.3e} {r['max']:9.2e} "
+                f"{r['name']:{w}s} {r['rms']:12.3e} {r['max']:9.2e} "
                 f"{r['t_conv']:9.3f} {r['gain']:8.4f} {1e3 * r['lag']:8.3f} "
-                f"{r['rms_over_best_baseline']:8.3f}" + ("  DIVERGED" if r["diverged"] else "")
-                + (f"  ({r['note']})" if r.get("note") else ""))
+                f"{r['rms_over_best_baseline']:8.3f}  {par or '-'}" + ("  DIVERGED" if r["diverged"] else "")
+                + "".join(f"  ({n})" for n in notes))
+        lines.append(self.verdict())
         return "\n".join(lines)
 
     def figures(self, out, joint=0, zoom=None):
         """Write to the folder ``out`` ``errors.png`` (||qd - qd_hat|| on a log axis, every method)
-        and ``joint<j>.png`` (estimates of ``joint`` j (0-based) against the truth over ``zoom`` =
-        (t0, t1) s, default the first 0.5 s after t_ss). Returns the paths."""
+        and ``joint<j>.png`` (estimates of ``joint`` j (0-based) against the truth or the
+        reference over ``zoom`` = (t0, t1) s, default the first 0.5 s after t_ss). Against a
+        reference, only its valid samples are drawn. Returns the paths."""
         from .sim import plots
         out = Path(out)
-        errs = {e.name: e.est - self.truth for e in self.entries}
-        zoom = zoom or (self.t_ss, min(self.t[-1], self.t_ss + 0.5))
-        m = (self.t >= zoom[0]) & (self.t <= zoom[1])
-        curves = {"true": self.truth[m, joint], **{e.name: e.est[m, joint] for e in self.entries}}
-        return [plots.error_norms(out / "errors.png", self.t, errs, levels=(self.level,), title=self.title),
-                plots.panels(out / f"joint{joint}.png", self.t[m],
+        v = np.ones(len(self.t), bool) if self.ref is None else self.ref.valid
+        t, truth = self.t[v], self.truth[v]
+        errs = {e.name: e.est[v] - truth for e in self.entries}
+        zoom = zoom or (self.t_ss, min(t[-1], self.t_ss + 0.5))
+        m = (t >= zoom[0]) & (t <= zoom[1])
+        label = "true" if self.ref is None or self.ref.is_truth else "reference"
+        curves = {label: truth[m, joint], **{e.name: e.est[v][m, joint] for e in self.entries}}
+        ylabel = "||qd - qd_hat|| [rad/s]" if label == "true" else "||qd_ref - qd_hat|| [rad/s]"
+        return [plots.error_norms(out / "errors.png", t, errs, levels=(self.level,), ylabel=ylabel,
+                                  title=self.title),
+                plots.panels(out / f"joint{joint}.png", t[m],
                              [plots.Panel(curves, ylabel=f"qd{joint + 1} [rad/s]")],
                              title=f"{self.title}, joint {joint + 1}", cell=(8, 3.4))]
 
@@ -126,51 +288,100 @@ def parse_observer(text):
     return family.strip(), given
 
 
-def run_observer(spec, Y, U, dt, reference=False):
+def run_observer(spec, Y, U, dt, reference=False, t=None):
     """Estimate (N, nest) of an observer spec over samples Y, U with the default discretisation
     at dt: compiled C (the loop in C) or the numpy reference; (estimate of NaN, message) when
-    the observer fails."""
+    the observer fails.
+
+    Parameters
+    ----------
+    spec : codegen.core.spec.ObserverSpec
+    Y, U : (N, ny), (N, nu) arrays
+        Measurements and inputs.
+    dt : float
+        Sample time the observer is discretised at (s): the median step of a jittered log.
+    reference : bool
+        The numpy reference instead of the compiled C.
+    t : (N,) array, optional
+        The samples' time stamps (s). This is the one place the observers meet them: until the
+        observers' run takes the elapsed time (``CompiledObserver.run(Y, U, t=...)``), every
+        sample advances by ``dt`` and the note of a log with non-uniform stamps says so.
+
+    Returns
+    -------
+    (estimate (N, nest), note str)
+    """
     from ..pipeline.load import ObserverError
     from .sim.blocks import block
     from ..core.target import discretization
     try:
         obs = block(spec, discretization(None, dt=dt), reference=reference)
         obs.reset(Y[0])
-        return obs.run(Y, U), ""
+        # Stepped at dt, not at the stamps t: when CompiledObserver.run(Y, U, t=...) (the step
+        # over the elapsed time) is merged, this one line becomes `return obs.run(Y, U, t=t), ""`.
+        return obs.run(Y, U), _median_step_note(t, dt)
     except (ObserverError, FloatingPointError) as e:
         return np.full((len(Y), spec.nest), np.nan), str(e)
 
 
-def tune(name, Y, t, truth, t_ss, dt, grid=None):
+def _median_step_note(t, dt):
+    """The note of an observer stepped at ``dt`` over stamps ``t`` that are not uniform at dt."""
+    if t is None or np.all(np.abs(np.diff(t) - dt) <= 1e-6 * dt):
+        return ""
+    return f"{MEDIAN_STEP} {1e3 * dt:.4g} ms, not at the stamps"
+
+
+def tune(name, Y, t, truth, t_ss, dt, grid=None, valid=None):
     """The baseline ``name`` run over each value of its ``grid`` (None: baselines.GRIDS) that it
-    accepts at this dt (s); returns (params, estimate (N, n)) of the value with the lowest RMS of
-    est - ``truth`` (N, n) after t_ss (s) (the only value for an untuned baseline). ``Y`` (N, n):
-    measured positions (rad) at the times ``t`` (N,) s."""
+    accepts at this dt; returns (params, estimate (N, n)) of the value with the lowest RMS of
+    est - ``truth`` (N, n) after t_ss (s) (the only value for an untuned baseline).
+
+    Parameters
+    ----------
+    name : str
+        A baseline of ``baselines.BASELINES``.
+    Y : (N, n) array
+        Measured positions (rad).
+    t : (N,) array
+        Their time stamps (s); each baseline runs with them (``Baseline.run(Y, t=t)``).
+    truth : (N, n) array
+        The velocity it is tuned on (rad/s): the true one or the zero-phase reference.
+    t_ss : float
+        Start of the window the RMS is taken over (s).
+    dt : float
+        The nominal (median) step (s): what the filters are designed at.
+    grid : list of float, optional
+        Values of the baseline's tuned parameter.
+    valid : (N,) bool array, optional
+        The samples the RMS is taken over (default all).
+    """
     cls = baselines.BASELINES[name]
     values = [None] if cls.tuned is None else (grid or baselines.GRIDS[name])
+    v = slice(None) if valid is None else valid
     best = None
-    for v in values:
+    for value in values:
         try:
-            b = cls(Y.shape[1], dt) if v is None else cls(Y.shape[1], dt, **{cls.tuned: v})
+            b = cls(Y.shape[1], dt) if value is None else cls(Y.shape[1], dt, **{cls.tuned: value})
         except ValueError:
             continue                    # a value this sample time cannot take (cutoff >= Nyquist)
         b.reset(Y[0])
-        est = b.run(Y)
-        r = metrics.rms_after(t, est - truth, t_ss)
+        est = b.run(Y, t=t)
+        r = metrics.rms_after(t[v], est[v] - truth[v], t_ss)
         if best is None or (np.isfinite(r) and not r >= best[0]):
             best = (r, b.params, est)
     return best[1], best[2]
 
 
 def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level=1e-2,
-            baseline_names=None, reference=False, title=""):
-    """Observers and tuned baselines on one recorded run.
+            baseline_names=None, reference=False, title="", ref_cutoff=smoothing.DEFAULT_CUTOFF,
+            progress=False):
+    """Observers, tuned baselines and the robot's own velocity signal on one recorded run.
 
     Parameters
     ----------
     rec : codegen.core.recording.Recording
-        Measured positions (what the observers receive), applied torques and the true
-        velocities (needed for the metrics and the tuning).
+        Time stamps (jitter and gaps allowed), measured positions (what the observers receive),
+        applied torques and, when known, the true velocities and the robot's velocity signal.
     robot : models.RobotModel
         The nominal model the observers are built on.
     families : sequence of str
@@ -180,7 +391,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     design : dict, optional
         Keyword arguments of ``observers.build`` for every family (design inputs).
     t_ss : float, optional
-        Start of the steady-state window (s); default half the run.
+        Start of the steady-state window (s); default the middle of the run.
     level : float
         Convergence threshold (rad/s).
     baseline_names : sequence of str, optional
@@ -189,36 +400,60 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         Run the observers with the numpy reference instead of the compiled C.
     title : str
         Title of the table and figures.
+    ref_cutoff : float
+        Cut-off (Hz) of the zero-phase reference used when ``rec`` has no true velocity.
+    progress : bool
+        A progress bar over the methods on stderr (tqdm).
 
     Returns
     -------
     Comparison
     """
+    from tqdm import tqdm
+
     from ..families import observers
-    if rec.qd is None:
-        raise ValueError("rec: the recording has no true velocity (qd_<joint> columns); "
-                         "the metrics and the baseline tuning need it")
     if list(rec.joint_names) != list(robot.joint_names):
         raise ValueError(f"rec: joints {rec.joint_names} differ from the robot's {robot.joint_names}")
-    t, Y, U, truth, dt = rec.t, rec.q, rec.tau, rec.qd, rec.dt
-    t_ss = float(t[-1] / 2 if t_ss is None else t_ss)
+    t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
+    t_ss = float(t[0] + (t[-1] - t[0]) / 2 if t_ss is None else t_ss)
+    ref = reference_of(rec, ref_cutoff)
+    parsed = [(item, *parse_observer(item)) for item in families]
+    bad = [fam for _, fam, _ in parsed if fam not in observers.FAMILIES]
+    if bad:                                 # every name checked before the slow part
+        raise ValueError(f"observers: unknown family {bad[0]!r}; known: {', '.join(observers.FAMILIES)}")
+    names = list(baseline_names or baselines.BASELINES)
+    unknown = [b for b in names if b not in baselines.BASELINES]
+    if unknown:
+        raise ValueError(f"baselines: unknown {unknown[0]!r}; known: {', '.join(baselines.BASELINES)}")
     entries = []
-    for item in families:
-        fam, given = parse_observer(item)
-        try:
-            spec = observers.build(fam, robot, **{**design_for(fam, design), **given})
-        except TypeError as e:
-            raise ValueError(f"observers: {item!r}: {e}") from None
-        if spec.nest != robot.n or spec.ny != robot.n:
-            raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
-                             f"nest = {spec.nest})")
-        est, note = run_observer(spec, Y, U, dt, reference)
-        params = {k: float(v) for k, v in zip(spec.p_names, spec.p_default)}
-        entries.append(Entry(item, "observer", params, est, metrics.summarize(t, est, truth, t_ss, level), note))
-    for name in baseline_names or baselines.BASELINES:
-        params, est = tune(name, Y, t, truth, t_ss, dt)
-        entries.append(Entry(name, "baseline", params, est, metrics.summarize(t, est, truth, t_ss, level)))
-    return Comparison(t=t, truth=truth, entries=entries, t_ss=t_ss, level=level, title=title)
+    bar = tqdm(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
+               file=sys.stderr, disable=not progress, leave=False)
+    with bar:
+        for item, fam, given in parsed:
+            bar.set_postfix_str(item)
+            try:
+                spec = observers.build(fam, robot, **{**design_for(fam, design), **given})
+            except TypeError as e:
+                raise ValueError(f"observers: {item!r}: {e}") from None
+            if spec.nest != robot.n or spec.ny != robot.n:
+                raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
+                                 f"nest = {spec.nest})")
+            est, note = run_observer(spec, Y, U, dt, reference, t=t)
+            params = {k: float(v) for k, v in zip(spec.p_names, spec.p_default)}
+            entries.append(Entry(item, "observer", params, est, ref.measure(t, est, t_ss, level), note))
+            bar.update()
+        for name in names:
+            bar.set_postfix_str(name)
+            params, est = tune(name, Y, t, ref.qd, t_ss, dt, valid=ref.valid)
+            entries.append(Entry(name, "baseline", params, est, ref.measure(t, est, t_ss, level)))
+            bar.update()
+        if rec.qdm is not None:
+            bar.set_postfix_str("qdm")
+            entries.append(Entry(SIGNAL, "signal", {"columns": "qdm_<joint>"}, rec.qdm,
+                                 ref.measure(t, rec.qdm, t_ss, level)))
+            bar.update()
+    return Comparison(t=t, truth=ref.qd, entries=entries, t_ss=t_ss, level=level, title=title,
+                      info={"recording": rec.describe()}, ref=ref)
 
 
 def robot_by_name(name):

@@ -132,3 +132,80 @@ def test_error_measures():
     assert set(row) == {"rms", "max", "t_conv", "gain", "lag", "diverged"}
     with pytest.raises(ValueError, match="t0 = 2 s is after the last sample"):
         metrics.rms_after(t, err, 2.0)
+
+
+# ------------------------------------------------------------------------------ stamped runs
+def _jittered(seed=0):
+    """The sinusoid of the module at stamps 1 ms +- 0.3 ms with 2 % of the samples dropped."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(DT + rng.uniform(-3e-4, 3e-4, 4000))
+    t = t[rng.random(len(t)) > 0.02]
+    return t, np.column_stack([np.sin(W * t), 0.5 * np.cos(W * t)]), \
+        np.column_stack([W * np.cos(W * t), -0.5 * W * np.sin(W * t)])
+
+
+def test_stamped_backward_difference_is_the_velocity_at_the_midpoint():
+    """(y_k - y_k-1) / h_k = qd(t_k - h_k/2) + O(h^2 |qddd| / 24): 6e-5 rad/s at h = 2.6 ms."""
+    t, Yj, QDj = _jittered()
+    b = baselines.make("backward", 2, DT)
+    b.reset(Yj[0])
+    est = b.run(Yj, t=t)
+    mid = t[1:] - np.diff(t) / 2
+    truth = np.column_stack([W * np.cos(W * mid), -0.5 * W * np.sin(W * mid)])
+    assert np.max(np.abs(est[1:] - truth)) < W ** 3 * np.max(np.diff(t)) ** 2 / 24
+    # every step taken as dt: the estimate is qd h_k / dt, off by ||qd|| |h_k - dt| / dt (1 rad/s
+    # RMS here), 60 x the half-step lag ||qdd|| h_k / 2 of the stamped estimate
+    b.reset(Yj[0])
+    unstamped = b.run(Yj)
+    jitter = np.linalg.norm(QDj[1:], axis=1) * np.abs(np.diff(t) - DT) / DT
+    assert metrics.rms_after(t[1:], unstamped[1:] - QDj[1:], 1.0) == pytest.approx(
+        metrics.rms_after(t[1:], jitter, 1.0), rel=0.05)
+    assert metrics.rms_after(t, unstamped - QDj, 1.0) > 30 * metrics.rms_after(t, est - QDj, 1.0)
+
+
+@pytest.mark.parametrize("name, options, lag, gain_tol, lag_tol", [
+    ("butterworth", {"cutoff": 50.0}, butterworth_lag(50.0, 2), 1e-3, 0.02 * butterworth_lag(50.0, 2)),
+    ("kalman", {"q": 1e6}, 0.0, 1e-3, 2e-5),
+    ("levant", {"L": 500.0}, 0.0, 1e-3, 2e-5),
+])
+def test_stamped_runs_keep_gain_and_lag(name, options, lag, gain_tol, lag_tol):
+    """On jittered stamps with gaps, the same gain and lag as on a uniform log (the Butterworth
+    designed at the nominal 1 kHz, its input differences over the real steps)."""
+    t, Yj, QDj = _jittered()
+    b = baselines.make(name, 2, DT, **options)
+    b.reset(Yj[0], QDj[0])
+    g, fitted = metrics.gain_lag(t, b.run(Yj, t=t), QDj, t0=1.0)
+    assert abs(g - 1) < gain_tol
+    assert abs(fitted - lag) < lag_tol
+
+
+@pytest.mark.parametrize("name", list(baselines.BASELINES))
+def test_uniform_stamps_are_the_constant_step_path(name):
+    a, b = baselines.make(name, 2, DT), baselines.make(name, 2, DT)
+    a.reset(Y[0])
+    b.reset(Y[0])
+    assert np.array_equal(a.run(Y, t=T + 5.0), b.run(Y))
+
+
+@pytest.mark.parametrize("name", ["backward", "butterworth", "kalman"])
+def test_stamped_runs_chain(name):
+    """Two stamped runs are one: the second starts from the first's last stamp."""
+    t, Yj, _ = _jittered()
+    a, b = baselines.make(name, 2, DT), baselines.make(name, 2, DT)
+    a.reset(Yj[0])
+    b.reset(Yj[0])
+    whole = a.run(Yj, t=t)
+    parts = np.vstack([b.run(Yj[:1000], t=t[:1000]), b.run(Yj[1000:], t=t[1000:])])
+    assert np.allclose(parts, whole, rtol=1e-12, atol=1e-12)
+
+
+def test_bad_stamps_are_refused():
+    b = baselines.make("kalman", 2, DT)
+    t = np.arange(10) * DT
+    with pytest.raises(ValueError, match=r"t: expected shape \(10,\)"):
+        b.run(Y[:10], t=t[:9])
+    with pytest.raises(ValueError, match=r"t: time stamps must increase; t\[5\] = 0.004 <= t\[4\] = 0.004"):
+        b.run(Y[:10], t=np.r_[t[:5], t[4:9]])
+    b.run(Y[:10], t=t)
+    with pytest.raises(ValueError, match=r"t\[0\] = 0.009 <= the previous run's last stamp 0.009"):
+        b.run(Y[10:20], t=t + 9 * DT)

@@ -108,8 +108,13 @@ def test_csv_errors_name_the_problem(tmp_path):
     row = lines[10].split(",")
     row[0] = str(float(row[0]) + 3e-4)
     (tmp_path / "jitter.csv").write_text("\n".join(lines[:10] + [",".join(row)] + lines[11:]) + "\n")
-    with pytest.raises(RecordingError, match="time stamps are not uniform: step 0.0013 s between rows 10 and 11"):
-        read_csv(tmp_path / "jitter.csv", rec.joint_names)
+    jittered = read_csv(tmp_path / "jitter.csv", rec.joint_names)       # a real log's stamps are read
+    assert jittered.t[9] == pytest.approx(0.0093) and jittered.dt == 1e-3 and not jittered.uniform
+    assert (jittered.dt_min, jittered.dt_max) == pytest.approx((0.7e-3, 1.3e-3))
+    row[0] = str(float(row[0]) - 2e-3)                                  # before the row above it
+    (tmp_path / "back.csv").write_text("\n".join(lines[:10] + [",".join(row)] + lines[11:]) + "\n")
+    with pytest.raises(RecordingError, match="time stamp goes back between rows 10 and 11"):
+        read_csv(tmp_path / "back.csv", rec.joint_names)
     row[0], row[1] = lines[10].split(",")[0], "nan"
     (tmp_path / "nan.csv").write_text("\n".join(lines[:10] + [",".join(row)] + lines[11:]) + "\n")
     with pytest.raises(RecordingError, match="NaN or Inf in column 'q_j0', row 11"):
@@ -124,7 +129,7 @@ def test_compare_cli_errors(tmp_path, capsys):
     rec.joint_names = load_robot("ur5").joint_names
     rec.write_csv(tmp_path / "ur5.csv")
     assert main(["compare", str(tmp_path / "ur5.csv"), "--robot", "ur6"]) == 2
-    assert "unknown robot 'ur6'; valid: seed000_2r" in capsys.readouterr().err
+    assert "unknown robot 'ur6'; catalog: seed000_2r" in capsys.readouterr().err
     assert main(["compare", str(tmp_path / "ur5.csv"), "--robot", "panda"]) == 2
     assert "missing columns q_panda_joint1" in capsys.readouterr().err
     assert main(["compare", str(tmp_path / "ur5.csv")]) == 2
