@@ -461,9 +461,9 @@ def parser():
     cp.add_argument("--ref-cutoff", type=float, metavar="HZ",
                     help="CSV without qd_<joint>: cut-off of the zero-phase reference velocity the methods "
                          "are measured and tuned against (Hz, default 10)")
+    from .evaluate.compare import DEFAULT_FAMILIES
     cp.add_argument("--observers", help="comma-separated families, each optionally with gains "
-                    "(family:name=value:...); default reduced_order_switched,reduced_order,extended_state,"
-                    "nicosia_tomei")
+                    f"(family:name=value:...); default {','.join(DEFAULT_FAMILIES)}")
     cp.add_argument("--baselines", help="comma-separated (default: all of codegen.evaluate.baselines)")
     cp.add_argument("--quantization", type=float,
                     help="encoder step (rad); scenario: of its sensor (default 0); both this and --noise "
