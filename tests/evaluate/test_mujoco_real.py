@@ -79,7 +79,7 @@ def test_perturbation_is_seeded_and_reproducible():
 def test_perturbation_stays_in_its_ranges(real):
     p = real.perturbation
     assert p.links, "no link was perturbed"
-    for name, v in p.links.items():
+    for v in p.links.values():
         (m0, m1), (c0, c1), (I0, I1) = v["mass"], v["com"], v["inertia"]
         assert 0.8 * m0 <= m1 <= 1.2 * m0
         assert np.all(np.abs(np.asarray(c1) - c0) <= 0.2 * np.linalg.norm(c0) + 1e-15)
@@ -221,7 +221,7 @@ def test_instants_and_dropped_rows():
 
 
 def test_log_steps_encoder_and_tracking(ur5_run):
-    plant, run = ur5_run
+    _, run = ur5_run
     k = np.flatnonzero(run.logged)
     h = np.diff(run.t[k])
     single = np.diff(k) == 1

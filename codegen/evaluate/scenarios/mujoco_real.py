@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import json
 import time
-from functools import lru_cache
+from functools import cache, lru_cache
 from pathlib import Path
 
 ROBOTS = ("ur5", "panda", "kinova")
@@ -33,7 +33,7 @@ T_EXCITATION = 10.0
 T_TASK = 20.0
 
 
-@lru_cache(maxsize=None)
+@cache
 def robot_model(robot_name):
     """The RobotModel of ``robot_name``: the catalog's (ur5, panda), or example-robot-data's URDF
     (kinova) with every movable gripper joint (a name with "finger" or "gripper") locked at 0."""

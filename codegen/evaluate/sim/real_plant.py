@@ -117,10 +117,10 @@ def urdf_joint_limits(path, joint_names):
         if name not in joints:
             raise ValueError(f"joint_names: {name!r} is not a joint of {path}")
         lim = joints[name].find("limit")
-        for k in out:
-            if lim is not None and lim.get(k) is not None:
-                if not (k in ("lower", "upper") and joints[name].get("type") == "continuous"):
-                    out[k][i] = float(lim.get(k))
+        continuous = joints[name].get("type") == "continuous"
+        for k, column in out.items():
+            if lim is not None and lim.get(k) is not None and not (continuous and k in ("lower", "upper")):
+                column[i] = float(lim.get(k))
     return out
 
 
@@ -136,9 +136,8 @@ def _urdf_inertials(root):
         c = _vec(o.get("xyz") if o is not None else None)
         R = _rpy(_vec(o.get("rpy") if o is not None else None))
         a = e.find("inertia").attrib if e.find("inertia") is not None else {}
-        g = lambda k: float(a.get(k, 0.0))  # noqa: E731
-        I0 = np.array([[g("ixx"), g("ixy"), g("ixz")], [g("ixy"), g("iyy"), g("iyz")],
-                       [g("ixz"), g("iyz"), g("izz")]])
+        xx, xy, xz, yy, yz, zz = (float(a.get(k, 0.0)) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
+        I0 = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
         out[link.get("name")] = (float(e.find("mass").get("value")), c, R @ I0 @ R.T)
     return out
 
@@ -308,7 +307,7 @@ def draw_perturbation(robot, seed=0, inertial=0.2, payload_mass=1.0, payload_off
 
     rng = _rng(seed, "friction", name)
     big = np.arange(n) < n - wrist
-    draw = lambda b, w: np.where(big, rng.uniform(*b, n), rng.uniform(*w, n))  # noqa: E731
+    draw = lambda b, w: np.where(big, rng.uniform(*b, n), rng.uniform(*w, n))
     fc = draw(cb, cw)
     fv = draw(vb, vw)
     offset = torque_offset * _sign(_rng(seed, "offset", name), n)
@@ -698,9 +697,9 @@ class RealRun:
         lo, hi = self.step_range
         single = (log_steps >= lo - 1e-12) & (log_steps <= hi + 1e-12)
         err = (self.tau_meas - self.tau)[self.logged]
-        ms = lambda a: {"min": float(a.min() * 1e3), "mean": float(a.mean() * 1e3),  # noqa: E731
+        ms = lambda a: {"min": float(a.min() * 1e3), "mean": float(a.mean() * 1e3),
                         "max": float(a.max() * 1e3), "std": float(a.std() * 1e3)}
-        lst = lambda a: [None if not np.isfinite(x) else float(x) for x in a]  # noqa: E731
+        lst = lambda a: [None if not np.isfinite(x) else float(x) for x in a]
         return {"T": float(self.t[-1]), "instants": len(self.t), "logged": int(self.logged.sum()),
                 "dropped": int((~self.logged).sum()), "dropped_fraction": float((~self.logged).mean()),
                 "step_ms": ms(steps), "log_step_ms": ms(log_steps),
