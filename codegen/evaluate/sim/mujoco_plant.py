@@ -10,6 +10,8 @@ qfrc_bias) equal pinocchio's crba and nle to round-off (tests/test_mujoco.py).
 
 Integration. MuJoCo's own fixed-step RK4 (``mjINT_RK4``) with ``timestep`` (1e-4 s) sub-steps;
 the torque of sample k is applied as ``qfrc_applied`` over [t_k, t_k+1] (zero-order hold).
+``track_at`` runs the same loop at arbitrary (jittered) instants: each interval h is integrated
+exactly by floor(h / timestep) full steps and one shortened step of the remainder (``advance``).
 
 Closed loop. Computed-torque tracking of q_d(t) with MuJoCo's own inverse dynamics
 (``mj_inverse``, which includes its joint damping) on the true state at each sample:
@@ -94,9 +96,12 @@ class MujocoPlant:
         Relative error of the plant's masses and inertias (0.1: all 10 % heavier), > -1.
     timestep : float
         MuJoCo's RK4 step (s).
+    urdf_text : str, optional
+        The URDF text MuJoCo loads instead of ``mujoco_urdf(robot.source["path"], ...)`` (e.g. a
+        perturbed copy, codegen.evaluate.sim.real_plant); it must have the robot's joints.
     """
 
-    def __init__(self, robot, mismatch=0.0, timestep=TIMESTEP):
+    def __init__(self, robot, mismatch=0.0, timestep=TIMESTEP, urdf_text=None):
         mj = _mujoco()
         src = getattr(robot, "source", {}) or {}
         if src.get("kind") != "urdf":
@@ -107,7 +112,9 @@ class MujocoPlant:
         if not (np.isfinite(timestep) and timestep > 0):
             raise ValueError(f"timestep must be a positive number of seconds, got {timestep!r}")
         self.robot, self.n, self.mismatch = robot, robot.n, float(mismatch)
-        self.model = mj.MjModel.from_xml_string(mujoco_urdf(src["path"], src.get("locked_joints")))
+        if urdf_text is None:
+            urdf_text = mujoco_urdf(src["path"], src.get("locked_joints"))
+        self.model = mj.MjModel.from_xml_string(urdf_text)
         m = self.model
         m.opt.timestep = float(timestep)
         m.opt.integrator = mj.mjtIntegrator.mjINT_RK4
@@ -194,6 +201,76 @@ class MujocoPlant:
                 d.qfrc_applied[:] = 0.0
                 d.qfrc_applied[self._vi] = tau
                 mj.mj_step(m, d, nstep=sub)
+        return Recording(t=t, q=Q, tau=TAU, qd=QD, joint_names=list(self.robot.joint_names))
+
+    def advance(self, h, tau=None):
+        """Integrate the plant over h seconds with the applied torque held: floor(h / timestep)
+        RK4 steps of ``timestep``, then one step of the remainder (none if it is below 1e-9
+        timestep), so the state lands exactly at t + h.
+
+        Parameters
+        ----------
+        h : float
+            Interval (s), > 0.
+        tau : (n,) array, optional
+            Torque to apply (our joint order); default: keep the one applied.
+        """
+        mj, m, d = self._mj, self.model, self.data
+        ts = m.opt.timestep
+        if not (np.isfinite(h) and h > 0):
+            raise ValueError(f"h must be a positive number of seconds, got {h!r}")
+        if tau is not None:
+            tau = np.asarray(tau, dtype=float)
+            if tau.shape != (self.n,) or not np.all(np.isfinite(tau)):
+                raise ValueError(f"tau must be {self.n} finite torques, got shape {tau.shape}")
+            d.qfrc_applied[:] = 0.0
+            d.qfrc_applied[self._vi] = tau
+        full = int(np.floor(h / ts + 1e-9))
+        rest = h - full * ts
+        if full:
+            mj.mj_step(m, d, nstep=full)
+        if rest > 1e-9 * ts:
+            m.opt.timestep = rest
+            try:
+                mj.mj_step(m, d)
+            finally:
+                m.opt.timestep = ts
+
+    def track_at(self, reference, t, kp=KP, kd=KD):
+        """Computed-torque tracking of ``reference`` with the controller running at the instants
+        ``t`` (any increasing times, e.g. jittered): tau_k as in the module docstring from the
+        true state at t_k, held over [t_k, t_k+1] and integrated exactly (``advance``).
+
+        Parameters
+        ----------
+        reference : callable
+            t -> (q_d, qd_d, qdd_d), each (n,); the plant starts at (q_d(t_0), qd_d(t_0)).
+        t : (N,) array
+            Increasing controller instants (s), N >= 2.
+        kp, kd : float
+            Computed-torque gains (1/s^2, 1/s).
+
+        Returns
+        -------
+        codegen.core.recording.Recording
+            At the instants t (not uniform in general): true q, true qd, applied tau.
+        """
+        t = np.asarray(t, dtype=float)
+        if t.ndim != 1 or len(t) < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            raise ValueError("t must be an increasing 1-D array of at least 2 finite instants (s)")
+        N = len(t)
+        Q, QD, TAU = np.empty((N, self.n)), np.empty((N, self.n)), np.empty((N, self.n))
+        mj, m, d = self._mj, self.model, self.data
+        mj.mj_resetData(m, d)
+        q_d, qd_d, _ = reference(t[0])
+        self.set_state(q_d, qd_d)
+        for k in range(N):
+            q, qd = self.get_state()
+            q_d, qd_d, qdd_d = reference(t[k])
+            tau = self.inverse_dynamics(q, qd, qdd_d + kd * (qd_d - qd) + kp * (q_d - q))
+            Q[k], QD[k], TAU[k] = q, qd, tau
+            if k < N - 1:
+                self.advance(t[k + 1] - t[k], tau)
         return Recording(t=t, q=Q, tau=TAU, qd=QD, joint_names=list(self.robot.joint_names))
 
 

@@ -1,0 +1,145 @@
+"""A real arm's logs: ur5, panda and kinova on the "real" MuJoCo plant (codegen.evaluate.sim.real_plant).
+
+The plant is the robot's URDF in MuJoCo with every moving link's mass, centre of mass and principal
+moments off by up to +-20 %, a 1 kg payload on the last link, Coulomb (MuJoCo ``frictionloss``) and
+viscous friction on every joint; its own controller (computed torque with MuJoCo's inverse
+dynamics on the true state: it knows that plant) runs at jittered instants (steps U(0.7, 1.6) ms,
+1 us clock). The log is what a user of that arm has: 2^16-count encoder positions and torques
+with 1 % (of the effort limit) white noise and a +-0.2 N m offset, 1 % of the rows missing.
+
+Two runs on the same plant: ``excitation``, one 10 s period of a 5-harmonic multi-sine at 0.1 Hz
+(``fourier_excitation``; another excitation plugs in through ``excitation``), and ``task``,
+four minimum-jerk point-to-point moves with rests (``point_to_point``, 20 s). Files in ``out``:
+
+    excitation.csv, task.csv               the logs: t, q_<joint>, tau_<joint> (measured; no qd)
+    excitation_truth.csv, task_truth.csv   t, logged, q_<joint>, qd_<joint>, tau_<joint> (applied)
+    perturbation.json                      what was drawn (RealPlant.truth)
+
+and the summary (sample times, torque-sensor error, friction drawn, tracking). Identification,
+observers and comparison build on these files.
+
+    python -m codegen simulate mujoco-kinova-real [--T 20]
+"""
+from __future__ import annotations
+
+import json
+import time
+from functools import cache, lru_cache
+from pathlib import Path
+
+ROBOTS = ("ur5", "panda", "kinova")
+URDFS = {"kinova": "kinova_description/robots/kinova.urdf"}   # example-robot-data, beside the catalog's
+T_EXCITATION = 10.0
+T_TASK = 20.0
+
+
+@cache
+def robot_model(robot_name):
+    """The RobotModel of ``robot_name``: the catalog's (ur5, panda), or example-robot-data's URDF
+    (kinova) with every movable gripper joint (a name with "finger" or "gripper") locked at 0."""
+    import xml.etree.ElementTree as ET
+
+    from models import load_robot
+    from models.urdf import example_robot_data_dir
+    if robot_name not in ROBOTS:
+        raise ValueError(f"robot: the real MuJoCo scenarios have {', '.join(ROBOTS)}, got {robot_name!r}")
+    if robot_name not in URDFS:
+        return load_robot(robot_name)
+    path = example_robot_data_dir() / URDFS[robot_name]
+    locked = {j.get("name"): 0.0 for j in ET.parse(path).getroot().iter("joint")
+              if j.get("type") not in (None, "fixed")
+              and any(w in j.get("name").lower() for w in ("finger", "gripper"))}
+    return load_robot(urdf=path, locked_joints=locked or None)
+
+
+def runs(robot_name, seed=0, T=T_TASK, T_excitation=T_EXCITATION, excitation=None):
+    """The plant and its two runs (module docstring).
+
+    Parameters
+    ----------
+    robot_name : {"ur5", "panda", "kinova"}
+    seed : int
+        Seed of the perturbation, of the trajectories and of each run's timing and noise.
+    T, T_excitation : float
+        Length of the task run and of the excitation run (s).
+    excitation : callable, optional
+        t -> (q_d, qd_d, qdd_d), the excitation reference; default
+        ``fourier_excitation(robot, seed=seed)``.
+
+    Returns
+    -------
+    (RealPlant, RealRun, RealRun)
+        The plant, the excitation run and the task run.
+    """
+    if excitation is None:
+        return _runs(robot_name, int(seed), float(T), float(T_excitation))
+    return _simulate(robot_name, int(seed), float(T), float(T_excitation), excitation)
+
+
+@lru_cache(maxsize=4)
+def _runs(robot_name, seed, T, T_excitation):
+    return _simulate(robot_name, seed, T, T_excitation, None)
+
+
+def _simulate(robot_name, seed, T, T_excitation, excitation):
+    from ..sim.real_plant import RealPlant, fourier_excitation, point_to_point
+    robot = robot_model(robot_name)
+    plant = RealPlant(robot, seed=seed)
+    ref = excitation if excitation is not None else fourier_excitation(robot, seed=seed)
+    exc = plant.run(ref, T_excitation, seed=(seed, 1))
+    task = plant.run(point_to_point(robot, seed=seed), T, seed=(seed, 2))
+    return plant, exc, task
+
+
+def experiment(robot_name, out=None, seed=0, T=T_TASK, T_excitation=T_EXCITATION, excitation=None):
+    """Simulate the two runs of ``robot_name`` and write them (module docstring).
+
+    Parameters
+    ----------
+    robot_name : {"ur5", "panda", "kinova"}
+    out : path-like, optional
+        Folder for the CSVs and perturbation.json.
+    seed, T, T_excitation, excitation
+        As in ``runs``.
+
+    Returns
+    -------
+    dict
+        The summary: robot, seed, the drawn friction, payload, torque offset and body masses,
+        each run's statistics (``RealRun.stats``), the files and the wall time.
+    """
+    t0 = time.perf_counter()
+    plant, exc, task = runs(robot_name, seed, T, T_excitation, excitation)
+    truth = plant.truth()
+    files = {}
+    if out is not None:
+        out = Path(out)
+        for name, run in (("excitation", exc), ("task", task)):
+            log, tr = run.write(out, name)
+            files[name], files[f"{name}_truth"] = log.name, tr.name
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "perturbation.json").write_text(json.dumps(truth, indent=1) + "\n")
+        files["perturbation"] = "perturbation.json"
+    bodies = truth["bodies"]
+    return {"robot": robot_name, "seed": seed, "joints": truth["joint_names"],
+            "coulomb_drawn": truth["coulomb"], "viscous_drawn": truth["viscous"],
+            "frictionloss": truth["friction"]["frictionloss"], "damping": truth["friction"]["damping"],
+            "payload": truth["payload"], "torque_offset": truth["torque_offset"],
+            "torque_noise_std": truth["sensors"]["torque_noise_std"],
+            "encoder_step": truth["sensors"]["encoder_step"],
+            "body_mass_nominal": [bodies[j]["nominal"]["mass"] for j in truth["joint_names"]],
+            "body_mass_real": [bodies[j]["real"]["mass"] for j in truth["joint_names"]],
+            "excitation": exc.stats(), "task": task.stats(), "files": files,
+            "wall_s": time.perf_counter() - t0}
+
+
+def _scenario(robot_name):
+    def run(reference=False, out=None, T=T_TASK):
+        return experiment(robot_name, out=out, T=T)
+    run.__doc__ = (f"Real {robot_name} on MuJoCo: the excitation and task logs, their truth and the drawn "
+                   f"perturbation (see codegen.evaluate.scenarios.mujoco_real); ``reference`` is unused "
+                   f"(no observer runs yet), ``out`` the folder, ``T`` the task run's length (s).")
+    return run
+
+
+SCENARIOS = {f"mujoco-{name}-real": _scenario(name) for name in ROBOTS}
