@@ -102,15 +102,32 @@ def from_source(source):
         return ElasticRobot(rigid, source["J"], source["K"], name=name)
     if kind == "urdf":
         from models.urdf import load_urdf
-        return load_urdf(source["path"], locked_joints=source.get("locked_joints") or None,
-                         name=name, snap_tol=source.get("snap_tol", 1e-9))
-    if kind == "dh":
-        return dh.DHRobot(name, source["dh"], source["masses"], source["coms"], source["inertias"],
-                          source["gravity"], F=source.get("F"))
-    if kind == "closed_form":
+        robot = load_urdf(source["path"], locked_joints=source.get("locked_joints") or None,
+                          name=name, snap_tol=source.get("snap_tol", 1e-9), friction_file=None)
+    elif kind == "dh":
+        robot = dh.DHRobot(name, source["dh"], source["masses"], source["coms"], source["inertias"],
+                           source["gravity"], F=source.get("F"))
+    elif kind == "closed_form":
         cls = {"planar_2r": closed_form.Planar2R, "absolute_2r": closed_form.Absolute2R}[source["model"]]
-        return cls(name, **source["params"])
-    raise ValueError(f"unknown robot source kind {kind!r} (catalog, closed_form, urdf, dh, elastic)")
+        robot = cls(name, **source["params"])
+    else:
+        raise ValueError(f"unknown robot source kind {kind!r} (catalog, closed_form, urdf, dh, elastic)")
+    return _with_source_friction(robot, source.get("friction"))
+
+
+_FRICTION_ENTRY = ("viscous", "coulomb", "offset", "coulomb_width")
+
+
+def _with_source_friction(robot, entry):
+    """``robot`` with the friction of a source's "friction" entry (RobotModel.source) applied
+    (the URDF side file is not read again: the entry holds its values)."""
+    if entry is None:
+        return robot
+    if not isinstance(entry, dict) or any(k not in _FRICTION_ENTRY for k in entry):
+        raise ValueError(f"robot source: 'friction' must be a dict with keys among "
+                         f"{', '.join(_FRICTION_ENTRY)}, got {entry!r}")
+    return robot.with_friction(viscous=entry.get("viscous"), coulomb=entry.get("coulomb"),
+                               offset=entry.get("offset"), width=entry.get("coulomb_width"))
 
 
 def load_elastic(name, J=None, K=None):

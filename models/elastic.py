@@ -9,8 +9,9 @@ diagonal joint stiffness. State x = [x1; x2; x3; x4] = [q1; q1'; q2; q2'] (4n):
     x' = f(x) + G(x) u,   f = [x2; FD(x1, x2, -K(x1 - x3)); x4; J^-1 K (x1 - x3)],
     G = [0; 0; 0; J^-1]                                                 [S004 (2.8)-(2.11)]
 
-FD is the rigid robot's forward dynamics, so c(q1, q1') here is C(q1, q1') q1' + F q1' (the
-rigid model's viscous friction F, zero for the seed robots) [DERIVED].
+FD is the rigid robot's forward dynamics, so c(q1, q1') here is C(q1, q1') q1' + tau_f(q1') (the
+rigid model's friction tau_f(v) = F v + coulomb tanh(v / w) + offset, models/robot.py; zero for
+the seed robots) [DERIVED].
 
 ``ElasticRobot.n`` is the number of JOINTS (as for a rigid robot); the state has ``nx = 4 n``.
 It duck-types what ObserverSpec/emit need: ``name``, ``n``, ``fingerprint``, ``source``.
@@ -67,6 +68,13 @@ class ElasticRobot:
 
     def __repr__(self):
         return f"<ElasticRobot {self.name!r} n={self.n} nx={self.nx}>"
+
+    def with_friction(self, viscous=None, coulomb=None, offset=None, width=None):
+        """This elastic robot on ``rigid.with_friction(viscous, coulomb, offset, width)`` (the link
+        side's friction, models/robot.py ``RobotModel.with_friction``; None keeps a value), same
+        J, K and name."""
+        rigid = self.rigid.with_friction(viscous=viscous, coulomb=coulomb, offset=offset, width=width)
+        return ElasticRobot(rigid, np.diag(self.J), np.diag(self.K), name=self.name)
 
     # ------------------------------------------------------------ symbolic blocks
     def split(self, x):

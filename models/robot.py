@@ -1,9 +1,13 @@
-"""What a robot is: the rigid manipulator model of SPEC §0.
+"""What a robot is: the rigid manipulator model of SPEC §0 with joint friction.
 
-    M(q) qdd + C(q, qd) qd + F qd + g(q) = tau          [S000 (1)]
+    M(q) qdd + C(q, qd) qd + tau_f(qd) + g(q) = tau          [S000 (1)]
+    tau_f(v) = viscous v + coulomb tanh(v / coulomb_width) + offset   (per joint)
 
 with C the Christoffel Coriolis matrix, so that Mdot = C + C^T and
-C(q, a) b = C(q, b) a  [S000 (3)].
+C(q, a) b = C(q, b) a  [S000 (3)]. ``F = diag(viscous)`` is the viscous matrix of [S000 (1)];
+``coulomb`` tanh(v / coulomb_width) is a smooth Coulomb friction and ``offset`` a constant torque
+(a torque sensor's offset, an unmodelled torque). Without Coulomb friction and offset, tau_f = F v
+and every expression is the one of the viscous model.
 
 A concrete robot (closed form, URDF) subclasses :class:`RobotModel` and gives the
 symbolic building blocks ``mass_matrix``, ``gravity`` and ``com_positions``; the
@@ -13,12 +17,20 @@ are ``casadi.Function`` objects built from those blocks.
 """
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
+import math
 from functools import cached_property
 
 import casadi as ca
 import numpy as np
+
+from models.algebra import add, mul
+
+# The default width of the smooth sign tanh(v / w) of Coulomb friction (rad/s; m/s on a prismatic
+# joint). Why this value: see RobotModel.with_friction.
+DEFAULT_COULOMB_WIDTH = 0.1
 
 
 class ModelError(ValueError):
@@ -32,7 +44,7 @@ class RobotModel:
 
     ``name``        catalog name or URDF stem
     ``n``           number of joints
-    ``F``           (n, n) viscous friction matrix
+    ``F``           (n, n) viscous friction matrix, diagonal (assigning it sets ``viscous``)
     ``dim``         2 for planar robots, 3 for spatial ones (CoM coordinates)
     ``masses``      (n,) mass of each link (the body moved by joint i)
     ``q_lower``, ``q_upper``  (n,) joint ranges used to sample configurations
@@ -40,18 +52,28 @@ class RobotModel:
     ``joint_names`` list of n names
     ``source``      JSON-able dict saying how to rebuild the robot *without* our
                     symbolic code (the independent reference reads it)
+
+    and, when the description has it, Coulomb friction (``self._set_friction(coulomb=...)``).
+    Friction: ``viscous``, ``coulomb``, ``offset`` ((n,) each) and ``coulomb_width`` give
+
+        tau_f(v) = viscous v + coulomb tanh(v / coulomb_width) + offset
+
+    (``friction_torque``, ``tau_f``); ``with_friction`` returns a copy with other values. The
+    ``source`` then carries a ``"friction"`` entry (see ``source``).
     """
 
     name: str
     n: int
-    F: np.ndarray
     dim: int
     masses: np.ndarray
     q_lower: np.ndarray
     q_upper: np.ndarray
     v_limit: np.ndarray
     joint_names: list
-    source: dict
+
+    # cached properties that depend on the friction (dropped by ``with_friction``); a subclass
+    # with more of them extends the tuple
+    _FRICTION_CACHED = ("fd", "tau_f")
 
     @property
     def periodic(self):
@@ -59,6 +81,168 @@ class RobotModel:
         q_i (revolute joints). Default: none declared (subclasses that know say so); the I&I
         observers use it to reduce their quadrature intervals (codegen/families/observers/_ii_common)."""
         return np.asarray(getattr(self, "_periodic", np.zeros(self.n, dtype=bool)), dtype=bool)
+
+    # ------------------------------------------------------------ friction
+    @property
+    def viscous(self):
+        """(n,) viscous friction coefficients, N m s/rad (N s/m on a prismatic joint)."""
+        return np.array(self.__dict__.get("_viscous", np.zeros(self.n)), dtype=float)
+
+    @property
+    def coulomb(self):
+        """(n,) Coulomb friction levels, N m (N on a prismatic joint), >= 0."""
+        return np.array(self.__dict__.get("_coulomb", np.zeros(self.n)), dtype=float)
+
+    @property
+    def offset(self):
+        """(n,) constant torque offsets, N m (a torque sensor's offset, an unmodelled torque)."""
+        return np.array(self.__dict__.get("_offset", np.zeros(self.n)), dtype=float)
+
+    @property
+    def coulomb_width(self):
+        """Width w of the smooth sign tanh(v / w) of the Coulomb friction, rad/s (> 0)."""
+        return float(self.__dict__.get("_coulomb_width", DEFAULT_COULOMB_WIDTH))
+
+    @property
+    def F(self):
+        """The (n, n) viscous friction matrix diag(viscous) of [S000 (1)], N m s/rad."""
+        return np.diag(self.viscous)
+
+    @F.setter
+    def F(self, value):
+        F = np.asarray(value, dtype=float)
+        if F.ndim != 2 or F.shape[0] != F.shape[1] or F.shape[0] != self.n:
+            raise ModelError(f"robot {self.name!r}: F must be an ({self.n}, {self.n}) matrix, "
+                             f"got shape {F.shape}")
+        if np.any(F != np.diag(np.diag(F))):
+            raise ModelError(f"robot {self.name!r}: F must be diagonal (per-joint viscous friction), "
+                             f"got {np.array2string(F, precision=4)}")
+        self._set_friction(viscous=np.diag(F))
+
+    def _set_friction(self, viscous=None, coulomb=None, offset=None, width=None):
+        """Check and set the friction values given (the others are kept); ModelError naming the
+        argument on a wrong shape, a NaN/Inf, a negative viscous or Coulomb coefficient or a
+        width that is not a positive number."""
+        checked = {}
+        for key, value, sign in (("viscous", viscous, True), ("coulomb", coulomb, True),
+                                 ("offset", offset, False)):
+            if value is None:
+                continue
+            a = np.asarray(value, dtype=float) if not isinstance(value, (str, bytes, dict)) else None
+            if a is not None and a.ndim == 0:
+                a = np.full(self.n, float(a))
+            if a is None or a.shape != (self.n,):
+                raise ModelError(f"robot {self.name!r}: {key} must be a number or {self.n} numbers "
+                                 f"(one per joint), got {value!r}")
+            if not np.all(np.isfinite(a)):
+                raise ModelError(f"robot {self.name!r}: {key} must be finite, got {a.tolist()}")
+            if sign and np.any(a < 0):
+                raise ModelError(f"robot {self.name!r}: {key} must be >= 0 (friction dissipates), "
+                                 f"got {a.tolist()}")
+            checked[key] = a.copy()
+        if width is not None:
+            w = float(width) if isinstance(width, (int, float, np.floating, np.integer)) \
+                and not isinstance(width, bool) else math.nan
+            if not (math.isfinite(w) and w > 0):
+                raise ModelError(f"robot {self.name!r}: the Coulomb width (coulomb_width) must be a "
+                                 f"positive number (rad/s), got {width!r}")
+            self._coulomb_width = w
+        for key, a in checked.items():
+            setattr(self, "_" + key, a)
+
+    def with_friction(self, viscous=None, coulomb=None, offset=None, width=None):
+        """A copy of this robot with other friction (identified or stated values).
+
+            tau_f(v) = viscous v + coulomb tanh(v / width) + offset          (per joint)
+
+        Parameters
+        ----------
+        viscous : float or (n,) array_like, optional
+            Viscous coefficients, N m s/rad, >= 0 (None: keep this robot's).
+        coulomb : float or (n,) array_like, optional
+            Coulomb friction levels, N m, >= 0 (None: keep).
+        offset : float or (n,) array_like, optional
+            Constant torques, N m, any sign (None: keep).
+        width : float, optional
+            Width of the smooth sign, rad/s, > 0 (None: keep; default ``DEFAULT_COULOMB_WIDTH``).
+
+        Returns
+        -------
+        RobotModel
+            Same class and dynamics otherwise; its ``source`` and ``fingerprint`` carry the
+            friction. This robot is not changed.
+
+        Notes
+        -----
+        The default width, 0.1 rad/s, trades the smooth sign's accuracy against stiffness.
+        tanh(v / w) is within 5 % of sign(v) for |v| > 1.83 w (0.18 rad/s) and within 1 % for
+        |v| > 2.65 w; at v = 0 its slope makes the friction a damper d tau_f/dv = viscous +
+        coulomb / w, which the observers integrate explicitly: with the smallest eigenvalue
+        m_min of M(q), the rate coulomb / (w m_min) times dt must stay inside the stability
+        region of the step (RK4: 2.785 on the negative real axis) or ``compile_observer``'s
+        stability check refuses the observer. MEASURED
+        """
+        new = copy.copy(self)
+        for key in self._FRICTION_CACHED:
+            new.__dict__.pop(key, None)
+        new.__dict__.setdefault("_friction_base", (self.viscous, self.coulomb))
+        new._set_friction(viscous=viscous, coulomb=coulomb, offset=offset, width=width)
+        return new
+
+    def _nonviscous(self, i, v):
+        """coulomb_i tanh(v / w) + offset_i of joint ``i`` at its velocity ``v`` (an SX scalar),
+        exact zeros folded (the float 0.0 when both are zero)."""
+        c, o = float(self.coulomb[i]), float(self.offset[i])
+        term = mul(c, ca.tanh(v / self.coulomb_width)) if c != 0.0 else 0.0
+        return add(term, o)
+
+    def friction_torque(self, v):
+        """tau_f(v) = viscous v + coulomb tanh(v / coulomb_width) + offset: (n, 1) SX (N m) at the
+        (n, 1) SX joint velocity ``v`` (rad/s).
+
+        Without Coulomb friction and offset this is exactly ``mtimes(F, v)``, the viscous model's
+        expression."""
+        tau = ca.mtimes(ca.DM(self.F), v)
+        extra = [self._nonviscous(i, v[i]) for i in range(self.n)]
+        if all(isinstance(e, float) and e == 0.0 for e in extra):
+            return tau
+        return tau + ca.vertcat(*[ca.SX(e) if isinstance(e, float) else e for e in extra])
+
+    @cached_property
+    def tau_f(self):
+        """The friction torque as a casadi.Function v (n) -> tau_f (n) (``friction_torque``)."""
+        v = ca.SX.sym("v", self.n)
+        return ca.Function("tau_f", [v], [self.friction_torque(v)], ["v"], ["tau_f"])
+
+    @property
+    def source(self):
+        """JSON-able recipe of the robot (``models.from_source`` and the independent reference
+        rebuild it from this): the description's own dict, plus, when the friction is not the
+        viscous one of the description,
+
+            "friction": {"coulomb_width": w (when some coulomb > 0),
+                         "viscous": (n,), "coulomb": (n,)  (when they differ from the description's),
+                         "offset": (n,)  (when not all zero)}
+
+        in joint order. A robot without Coulomb friction and offset has no such entry."""
+        base = self.__dict__.get("_source")
+        entry = {}
+        visc0, coul0 = self.__dict__.get("_friction_base", (self.viscous, self.coulomb))
+        if not np.array_equal(self.viscous, visc0):
+            entry["viscous"] = [float(x) for x in self.viscous]
+        if not np.array_equal(self.coulomb, coul0):
+            entry["coulomb"] = [float(x) for x in self.coulomb]
+        if np.any(self.offset != 0.0):
+            entry["offset"] = [float(x) for x in self.offset]
+        if np.any(self.coulomb != 0.0):
+            entry["coulomb_width"] = self.coulomb_width
+        if not entry or base is None:
+            return base
+        return {**base, "friction": entry}
+
+    @source.setter
+    def source(self, value):
+        self._source = value
 
     # ------------------------------------------------------------ symbolic blocks
     def mass_matrix(self, q):
@@ -88,8 +272,9 @@ class RobotModel:
         return ca.mtimes(self.coriolis(q, v), v) + self.gravity(q)
 
     def forward_dynamics(self, q, v, tau):
-        """qdd = M(q)^{-1} (tau - C(q, v) v - F v - g(q))  [S000 (1)]."""
-        rhs = tau - self.nle(q, v) - ca.mtimes(ca.DM(self.F), v)
+        """qdd = M(q)^{-1} (tau - C(q, v) v - g(q) - tau_f(v))  [S000 (1)], tau_f the friction
+        (``friction_torque``), at (n, 1) SX ``q`` (rad), ``v`` (rad/s), ``tau`` (N m)."""
+        rhs = tau - self.nle(q, v) - self.friction_torque(v)
         return ca.solve(self.mass_matrix(q), rhs)
 
     def com_jacobian(self, q):
@@ -173,7 +358,7 @@ class RobotModel:
 
     @property
     def fingerprint(self):
-        """Hash of what defines the robot (its source, friction and ranges)."""
+        """Hash of what defines the robot (its source, which carries the friction, and F)."""
         blob = json.dumps({"source": self.source, "F": np.asarray(self.F).tolist(),
                            "n": self.n}, sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]

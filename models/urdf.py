@@ -17,8 +17,11 @@ of ``models/algebra.py``; ``models/tree.py`` builds the tree in canonical (joint
 body frames.
 
 pinocchio's ``model.armature`` is honoured as pinocchio does (added to diag M, to the
-RNEA torque and to the ABA pivot D). Friction F = diag(model.damping) is not part of
-these algorithms; ``forward_dynamics`` applies it as aba(q, v, tau - F v).
+RNEA torque and to the ABA pivot D). Friction is not part of these algorithms: the URDF's
+``<dynamics damping friction>`` (pinocchio's ``model.damping``, ``model.friction``) are the
+viscous and Coulomb coefficients of tau_f(v) = viscous v + coulomb tanh(v / w) + offset
+(models/robot.py), the offsets and w come from a side file (``load_urdf``), and
+``forward_dynamics`` applies it as aba(q, v, tau - tau_f(v)).
 
 Size of the generated ABA (``UrdfRobot.fd``): ur5 ~1.0k SX instructions, panda (7 DoF)
 ~1.8k; after ``gcc -O3`` about 0.2 us and 0.34 us per call on the development VM, where
@@ -28,6 +31,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.metadata
+import json
 import math
 import pathlib
 import re
@@ -40,7 +44,7 @@ import numpy as np
 import pinocchio as pin
 
 from models.aba import aba
-from models.algebra import dot, split, sub
+from models.algebra import add, dot, split, sub
 from models.crba import crba
 from models.kinematics import com_positions
 from models.rnea import rnea
@@ -48,7 +52,8 @@ from models.robot import ModelError, RobotModel
 from models.tree import SpatialTree, joint_kind, link_names, snap, snapped_model, tree_from_pin
 
 # snap, SpatialTree and the algorithms are re-exported: they were importable from here
-__all__ = ["UrdfRobot", "load_urdf", "example_robot_data_dir", "snap", "SpatialTree",
+__all__ = ["UrdfRobot", "load_urdf", "read_friction_file", "friction_file_path", "FRICTION_FORMAT",
+           "example_robot_data_dir", "snap", "SpatialTree",
            "rnea", "crba", "aba", "com_positions"]
 
 _URDF_SUPPORTED = {"revolute", "continuous", "prismatic", "fixed"}
@@ -248,6 +253,7 @@ class UrdfRobot(RobotModel):
         self._periodic = np.array([b.kind == "R" for b in self.tree.bodies])   # revolute/continuous
         self.masses = np.array([b.mass for b in self.tree.bodies])
         self.F = np.diag(np.array(pm.damping, dtype=float))
+        self._set_friction(coulomb=np.array(pm.friction, dtype=float))
         self.v_limit = np.array(pm.velocityLimit, dtype=float)
         self._idx_q = [pm.joints[i].idx_q for i in range(1, pm.njoints)]
         lo, up = np.empty(self.n), np.empty(self.n)
@@ -315,13 +321,15 @@ class UrdfRobot(RobotModel):
         return self._rnea_fun(q, v, ca.DM.zeros(self.n))
 
     def forward_dynamics(self, q, v, tau):
-        """qdd = aba(q, v, tau - F v)  (viscous friction F from the URDF damping)."""
+        """qdd = aba(q, v, tau - tau_f(v)), tau_f(v) = F v + coulomb tanh(v / w) + offset (the
+        friction, models/robot.py), at (n, 1) SX ``q``, ``v``, ``tau`` (numeric: through ``fd``)."""
         if not all(isinstance(x, ca.SX) for x in (q, v, tau)):
             return self.fd(q, v, tau)
         F = np.asarray(self.F, dtype=float)
         vs = split(v, self.n, "v")
         ts = split(tau, self.n, "tau")
-        t = [sub(ts[i], dot(tuple(float(x) for x in F[i]), vs)) for i in range(self.n)]
+        t = [sub(ts[i], add(dot(tuple(float(x) for x in F[i]), vs), self._nonviscous(i, vs[i])))
+             for i in range(self.n)]
         return aba(self.tree, q, vs, t)
 
     def com_positions(self, q):
@@ -350,8 +358,22 @@ class UrdfRobot(RobotModel):
 # =============================================================================================
 # loader
 # =============================================================================================
-def load_urdf(path, locked_joints=None, name=None, snap_tol=1e-9):
-    """Build a :class:`UrdfRobot` from a URDF file.
+def load_urdf(path, locked_joints=None, name=None, snap_tol=1e-9, friction_file="auto"):
+    """Build a :class:`UrdfRobot` from a URDF file, with its joint friction.
+
+    Friction, tau_f(v) = viscous v + coulomb tanh(v / w) + offset per joint (models/robot.py):
+    viscous and coulomb are the URDF's ``<dynamics damping="..." friction="..."/>`` (as pinocchio
+    reads them: ``model.damping``, ``model.friction``; 0 when absent). The offsets and w have no
+    URDF tag: they come from a side file ``<stem>.friction.json`` beside the URDF (e.g.
+    ``arm_identified.urdf`` -> ``arm_identified.friction.json``), read when present::
+
+        {"format": "observer-codegen friction 1",
+         "coulomb_width": 0.05,                        (rad/s, > 0; default DEFAULT_COULOMB_WIDTH)
+         "offset": {"<joint>": 0.12, ...}}             (N m per joint name; others 0)
+
+    Every key is optional; another key, another format, a joint that is not a moving joint of
+    the URDF, or a value that is not a finite number is refused (ModelError naming the file).
+    An offset on a locked joint is ignored (the lock holds the joint against any torque).
 
     Parameters
     ----------
@@ -364,14 +386,18 @@ def load_urdf(path, locked_joints=None, name=None, snap_tol=1e-9):
         Robot name; the file stem by default.
     snap_tol : float
         Placement, inertia and axis entries within ``snap_tol`` of 0 or +-1 are snapped.
+    friction_file : "auto", str, path-like or None
+        The friction side file: "auto" reads ``<stem>.friction.json`` beside the URDF when it
+        exists, a path reads that file (which must exist), None reads none.
 
     Raises
     ------
     FileNotFoundError
-        The file does not exist.
+        The file (or a given friction file) does not exist.
     ModelError
         Unsupported joint (floating, planar, unknown type, mimic, ...), a body without
-        positive mass or positive-definite inertia, an unknown locked joint, or M(q) singular.
+        positive mass or positive-definite inertia, an unknown locked joint, M(q) singular,
+        negative damping or friction, or a friction side file we cannot use.
     """
     try:
         path = pathlib.Path(path).expanduser().resolve()
@@ -382,6 +408,7 @@ def load_urdf(path, locked_joints=None, name=None, snap_tol=1e-9):
     if not found:
         raise FileNotFoundError(f"URDF file not found: {path}")
     locked = _locked_values(locked_joints)
+    side = _friction_file_path(path, friction_file)
     snap_tol = _finite("snap_tol", snap_tol, "a non-negative number")
     if snap_tol < 0.0:
         raise ValueError(f"snap_tol: expected a non-negative number, got {snap_tol!r}")
@@ -392,6 +419,7 @@ def load_urdf(path, locked_joints=None, name=None, snap_tol=1e-9):
     except Exception as e:  # pinocchio raises ValueError/RuntimeError on bad files
         raise ModelError(f"{path}: pinocchio could not parse the URDF: {e}") from None
     _check_total_mass(root, model, path)
+    moving = list(model.names)[1:]
     if locked:
         ids = []
         q_ref = pin.neutral(model)
@@ -412,8 +440,97 @@ def load_urdf(path, locked_joints=None, name=None, snap_tol=1e-9):
     name = name if name is not None else path.stem
     source = {"kind": "urdf", "name": name, "path": str(path), "sha256": hashlib.sha256(data).hexdigest(),
               "locked_joints": locked, "snap_tol": snap_tol}
-    return UrdfRobot(model, name=name, source=source,
-                     snap_tol=snap_tol)
+    robot = UrdfRobot(model, name=name, source=source, snap_tol=snap_tol)
+    if side is not None:
+        width, offsets = read_friction_file(side, moving)
+        robot = robot.with_friction(offset=[offsets.get(j, 0.0) for j in robot.joint_names],
+                                    width=width)
+    return robot
+
+
+FRICTION_FORMAT = "observer-codegen friction 1"
+_FRICTION_KEYS = ("format", "coulomb_width", "offset")
+
+
+def friction_file_path(urdf_path):
+    """The friction side file of the URDF at ``urdf_path``: ``<stem>.friction.json`` in the same
+    folder (a Path, whether or not it exists)."""
+    urdf_path = pathlib.Path(urdf_path)
+    return urdf_path.with_name(urdf_path.stem + ".friction.json")
+
+
+def _friction_file_path(urdf_path, friction_file):
+    """The side file to read for ``friction_file`` ("auto", a path or None), or None."""
+    if friction_file is None:
+        return None
+    if isinstance(friction_file, str) and friction_file == "auto":
+        side = friction_file_path(urdf_path)
+        return side if side.is_file() else None
+    try:
+        side = pathlib.Path(friction_file).expanduser().resolve()
+    except TypeError:
+        raise ValueError(f"friction_file: expected 'auto', a path or None, got {friction_file!r}") from None
+    if not side.is_file():
+        raise FileNotFoundError(f"friction file not found: {side}")
+    return side
+
+
+def read_friction_file(path, joints):
+    """The friction side file at ``path`` (format in :func:`load_urdf`): (coulomb_width or None,
+    {joint: offset}).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file.
+    joints : list of str
+        The moving joints of the URDF (before locking); an offset naming another joint is
+        refused.
+
+    Returns
+    -------
+    tuple
+        (float or None, dict joint name -> float offset in N m).
+
+    Raises
+    ------
+    ModelError
+        Not JSON, not an object, another ``format``, an unknown key or joint, a value that is not
+        a finite number, or a width that is not positive.
+    """
+    path = pathlib.Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ModelError(f"{path}: not a readable friction file (JSON: {e})") from None
+    if not isinstance(data, dict):
+        raise ModelError(f"{path}: a friction file is a JSON object with keys "
+                         f"{', '.join(_FRICTION_KEYS)}, got {type(data).__name__}")
+    unknown = [k for k in data if k not in _FRICTION_KEYS]
+    if unknown:
+        raise ModelError(f"{path}: unknown key {unknown[0]!r} (a friction file has "
+                         f"{', '.join(_FRICTION_KEYS)})")
+    if "format" in data and data["format"] != FRICTION_FORMAT:
+        raise ModelError(f"{path}: format {data['format']!r} is not {FRICTION_FORMAT!r}")
+
+    def number(value, what):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ModelError(f"{path}: {what} must be a finite number, got {value!r}")
+        return float(value)
+
+    width = None
+    if "coulomb_width" in data:
+        width = number(data["coulomb_width"], "coulomb_width")
+        if width <= 0.0:
+            raise ModelError(f"{path}: coulomb_width must be > 0 (rad/s), got {width!r}")
+    offsets = data.get("offset", {})
+    if not isinstance(offsets, dict):
+        raise ModelError(f"{path}: offset must be an object joint name -> N m, got {offsets!r}")
+    for joint in offsets:
+        if joint not in joints:
+            raise ModelError(f"{path}: offset names joint {joint!r}, which is not a moving joint of "
+                             f"the URDF (joints: {', '.join(joints)})")
+    return width, {j: number(v, f"offset[{j!r}]") for j, v in offsets.items()}
 
 
 def _finite(name, value, expected):

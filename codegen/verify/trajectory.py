@@ -1,7 +1,7 @@
 """A short built-in trajectory for any robot, exact by inverse dynamics.
 
     q(t)  = q_c + a sin(w t + phi)                 (per joint, inside the joint range)
-    tau(t) = M(q) qdd + C(q, qd) qd + F qd + g(q)   [S000 (1)]
+    tau(t) = M(q) qdd + C(q, qd) qd + tau_f(qd) + g(q)   [S000 (1)], tau_f the friction
 
 so (q, qd, tau) satisfy the model exactly at every sample; an observer fed
 y = q(t_k), u = tau(t_k) (held over a step) must reconstruct qd(t_k).
@@ -17,9 +17,10 @@ import numpy as np
 
 
 def inverse_dynamics_function(robot):
-    """Function (q, v, a) -> tau = M a + C v + F v + g (the model of [S000 (1)]) of ``robot``."""
+    """Function (q, v, a) -> tau = M a + C v + tau_f(v) + g (the model of [S000 (1)], tau_f the
+    friction F v + coulomb tanh(v / w) + offset) of ``robot``."""
     q, v, a = ca.SX.sym("q", robot.n), ca.SX.sym("v", robot.n), ca.SX.sym("a", robot.n)
-    tau = ca.mtimes(robot.mass_matrix(q), a) + robot.nle(q, v) + ca.mtimes(ca.DM(robot.F), v)
+    tau = ca.mtimes(robot.mass_matrix(q), a) + robot.nle(q, v) + robot.friction_torque(v)
     return ca.Function("id", [q, v, a], [tau])
 
 

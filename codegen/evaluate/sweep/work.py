@@ -81,8 +81,9 @@ def true_run(robot_name, plant, T, mismatch, seed, dt):
     ``"mujoco"``: MuJoCo's computed-torque tracking of seeded sinusoids
     (codegen.evaluate.sim.mujoco_plant); ``"model"``: our model's exact inverse-dynamics trajectory
     (codegen.verify.trajectory.demo_trajectory) of a plant whose masses and inertias are (1 + mismatch)
-    times the model's: tau = (1 + mismatch)(tau_model - F qd) + F qd (the dynamics are linear in
-    the inertial parameters; friction F is not scaled).
+    times the model's: tau = (1 + mismatch)(tau_model - tau_f(qd)) + tau_f(qd) (the dynamics are
+    linear in the inertial parameters; the friction tau_f, viscous, Coulomb and offset, is not
+    scaled).
 
     Parameters
     ----------
@@ -110,7 +111,7 @@ def true_run(robot_name, plant, T, mismatch, seed, dt):
         return MujocoPlant(robot, mismatch=mismatch).track(sinusoids(robot, seed=int(seed)), T, dt=dt)
     from ...verify.trajectory import demo_trajectory
     t, Q, QD, TAU = demo_trajectory(robot, T=T, dt=dt, seed=int(seed))
-    friction = QD @ np.asarray(robot.F, dtype=float).T
+    friction = np.asarray(robot.tau_f.map(len(QD))(QD.T), dtype=float).T
     TAU = (1.0 + mismatch) * (TAU - friction) + friction
     return Recording(t=t, q=Q, tau=TAU, qd=QD, joint_names=list(robot.joint_names))
 

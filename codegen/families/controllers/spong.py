@@ -138,7 +138,7 @@ def integral_manifold(robot, KP=7000.0, KD=7000.0, fast_poles=None, u_max=200.0)
     d2q, d3q = ca.SX.sym("d2q", n), ca.SX.sym("d3q", n)
     r3, r4 = ca.SX.sym("r3", n), ca.SX.sym("r4", n)
     M = rigid.mass_matrix(q)
-    cg = rigid.nle(q, v) + ca.mtimes(ca.DM(rigid.F), v)
+    cg = rigid.nle(q, v) + rigid.friction_torque(v)                           # c includes tau_f(q1')
     u0 = ca.mtimes(M + J, r2 + pKP * (r0 - q) + pKD * (r1 - v)) + cg          # [CODE-CP] (4.20) A4-7
     Minv_cg = ca.solve(M, cg)
     A2 = -(ca.inv(M) + Jinv)

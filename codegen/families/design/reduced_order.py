@@ -7,6 +7,11 @@
     Remark 3: k0 = [c0bar (v_max + eta) - lambda_min(F)] / (2 lambda1)
     k_r     = max_q [c0(q)(eta + r vbar) - lambda_min(F)] / lambda_min(M(q))     (16)
 
+F is the viscous part diag(viscous) of the robot's friction only: the error dynamics see
+tau_f(qd) - tau_f(qd_hat), and for tau_f(v) = F v + coulomb tanh(v / w) + offset the offset
+cancels and the Coulomb part is monotone, so e^T (tau_f(qd) - tau_f(qd_hat)) >= lambda_min(F)
+|e|^2 and the proof of (12) holds with the viscous lambda_min(F) (a conservative gain).
+
 Maxima over configurations by ``ConfigurationStats`` (sampled, then refined locally), kept on
 disk by robot content (codegen.core.cache). The default gain of the observer families is the
 noise-aware one (``reduced_order_design``, codegen.families.design.noise); (12) stays in its report.
@@ -67,7 +72,8 @@ class ReducedOrderDesign:
 
 
 def _lambda_min_F(robot):
-    """lambda_min of the symmetric part of the viscous friction F."""
+    """lambda_min of the symmetric part of the viscous friction F of ``robot`` (the viscous part
+    of its friction only: the module docstring says why)."""
     return float(np.linalg.eigvalsh(0.5 * (robot.F + robot.F.T))[0])
 
 

@@ -8,7 +8,8 @@ Cholesky velocity: M(q)^{-1} = T T^T (T lower), pbar = T^{-1} qd, T^{-1} = T^T M
     Hbar(q, p) = (k1 I + Cbar(q, p)) T^{-1};   column i, with T T^{-1} e_i = e_i:
     Hbar_i     = k1 T^{-1} e_i - T^T M (dT/dq_i) p - T^T C(q, e_i) T p                   [DERIVED]
     pbarhat    = xi + beta(q, qhat, phat)        (beta as in §4, column-wise quadrature)
-    f          = S(q, pbarhat) pbarhat + T^T (u - g(q) - F T pbarhat)
+    f          = S(q, pbarhat) pbarhat + T^T (u - g(q) - tau_f(T pbarhat))   (tau_f: the friction,
+                 F v + coulomb tanh(v / w) + offset, models/robot.py; the seed's F v)
     qhat' = T pbarhat - psi1 (qhat - q);   phat' = f - psi2 (phat - pbarhat)
     xi'   = f - dbeta/dq T pbarhat - dbeta/dqhat qhat' - dbeta/dphat phat'
     Delta_p T = Cbar(q, pbarhat - phat);   Delta_q T = (Hbar(q, phat) - dbeta/dq) T
@@ -127,7 +128,7 @@ def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=N
     qd_hat = ca.mtimes(T, pbh)
     S = _skew_routine(robot)
     f = (ca.mtimes(S(y, pbh), pbh)
-         + ca.mtimes(T.T, u - robot.gravity(y) - ca.mtimes(ca.DM(robot.F), qd_hat)))
+         + ca.mtimes(T.T, u - robot.gravity(y) - robot.friction_torque(qd_hat)))
     Hb_phat = ca.horzcat(*[col(y, phat, K1) for col in cols])
     DpT = ca.horzcat(*[ca.mtimes(S(y, T[:, k]), pbh - phat) for k in range(n)])  # Cbar(y, pbh - phat)
     DqT = ca.mtimes(Hb_phat - dbdq, T)

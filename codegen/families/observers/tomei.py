@@ -3,12 +3,14 @@
 Measured: link position and velocity y = [q1; q1'], input u. With e = q - qhat (consistent sign
 convention of SPEC §7, Ka_eff restoring, A4-6):
 
-    M(q1) qhat1'' = -S(q1, q1') qhat1' - F qhat1' - K(qhat1 - qhat2) - g(q1) + Ka (q1 - qhat1) - v1
+    M(q1) qhat1'' = -S(q1, q1') qhat1' - tau_f(qhat1') - K(qhat1 - qhat2) - g(q1) + Ka (q1 - qhat1) - v1
     J qhat2''     =  K(qhat1 - qhat2) + u
     z'            = -A z + (q1' - qhat1')
     v1            = -K1 z - K2 (q1' - qhat1')                          [S004 (3.1)-(3.3)]
 
-S is the Christoffel matrix (F the rigid model's viscous friction, zero for the seed robots).
+S is the Christoffel matrix, tau_f the rigid model's friction F v + coulomb tanh(v / w) + offset
+(models/robot.py; [S004 (3.1)] has the viscous F qhat1', zero for the seed robots), at the estimate
+as F qhat1' is: tau_f is monotone, so the error's friction term still dissipates.
 State [qhat1, qhat1', qhat2, qhat2', z] (5n); estimate the first 4n. Gains A, K1, K2, Ka are
 diagonal runtime parameters; K1 solves A^T K1 + K1 A = Q_lyap (design.tomei_K1).
 """
@@ -44,7 +46,7 @@ def build(robot, A=2000.0, K2=2000.0, Ka=10000.0, Q_lyap=2000.0, K1=None):
     q1, v1m = y[:n], y[n:]
     ev = v1m - vh1
     v1 = -pK1 * z - pK2 * ev                                              # [S004 (3.2)]
-    rhs1 = (-ca.mtimes(rigid.coriolis(q1, v1m), vh1) - ca.mtimes(ca.DM(rigid.F), vh1)
+    rhs1 = (-ca.mtimes(rigid.coriolis(q1, v1m), vh1) - rigid.friction_torque(vh1)
             - ca.mtimes(Kst, qh1 - qh2) - rigid.gravity(q1) + pKa * (q1 - qh1) - v1)   # [S004 (3.1)] A4-6
     acc1 = ca.solve(rigid.mass_matrix(q1), rhs1)
     acc2 = ca.solve(J, ca.mtimes(Kst, qh1 - qh2) + u)

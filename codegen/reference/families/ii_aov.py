@@ -10,7 +10,7 @@
     needs a robot whose M, C, dMw_dq accept complex q: the closed-form robots. A pinocchio robot
     would need second derivatives of M, which pinocchio's Python API does not give: not supported.
 
-    f     = S(y, pbh) pbh + T^T (u - g(y) - F T pbh),   pbh = xi + beta
+    f     = S(y, pbh) pbh + T^T (u - g(y) - tau_f(T pbh)),   pbh = xi + beta  (tau_f: the friction)
     qhat' = T pbh - psi1 (qhat - y);   phat' = f - psi2 (phat - pbh)
     xi'   = f - dbeta/dq T pbh - dbeta/dqhat qhat' - dbeta/dphat phat'
     r'    = -(k1/4)(r - c_r) + (r/k1)(||Delta_q T||_F^2 + ||Delta_p T||_F^2)
@@ -178,7 +178,7 @@ def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
     pbh = xi + beta
     _, T, _, _ = kinematics(robot, y)
     qd_hat = T @ pbh
-    f = S(robot, y, pbh) @ pbh + T.T @ (u - robot.g(y) - robot.F @ qd_hat)
+    f = S(robot, y, pbh) @ pbh + T.T @ (u - robot.g(y) - robot.friction_torque(qd_hat))
     Hb = np.column_stack([hbar_column(robot, y, phat, k1, i) for i in range(n)])
     DpT = np.column_stack([S(robot, y, T[:, k]) @ (pbh - phat) for k in range(n)])
     DqT = (Hb - dbdq) @ T

@@ -3,7 +3,7 @@ elastic robot (codegen/reference/robots/elastic.py). Never imports CasADi or the
 
 Static law, dummy state (nx = 1), no input, "estimate" = u. y = [x (4n); q_d .. q_d''''] (9n);
 p = [K_P (n); K_D (n); K_f (2 per joint: eta, eta'); u_max]. With mu = K^{-1}, z = K(q1 - q2),
-c = C(q1, q1') q1' + F q1' (Coriolis + friction) and g = g(q1):
+c = C(q1, q1') q1' + tau_f(q1') (Coriolis + friction, reference/robots/friction.py) and g = g(q1):
 
     u0 = (M + J)(q_d'' + K_P (q_d - q1) + K_D (q_d' - q1')) + c + g        [CODE-CP]
     a2 = -M^{-1}(c + g),  A2 = -(M^{-1} + J^{-1}),  B2 = -J^{-1}
@@ -41,7 +41,7 @@ def _h0(robot, q, v, r0, r1, r2, KP, KD):
     rigid, J = robot.rigid, robot.J
     n = robot.n
     M = rigid.M(q)
-    cg = rigid.nle(q, v) + rigid.F @ v                       # c + g, c including F q1'
+    cg = rigid.nle(q, v) + rigid.friction_torque(v)          # c + g, c including tau_f(q1')
     u0 = (M + J) @ (r2 + (r0 - q) * KP + (r1 - v) * KD) + cg
     Minv = hd.solve(M, np.eye(n))
     A = Minv + robot.Jinv                                    # -A2

@@ -2,7 +2,7 @@
 written from SPEC §7 on the reference elastic robot (S(q1, q1') qhat1' by polarisation of the
 Newton-Euler c(q, v) = C(q, v) v, see christoffel_times).
 
-    M(q1) qhat1'' = -S(q1,q1') qhat1' - F qhat1' - K(qhat1 - qhat2) - g(q1) + Ka(q1 - qhat1) - v1
+    M(q1) qhat1'' = -S(q1,q1') qhat1' - tau_f(qhat1') - K(qhat1 - qhat2) - g(q1) + Ka(q1 - qhat1) - v1
     J qhat2'' = K(qhat1 - qhat2) + u,   z' = -A z + (q1' - qhat1'),   v1 = -K1 z - K2 (q1' - qhat1')
 
 x = [qhat1, qhat1', qhat2, qhat2', z] (n each; rad, rad/s), y = [q1 (rad); q1' (rad/s)],
@@ -67,7 +67,7 @@ def rhs(robot, x, y, u, p):
     rigid, K = robot.rigid, robot.K
     ev = v1m - vh1
     v1 = -K1 * z - K2 * ev
-    rhs1 = (-christoffel_times(rigid, q1, v1m, vh1) - rigid.F @ vh1 - K @ (qh1 - qh2)
+    rhs1 = (-christoffel_times(rigid, q1, v1m, vh1) - rigid.friction_torque(vh1) - K @ (qh1 - qh2)
             - rigid.g(q1) + Ka * (q1 - qh1) - v1)
     acc1 = np.linalg.solve(robot.M(q1), rhs1)
     acc2 = robot.Jinv @ (K @ (qh1 - qh2) + u)

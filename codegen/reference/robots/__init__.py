@@ -3,7 +3,7 @@
 The dispatcher on top of the robot modules; imports point one way:
 
     robots ──► rigid (closed forms), urdf (pinocchio), dh (Newton-Euler), elastic (SPEC §6)
-    elastic ──► dh ──► hyperdual;  urdf ──► rigid
+    elastic ──► dh ──► hyperdual;  urdf ──► rigid;  rigid, dh ──► friction ──► hyperdual
 
 Never imports CasADi or the symbolic code (DESIGN §1): written from SPEC's equations so that
 a cross-check against the generated C proves something.
@@ -54,7 +54,9 @@ def reference_robot(source):
         ``{"kind": "urdf", "path", "sha256", "locked_joints": {name: value}, "snap_tol"}``,
         ``{"kind": "dh", "dh", "masses", "coms", "inertias", "gravity", "F"}`` (reference/dh.py),
         ``{"kind": "elastic", "rigid": <source>, "J": (n,), "K": (n,)}`` (SPEC §6);
-        ``name`` optional in each.
+        ``name`` optional in each; a rigid kind may carry ``"friction": {"viscous", "coulomb",
+        "offset": (n,), "coulomb_width"}`` (reference/robots/friction.py), which replaces the
+        description's friction (closed-form and DH "F", the URDF's damping and friction).
 
     Returns
     -------
@@ -81,5 +83,9 @@ def reference_robot(source):
                              name=source.get("name", "elastic"))
     else:
         raise ValueError(f"unknown robot source kind {kind!r} (expected one of {KINDS})")
+    if kind != "elastic":
+        robot.set_friction(source.get("friction"))
+    elif "friction" in source:
+        raise ValueError("an elastic robot source carries its friction in its 'rigid' source")
     robot.source = dict(source)
     return robot

@@ -5,16 +5,19 @@ hyper-dual arrays (exact first and second derivatives). M(q) comes from the same
 (column j = RNEA(q, 0, e_j) without gravity), not from the CoM Jacobians of ``models.dh``:
 a second, independent derivation of
 
-    M(q) qdd + C(q, qd) qd + F qd + g(q) = tau          [S000 (1)]
+    M(q) qdd + C(q, qd) qd + tau_f(qd) + g(q) = tau          [S000 (1)]
+
+with the friction tau_f of reference/robots/friction.py.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from .friction import Friction
 from .hyperdual import cos, cross, dot, sin, solve, stack
 
 
-class DHRobot:
+class DHRobot(Friction):
     """Revolute DH robot by the Newton-Euler recursion in frame 0.
 
     Frame i: A_i = Rot_z(theta_i + q_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i); link i has
@@ -108,6 +111,6 @@ class DHRobot:
         return self.rnea(q, v, np.zeros(self.n))
 
     def forward_dynamics(self, q, v, tau):
-        """qdd = M(q)^{-1}(tau - C(q, v) v - F v - g(q))  [S000 (1)] (n,), rad/s^2; q, v, tau
-        may be hyper-dual."""
-        return solve(self.M(q), tau - self.nle(q, v) - self.F @ v)
+        """qdd = M(q)^{-1}(tau - C(q, v) v - tau_f(v) - g(q))  [S000 (1)] (n,), rad/s^2, tau_f the
+        friction (``friction_torque``); q, v, tau may be hyper-dual."""
+        return solve(self.M(q), tau - self.nle(q, v) - self.friction_torque(v))

@@ -5,7 +5,7 @@ and the Spong controllers build on it. The rigid part is given (reference/robots
 from ``source["rigid"]``). Over a DH rigid part (reference/dh.py) derivatives are exact by
 hyper-dual numbers (reference/hyperdual.py):
 
-    y3 = -M^{-1}(c + g + K(x1 - x3)) = FD(x1, x2, -K(x1 - x3))          (c includes F q1')
+    y3 = -M^{-1}(c + g + K(x1 - x3)) = FD(x1, x2, -K(x1 - x3))          (c includes tau_f(q1'))
     y4 = D y3 [f(x)]
     dy4/dx_j = D^2 y3 [f, e_j] + D y3 [df/dx_j]
 
@@ -84,12 +84,13 @@ class ElasticRobot:
         pin = rob._pin
         x1, x2, x3, _ = self.split(x)
         d1, d2, d3, _ = self.split(d)
-        tau = -(self.K @ (x1 - x3)) - rob.F @ x2
+        tau = -(self.K @ (x1 - x3)) - rob.friction_torque(x2)
         pin.computeABADerivatives(rob.model, rob.data, rob.pin_q(x1), x2, tau)
         dq, dv = np.array(rob.data.ddq_dq), np.array(rob.data.ddq_dv)
         Minv = np.array(rob.data.Minv)
         Minv = np.triu(Minv) + np.triu(Minv, 1).T
-        return dq @ d1 + dv @ d2 + Minv @ (-(self.K @ (d1 - d3)) - rob.F @ d2)
+        # the friction enters through the torque: d tau / d x2 = -d tau_f/dv
+        return dq @ d1 + dv @ d2 + Minv @ (-(self.K @ (d1 - d3)) - rob.friction_jacobian(x2) @ d2)
 
     def y4(self, x):
         """q1''' = D y3 [f(x)] = f4(x1, x2, x3) + M^{-1} K x4  (SPEC §8.3) (n,), rad/s^3."""

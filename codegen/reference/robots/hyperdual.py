@@ -6,7 +6,7 @@ evaluated at x + e1 u + e2 w gives, with no truncation error,
     F(x) (part a),  DF[u] (part b),  DF[w] (part c),  D^2F[u, w] (part d).
 
 This is what the Ciccarella-Germani Q(x) and Spong's F(x) need (SPEC §8.3, §9) on the
-Newton-Euler DH recursion of reference/dh.py. The functions below (sin, cos, stack, cross,
+Newton-Euler DH recursion of reference/dh.py. The functions below (sin, cos, tanh, stack, cross,
 dot, solve) take floats and hyper-duals alike, so that one recursion serves both.
 """
 from __future__ import annotations
@@ -96,6 +96,12 @@ def sin(x):
 def cos(x):
     """cos of ``x``, a float, array or hyper-dual."""
     return _unary(x, np.cos, lambda a: -np.sin(a), lambda a: -np.cos(a))
+
+
+def tanh(x):
+    """tanh of ``x``, a float, array or hyper-dual: tanh' = 1 - t^2, tanh'' = -2 t (1 - t^2)."""
+    return _unary(x, np.tanh, lambda a: 1.0 - np.tanh(a) ** 2,
+                  lambda a: -2.0 * np.tanh(a) * (1.0 - np.tanh(a) ** 2))
 
 
 def stack(items, axis=0):

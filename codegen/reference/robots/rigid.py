@@ -1,19 +1,22 @@
 """Reference rigid robots given by formulas: numbers only (numpy), from SPEC's equations.
 
-Every reference robot gives the rigid model of SPEC §0
+Every reference robot gives the rigid model of SPEC §0 with joint friction
 
-    M(q) qdd + C(q, qd) qd + F qd + g(q) = tau          [S000 (1)]
+    M(q) qdd + C(q, qd) qd + tau_f(qd) + g(q) = tau          [S000 (1)]
+    tau_f(v) = F v + coulomb tanh(v / w) + offset             (reference/robots/friction.py)
 
 as plain functions of numpy vectors: ``n``, ``M(q)``, ``C(q, v)`` (Christoffel),
-``g(q)``, ``F`` (n x n), ``nle(q, v) = C v + g`` and
-``forward_dynamics(q, v, tau) = M^{-1}(tau - C v - F v - g)``. Angles in rad, torques in N m.
+``g(q)``, ``F`` (n x n), ``friction_torque(v)``, ``nle(q, v) = C v + g`` and
+``forward_dynamics(q, v, tau) = M^{-1}(tau - C v - tau_f(v) - g)``. Angles in rad, torques in N m.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from .friction import Friction
 
-class ReferenceRobot:
+
+class ReferenceRobot(Friction):
     """Common numeric interface of the rigid reference robots  [S000 (1)].
 
     Subclasses give ``name``, ``n``, ``F`` and the methods below; arrays are float64, angles
@@ -25,6 +28,8 @@ class ReferenceRobot:
         Degrees of freedom.
     F : (n, n) array
         Viscous friction, N m s/rad.
+    coulomb, offset, coulomb_width
+        The rest of the friction tau_f (reference/robots/friction.py).
     periodic : (n,) bool array or None
         Joint i is 2 pi-periodic (revolute); None: not declared.
 
@@ -51,7 +56,8 @@ class ReferenceRobot:
         return self.C(q, v) @ v + self.g(q)
 
     def forward_dynamics(self, q, v, tau):
-        """qdd = M(q)^{-1} (tau - C(q, v) v - F v - g(q))  [S000 (1)] (a solve, not an inverse).
+        """qdd = M(q)^{-1} (tau - C(q, v) v - tau_f(v) - g(q))  [S000 (1)] (a solve, not an inverse),
+        tau_f the friction (``friction_torque``).
 
         Parameters
         ----------
@@ -68,7 +74,7 @@ class ReferenceRobot:
             rad/s^2.
         """
         q, v, tau = (np.asarray(a, dtype=float) for a in (q, v, tau))
-        return np.linalg.solve(self.M(q), tau - self.nle(q, v) - self.F @ v)
+        return np.linalg.solve(self.M(q), tau - self.nle(q, v) - self.friction_torque(v))
 
 
 class Planar2R(ReferenceRobot):

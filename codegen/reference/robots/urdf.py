@@ -92,7 +92,8 @@ class UrdfRobot(ReferenceRobot):
             if j.nv != 1 or j.nq not in (1, 2):
                 raise ValueError(f"joint {j.shortname()} (nq={j.nq}, nv={j.nv}) is not supported: "
                                  "only 1-DoF revolute, continuous and prismatic joints")
-        self.F = np.diag(np.asarray(self.model.damping, dtype=float))
+        self.F = np.diag(np.asarray(self.model.damping, dtype=float))     # <dynamics damping>
+        self.coulomb = np.asarray(self.model.friction, dtype=float).copy()  # <dynamics friction>
         # revolute (JointModelR*, RevoluteUnaligned, RevoluteUnbounded*: continuous) joints are
         # 2 pi-periodic; prismatic ones (JointModelP*, PrismaticUnaligned) are not
         self.periodic = np.array([j.shortname().startswith(("JointModelR", "JointModelRevolute"))
@@ -177,10 +178,12 @@ class UrdfRobot(ReferenceRobot):
         return 0.25 * (self._drnea_dq(q, a + b, z) - self._drnea_dq(q, a - b, z))
 
     def forward_dynamics(self, q, v, tau):
-        """qdd = aba(q, v, tau - F v)  [S000 (1)] (n,), rad/s^2; q, v, tau as ReferenceRobot's."""
+        """qdd = aba(q, v, tau - tau_f(v))  [S000 (1)] (n,), rad/s^2, tau_f the friction
+        (``friction_torque``); q, v, tau as ReferenceRobot's."""
         v = np.asarray(v, dtype=float)
         tau = np.asarray(tau, dtype=float)
-        return np.array(self._pin.aba(self.model, self.data, self.pin_q(q), v, tau - self.F @ v))
+        return np.array(self._pin.aba(self.model, self.data, self.pin_q(q), v,
+                                      tau - self.friction_torque(v)))
 
     # ------------------------------------------------------------ link CoM kinematics (seed 002)
     dim = 3
