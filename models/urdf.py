@@ -125,7 +125,10 @@ def _check_urdf_xml(path, locked):
             for attr, count in attrs:
                 e = j.find(tag)
                 if e is not None and e.get(attr) is not None:
-                    _number(e.get(attr), count, f"{path}: joint {name!r}: <{tag}> {attr}")
+                    values = _number(e.get(attr), count, f"{path}: joint {name!r}: <{tag}> {attr}")
+                    if tag == "dynamics" and values[0] < 0.0:
+                        raise ModelError(f"{path}: joint {name!r}: <dynamics> {attr} {e.get(attr)!r} "
+                                         f"is negative (friction dissipates: expected >= 0)")
     _check_inertials(root, path)
     return root
 
