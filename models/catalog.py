@@ -79,7 +79,9 @@ def from_source(source):
         ``{"kind": "catalog", "name": <catalog name>, "params": {...}}`` (portable: what a
         targets file records), or ``{"kind": "closed_form" | "urdf" | "dh" | "elastic", ...}``
         as recorded in a target's metadata. A catalog robot's own source gives the (cached)
-        catalog robot.
+        catalog robot. A "friction" entry (``RobotModel.source``) sets the friction; a URDF
+        source with a "sha256" (recorded) does not read the friction side file again, one
+        without (a targets file's) reads it as ``load_urdf`` does.
 
     Returns
     -------
@@ -101,9 +103,13 @@ def from_source(source):
                 return cached
         return ElasticRobot(rigid, source["J"], source["K"], name=name)
     if kind == "urdf":
+        # a recorded source (robot.source: it pins the URDF by its sha256) holds the friction
+        # side file's values in its "friction" entry; a portable one (a targets file's: no sha256)
+        # reads the side file as load_urdf does
         from models.urdf import load_urdf
         robot = load_urdf(source["path"], locked_joints=source.get("locked_joints") or None,
-                          name=name, snap_tol=source.get("snap_tol", 1e-9), friction_file=None)
+                          name=name, snap_tol=source.get("snap_tol", 1e-9),
+                          friction_file=None if "sha256" in source else "auto")
     elif kind == "dh":
         robot = dh.DHRobot(name, source["dh"], source["masses"], source["coms"], source["inertias"],
                            source["gravity"], F=source.get("F"))

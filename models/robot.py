@@ -129,7 +129,10 @@ class RobotModel:
                                  ("offset", offset, False)):
             if value is None:
                 continue
-            a = np.asarray(value, dtype=float) if not isinstance(value, (str, bytes, dict)) else None
+            try:
+                a = np.asarray(value, dtype=float) if not isinstance(value, (str, bytes, dict)) else None
+            except (TypeError, ValueError):          # ragged, text inside, complex
+                a = None
             if a is not None and a.ndim == 0:
                 a = np.full(self.n, float(a))
             if a is None or a.shape != (self.n,):

@@ -212,6 +212,9 @@ def test_with_friction_returns_a_new_robot_and_checks_its_arguments():
                           ({"offset": [0.1, 0.2, 0.3]}, "offset must be a number or 2 numbers"),
                           ({"coulomb": [1.0, np.nan]}, "coulomb must be finite"),
                           ({"coulomb": "1"}, "coulomb must be a number or 2 numbers"),
+                          ({"coulomb": [1.0, "a"]}, "coulomb must be a number or 2 numbers"),
+                          ({"offset": [[1.0], [1.0, 2.0]]}, "offset must be a number or 2 numbers"),
+                          ({"viscous": 1j}, "viscous must be a number or 2 numbers"),
                           ({"width": 0.0}, "Coulomb width"), ({"width": np.inf}, "Coulomb width"),
                           ({"width": True}, "Coulomb width")]:
         with pytest.raises(ModelError, match=match):
@@ -255,6 +258,20 @@ def test_urdf_source_round_trip_does_not_reread_the_side_file(tmp_path):
     friction_file_path(urdf).unlink()
     assert from_source(src).fingerprint == r.fingerprint
     assert load_robot(urdf=urdf).fingerprint != r.fingerprint
+
+
+def test_targets_file_urdf_source_reads_the_side_file(tmp_path):
+    """A targets file's portable URDF source (no sha256) reads the side file when the robot is
+    built; the robot's own (recorded) source then holds the values."""
+    from codegen.pipeline.targets_file import robot_source
+    urdf = _copy_arm(tmp_path, {"coulomb_width": 0.08, "offset": {"j3": 0.4}})
+    portable = robot_source(urdf=str(urdf))
+    assert "sha256" not in portable and "friction" not in portable
+    r = from_source(portable)
+    assert np.array_equal(r.offset, [0.0, 0.0, 0.4]) and r.coulomb_width == 0.08
+    assert r.source["friction"] == {"offset": [0.0, 0.0, 0.4], "coulomb_width": 0.08}
+    elastic = from_source(robot_source(urdf=str(urdf), elastic=True, J=0.5, K=200.0))
+    assert np.array_equal(elastic.rigid.offset, [0.0, 0.0, 0.4])
 
 
 def test_elastic_robot_carries_the_rigid_friction():
