@@ -61,7 +61,7 @@ def reference_robot(source):
     Returns
     -------
     reference robot
-        ``n``, ``M``, ``g``, ``F``, ``nle``, ``forward_dynamics`` (and more per kind), with the
+        ``n``, ``M``, ``g``, ``F``, ``friction_torque``, ``nle``, ``forward_dynamics`` (and more per kind), with the
         dict kept as ``robot.source``.
     """
     if not isinstance(source, dict) or "kind" not in source:
