@@ -61,8 +61,8 @@ def reference_robot(source):
     Returns
     -------
     reference robot
-        ``n``, ``M``, ``g``, ``F``, ``friction_torque``, ``nle``, ``forward_dynamics`` (and more per kind), with the
-        dict kept as ``robot.source``.
+        ``n``, ``M``, ``g``, ``F``, ``friction_torque``, ``nle``, ``forward_dynamics`` (and more
+        per kind), with the dict kept as ``robot.source``.
     """
     if not isinstance(source, dict) or "kind" not in source:
         raise ValueError(f"robot source must be a dict with a 'kind' key, got {source!r}")
