@@ -9,19 +9,28 @@
  *            each number printed with %.17g (round-trips exactly)
  *   est0     optional initial estimate, NEST comma-separated numbers (default: zeros)
  *
- * The target is initialised with y0 = the first row's y and est0, then <prefix>_step is
- * called once per row; est at a row is the estimate at that sample, before the state
- * advances by DT.  The time column is copied to the output; the observer always advances
- * by the target's DT (a warning is printed once if the time column's spacing differs).
+ * The target is initialised with y0 = the first row's y and est0, then stepped once per row;
+ * est at a row is the estimate at that sample.  The time column is always used as the time
+ * stamps of the samples (a jittered log runs as logged; the t column is copied to the output):
+ * each row is one <prefix>_step_dt(&s, h, y, u, est) with h the interval, computed in double,
+ *   first-order hold (HOLD_FOH = 1): since the previous row, h = t_k - t_k-1 (the first row
+ *     integrates nothing: <prefix>_step);
+ *   zero-order hold: to the next row, h = t_k+1 - t_k (the last row: <prefix>_step, DT);
+ * and an interval equal to DT up to the rounding of its stamps (|h - DT| <= STAMP_ULPS
+ * DBL_EPSILON max(|t_k-1|, |t_k|), as the target's run_t) is exactly DT: <prefix>_step, so a
+ * uniform log gives <prefix>_run's results bit for bit.  Stamps that do not increase, or an
+ * interval beyond the target's SPLIT_MAX * DT_MAX, make step_dt return ERR_BAD_ARG (exit 3);
+ * an interval above DT_MAX (a dropped sample) is split by the target (see its header).
  *
  * Exit status: 0 success; 1 bad input file or I/O error; 2 usage error; 3 the target
- * returned a non-zero status (row and status name on stderr).  On failure out.csv is not
+ * returned a non-zero status (row, status name and h on stderr).  On failure out.csv is not
  * written (the output goes to a temporary file renamed on success).
  *
  * Build (see Makefile): cc -O3 -std=c99 -DOBS=<prefix> -DOBS_UPPER=<PREFIX>
  *   -DOBS_HEADER='"<prefix>.h"' -I <target dir> run_csv.c <prefix>.c <prefix>_kernels.c -lm
  */
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -34,8 +43,45 @@
 #define EXIT_STATUS 3
 
 #define N_COLS (1 + OBS_NY + OBS_NU)
+#define OBS_HOLD_FOH OBS_SIZE(HOLD_FOH)
 
 static const char *prog = "run_csv";
+
+/* t_b - t_a, or DT when it is DT up to the rounding of the stamps (the target's run_t rule,
+   in double) */
+static double interval(double a, double b)
+{
+    double h = b - a, m = fabs(a) > fabs(b) ? fabs(a) : fabs(b);
+    return fabs(h - (double)OBS_DT) <= OBS_SIZE(STAMP_ULPS) * DBL_EPSILON * m ? (double)OBS_DT : h;
+}
+
+/* One sample of the target: <prefix>_step when h < 0 (first-order hold, first row) or h is DT,
+   else <prefix>_step_dt with h; writes the row of out.csv. Returns 0, or the exit status after
+   printing why. */
+static int sample(OBS_STATE *state, const double *vals, double h, FILE *out, const char *in_path,
+                  long line_no, long row, const char *tmp_path)
+{
+    OBS_REAL yu[N_COLS - 1]; /* y, u of a row in the target's real type */
+    OBS_REAL est[OBS_LEN(OBS_NEST)];
+    int i, st, fixed = h < 0 || h == (double)OBS_DT;
+    for (i = 0; i < N_COLS - 1; ++i) yu[i] = (OBS_REAL)vals[i + 1];
+    st = fixed ? OBS_FN(step)(state, yu, yu + OBS_NY, est)
+               : OBS_FN(step_dt)(state, (OBS_REAL)h, yu, yu + OBS_NY, est);
+    if (st != 0) {
+        fprintf(stderr, "%s: %s:%ld: data row %ld (t=%.17g): %s_%s returned %d: %s", prog, in_path,
+                line_no, row, vals[0], OBS_NAME, fixed ? "step" : "step_dt", st, obs_status_name(st));
+        if (fixed) fprintf(stderr, "\n");
+        else fprintf(stderr, " (dt = %.17g, from the t column)\n", h);
+        return EXIT_STATUS;
+    }
+    fprintf(out, "%.17g", vals[0]);
+    for (i = 0; i < (int)OBS_NEST; ++i) fprintf(out, ",%.17g", (double)est[i]);
+    if (fprintf(out, "\n") < 0) {
+        fprintf(stderr, "%s: write error on '%s': %s\n", prog, tmp_path, strerror(errno));
+        return EXIT_INPUT;
+    }
+    return 0;
+}
 
 /* Read one line (without the trailing newline / CR) into a growing buffer.
  * Returns 1 if a line was read, 0 at end of file, -1 on a read or memory error. */
@@ -134,14 +180,13 @@ int main(int argc, char **argv)
     FILE *in = NULL, *out = NULL;
     char *line = NULL;
     size_t cap = 0, len = 0;
-    long line_no = 0, row = 0;
-    int rc = EXIT_INPUT, r, warned_dt = 0;
+    long line_no = 0, row = 0, pending_line = 0;
+    int rc = EXIT_INPUT, r;
     double est0_in[OBS_LEN(OBS_NEST)];
     OBS_REAL est0[OBS_LEN(OBS_NEST)];
     int have_est0 = 0;
-    double vals[N_COLS];
+    double vals[N_COLS], pending[N_COLS]; /* zero-order hold: the row waiting for the next stamp */
     OBS_REAL yu[N_COLS - 1]; /* y, u of a row in the target's real type */
-    OBS_REAL est[OBS_LEN(OBS_NEST)];
     double t_prev = 0.0;
     OBS_STATE state;
     char bad[64];
@@ -220,6 +265,7 @@ int main(int argc, char **argv)
     for (;;) {
         int st, i;
         size_t nf;
+        double h;
         r = read_line(in, &line, &cap, &len);
         ++line_no;
         if (r < 0) {
@@ -240,8 +286,8 @@ int main(int argc, char **argv)
             goto done;
         }
         ++row;
-        for (i = 0; i < N_COLS - 1; ++i) yu[i] = (OBS_REAL)vals[i + 1];
         if (row == 1) {
+            for (i = 0; i < N_COLS - 1; ++i) yu[i] = (OBS_REAL)vals[i + 1];
             st = OBS_FN(init)(&state, NULL, yu, have_est0 ? est0 : NULL);
             if (st != 0) {
                 fprintf(stderr, "%s: %s:%ld: data row 1 (t=%.17g): %s_init returned %d: %s\n", prog,
@@ -249,35 +295,36 @@ int main(int argc, char **argv)
                 rc = EXIT_STATUS;
                 goto done;
             }
-        } else if (!warned_dt) {
-            double h = vals[0] - t_prev;
-            double tol = 1e-9 * (fabs(vals[0]) > 1.0 ? fabs(vals[0]) : 1.0);
-            if (fabs(h - (double)OBS_DT) > tol) {
-                fprintf(stderr,
-                        "%s: warning: %s:%ld: time step %.17g differs from the target's DT %.17g "
-                        "(the observer always advances by DT)\n",
-                        prog, in_path, line_no, h, (double)OBS_DT);
-                warned_dt = 1;
+        }
+        if (OBS_HOLD_FOH) {          /* the interval before this row */
+            h = row == 1 ? -1.0 : interval(t_prev, vals[0]);
+            if ((st = sample(&state, vals, h, out, in_path, line_no, row, tmp_path)) != 0) {
+                rc = st;
+                goto done;
+            }
+        } else if (row > 1) {        /* the pending row, over the interval to this one */
+            h = interval(pending[0], vals[0]);
+            if ((st = sample(&state, pending, h, out, in_path, pending_line, row - 1, tmp_path)) != 0) {
+                rc = st;
+                goto done;
             }
         }
+        if (!OBS_HOLD_FOH) {
+            memcpy(pending, vals, sizeof pending);
+            pending_line = line_no;
+        }
         t_prev = vals[0];
-        st = OBS_FN(step)(&state, yu, yu + OBS_NY, est);
-        if (st != 0) {
-            fprintf(stderr, "%s: %s:%ld: data row %ld (t=%.17g): %s_step returned %d: %s\n", prog,
-                    in_path, line_no, row, vals[0], OBS_NAME, st, obs_status_name(st));
-            rc = EXIT_STATUS;
-            goto done;
-        }
-        fprintf(out, "%.17g", vals[0]);
-        for (i = 0; i < (int)OBS_NEST; ++i) fprintf(out, ",%.17g", (double)est[i]);
-        if (fprintf(out, "\n") < 0) {
-            fprintf(stderr, "%s: write error on '%s': %s\n", prog, tmp_path, strerror(errno));
-            goto done;
-        }
     }
     if (row == 0) {
         fprintf(stderr, "%s: %s: no data rows after the header\n", prog, in_path);
         goto done;
+    }
+    if (!OBS_HOLD_FOH) {             /* the last row: the next stamp is unknown, DT */
+        int st = sample(&state, pending, (double)OBS_DT, out, in_path, pending_line, row, tmp_path);
+        if (st != 0) {
+            rc = st;
+            goto done;
+        }
     }
     if (fclose(out) != 0) {
         out = NULL;

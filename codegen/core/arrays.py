@@ -80,3 +80,16 @@ def positive(name, value):
     if isinstance(value, bool) or not (math.isfinite(v) and v > 0):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
     return v
+
+
+def time_stamps(name, value, rows, dtype=np.float64):
+    """value as ``rows`` finite, strictly increasing time stamps (s) of type ``dtype`` (checked
+    after the conversion: float32 may merge close stamps), or ValueError naming ``name`` and the
+    first sample whose stamp does not increase."""
+    t = as_vector(name, value, rows, dtype)
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if len(bad):
+        k = int(bad[0]) + 1
+        raise ValueError(f"{name}: time stamps must increase; t[{k}] = {float(t[k])!r} after "
+                         f"t[{k - 1}] = {float(t[k - 1])!r}")
+    return t

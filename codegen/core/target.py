@@ -19,6 +19,46 @@ PRECISIONS = ("double", "float")
 REAL_TYPES = {"double": "double", "float": "float"}
 
 
+# the default range of the elapsed time between samples, in units of dt (Discretization.dt_range)
+DT_MIN_FACTOR = 0.25
+DT_MAX_FACTOR = 2.0
+# the contract of the elapsed-time step (the generated C's step_dt and run_t, and the reference):
+# an elapsed time above dt_max is integrated in m = ceil(elapsed / dt_max) <= SPLIT_MAX equal
+# sub-intervals (longer: refused; 1000 is 2 s of outage at the 1 kHz default range), and an
+# interval between two time stamps within STAMP_ULPS eps max(|t_k-1|, |t_k|) of dt is dt (the
+# stamps' own rounding: k dt rounded to the nearest real is off by half an ulp, a difference of
+# two such stamps by about one ulp), eps that of the real type
+SPLIT_MAX = 1000
+STAMP_ULPS = 4
+
+
+def split_count(elapsed, dt_max):
+    """m = ceil(elapsed / dt_max) as the generated C computes it (1 when elapsed <= dt_max):
+    the number of equal sub-intervals one step integrates ``elapsed`` (s) in."""
+    if not elapsed > dt_max:
+        return 1
+    m = int(elapsed / dt_max)
+    return m + 1 if m * dt_max < elapsed else m
+
+
+def interval(a, b, dt, eps=2.0 ** -52):
+    """b - a (s) between the time stamps a and b, or ``dt`` when it is dt up to their rounding
+    (|b - a - dt| <= STAMP_ULPS eps max(|a|, |b|), ``eps`` that of the real type)."""
+    h = b - a
+    return dt if abs(h - dt) <= STAMP_ULPS * eps * max(abs(a), abs(b)) else h
+
+
+def _seconds(name, value):
+    """``value`` as a positive finite float (s), or ValueError naming ``name``."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a positive finite number of seconds, got {value!r}") from None
+    if isinstance(value, bool) or not (math.isfinite(x) and x > 0):
+        raise ValueError(f"{name} must be a positive finite number of seconds, got {value!r}")
+    return x
+
+
 def _positive_int(name, value):
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise ValueError(f"{name} must be a positive integer, got {value!r}")
@@ -27,7 +67,8 @@ def _positive_int(name, value):
 
 @dataclass(frozen=True)
 class Discretization:
-    """A fixed-step discretisation of a continuous-time observer.
+    """How a continuous-time observer is stepped: the designed sample time, the declared range of
+    the elapsed time between samples, the integrator and the measurement hold.
 
     Parameters
     ----------
@@ -44,38 +85,60 @@ class Discretization:
         then forms the estimate (causal, no k0 dt sampling bias; see codegen.discrete.discretize).
     substeps : int
         Equal sub-steps of ``method`` per sample (>= 1).
+    dt_min, dt_max : float or None
+        The declared range of the elapsed time between samples (s), dt_min <= dt <= dt_max: the
+        step takes the elapsed time as an input (``<prefix>_step_dt``), the discrete stability
+        check holds over the whole range, and a longer interval is integrated in
+        ceil(elapsed / dt_max) equal sub-intervals. None (the default): ``DT_MIN_FACTOR`` dt and
+        ``DT_MAX_FACTOR`` dt, i.e. [dt/4, 2 dt] (a 1 kHz loop jittering 0.7-1.6 ms stays in one
+        step); ``dt_range`` gives the resolved pair.
     """
 
     dt: float = 1e-3
     method: str = "etdrk4"
     hold: str = "foh"
     substeps: int = 1
+    dt_min: float | None = None
+    dt_max: float | None = None
 
     def __post_init__(self):
-        try:
-            dt = float(self.dt)
-        except (TypeError, ValueError):
-            raise ValueError(f"dt must be a positive finite number of seconds, got {self.dt!r}") from None
-        if isinstance(self.dt, bool) or not (math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive finite number of seconds, got {self.dt!r}")
+        dt = _seconds("dt", self.dt)
         object.__setattr__(self, "dt", dt)
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.hold not in HOLDS:
             raise ValueError(f"hold must be one of {HOLDS}, got {self.hold!r}")
         _positive_int("substeps", self.substeps)
+        for name in ("dt_min", "dt_max"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, _seconds(name, value))
+        lo, hi = self.dt_range
+        if not lo <= dt <= hi:
+            raise ValueError(f"dt_min <= dt <= dt_max must hold, got dt_min = {lo:g}, dt = {dt:g}, "
+                             f"dt_max = {hi:g} (s)")
+
+    @property
+    def dt_range(self):
+        """(dt_min, dt_max) in s: the declared values, or [DT_MIN_FACTOR dt, DT_MAX_FACTOR dt]."""
+        return (self.dt_min if self.dt_min is not None else DT_MIN_FACTOR * self.dt,
+                self.dt_max if self.dt_max is not None else DT_MAX_FACTOR * self.dt)
 
     def to_dict(self):
-        """JSON-able dict (the metadata's "discretization")."""
-        return asdict(self)
+        """JSON-able dict (the Target's "discretization"): dt, method, hold, substeps, and dt_min,
+        dt_max only when declared (None: relative to dt, see ``dt_range``)."""
+        return {k: v for k, v in asdict(self).items() if v is not None or k not in ("dt_min", "dt_max")}
 
     @classmethod
     def from_dict(cls, d):
         """Inverse of ``to_dict``: the Discretization of the dict ``d``; unknown keys are refused."""
-        unknown = set(d) - {"dt", "method", "hold", "substeps"}
+        unknown = set(d) - set(FIELDS)
         if unknown:
             raise ValueError(f"discretization: unknown keys {sorted(unknown)}")
         return cls(**d)
+
+
+FIELDS = ("dt", "method", "hold", "substeps", "dt_min", "dt_max")
 
 
 DEFAULT_DISCRETIZATION = Discretization()
@@ -83,7 +146,7 @@ DEFAULT_DISCRETIZATION = Discretization()
 
 def discretization(value=None, **overrides):
     """A Discretization from None (the default), a Discretization, or a dict, with keyword
-    overrides (dt, method, hold, substeps) whose value is not None."""
+    overrides (dt, method, hold, substeps, dt_min, dt_max) whose value is not None."""
     if value is None:
         value = DEFAULT_DISCRETIZATION
     elif isinstance(value, dict):

@@ -1,17 +1,26 @@
-"""ObserverSpec -> fixed-step step Function (DESIGN §4: discretisation is a visible choice).
+"""ObserverSpec -> step Function with the elapsed time as an input (DESIGN §4: discretisation is
+a visible choice).
 
-    step(x, y_prev, y, u_prev, u, p, active) -> (x_next, est)
+    step(x, y_prev, y, u_prev, u, p, dt) -> (x_next, est)
 
-``hold="zoh"``: y and u are held over [t_k, t_k+1]:
+dt (s) is the time the step integrates over, an input of the generated C like y and u: the C's
+fixed-rate entry point (``<prefix>_step``) passes the designed Discretization.dt, its
+``<prefix>_step_dt`` the elapsed time of a jittered loop or log, through this one kernel. The
+ETD phi-functions are computed from z = -a dt / substeps at run time (``etd_coefficients``).
+
+``hold="zoh"``: y and u are held over [t_k, t_k + dt]:
   1. x <- jump(x, y, p)              hybrid observers only (the logic state lives in x)
   2. est = output(x, y, u, p)        the estimate at this sample
   3. x_next = x advanced by dt with y and u held, in ``substeps`` equal sub-steps of
-     ``method``. y_prev, u_prev and active are unused.
+     ``method``. y_prev and u_prev are unused; dt is the time to the next sample.
 
 ``hold="foh"`` (the default, codegen.core.target.DEFAULT_DISCRETIZATION): the state is first brought
-from t_k-1 to t_k with y interpolated linearly between y_prev and y and u_prev held (the input
-that was applied over that interval), then jump and output at t_k. Causal: it only uses samples
-already received. ``active`` = 0 on the first sample after init (nothing to integrate yet).
+from t_k-1 to t_k = t_k-1 + dt with y interpolated linearly between y_prev and y and u_prev held
+(the input that was applied over that interval), then jump and output at t_k. Causal: it only
+uses samples already received. dt = 0 on the first sample after init (nothing to integrate
+yet): the state is left as it is. The interpolation is written in the fraction s = (t - t_k-1)/dt
+of the interval, y(s) = y_prev + s (y - y_prev) with y(0) = y_prev and y(1) = y exactly, so no
+stage divides by dt.
 A family that splits its flow's use of y (``spec.rhs_split(x, y_cfg, y, u, p)``: the model M, C,
 g, F at the configuration y_cfg, the output-injection gain terms at y) has its model evaluated
 once per sub-step, at the midpoint configuration y_cfg = y(t_i + h/2), while the gain terms see
@@ -88,25 +97,29 @@ def phi_functions(z):
     return etd_coefficients(z)[2:]
 
 
-def integrator_step(f, x, t, h, method, rate=None, mask=None):
+def integrator_step(f, x, t, h, method, rate=None, mask=None, clock=None):
     """One step of size h of x' = f(t, x) from time t.
 
     ``method="etdrk4"`` with a scalar ``rate`` a and a 0/1 list ``mask`` (nx): the flow is
     N(t, x) - a D x with D = diag(mask), integrated by ETD-RK4 (module docstring); without a
-    rate it is classical RK4."""
+    rate it is classical RK4. ``clock``: the step in the unit of f's time argument (default h):
+    the stages see f at t, t + clock/2 and t + clock (e.g. the fraction of a sample interval
+    whose length h is symbolic)."""
+    c = h if clock is None else clock
     if method == "euler":
         return x + h * f(t, x)
     if method == "etdrk4" and rate is not None:
-        return _etdrk4_step(f, x, t, h, rate, mask)
+        return _etdrk4_step(f, x, t, h, rate, mask, c)
     k1 = f(t, x)
-    k2 = f(t + h / 2, x + h / 2 * k1)
-    k3 = f(t + h / 2, x + h / 2 * k2)
-    k4 = f(t + h, x + h * k3)
+    k2 = f(t + c / 2, x + h / 2 * k1)
+    k3 = f(t + c / 2, x + h / 2 * k2)
+    k4 = f(t + c, x + h * k3)
     return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
-def _etdrk4_step(f, x, t, h, a, mask):
-    """ETD-RK4 of Cox & Matthews (2002) eq. (26) on the masked states, RK4 on the others."""
+def _etdrk4_step(f, x, t, h, a, mask, c):
+    """ETD-RK4 of Cox & Matthews (2002) eq. (26) on the masked states, RK4 on the others; the
+    stages see f at t, t + c/2, t + c."""
     D = ca.DM(mask)
 
     def pick(etd, rk4):
@@ -119,18 +132,18 @@ def _etdrk4_step(f, x, t, h, a, mask):
         return f(s, xs) + a * D * xs
     k1 = N(t, x)
     xa = pick(E * x + h / 2 * p1h * k1, x + h / 2 * k1)
-    k2 = N(t + h / 2, xa)
+    k2 = N(t + c / 2, xa)
     xb = pick(E * x + h / 2 * p1h * k2, x + h / 2 * k2)
-    k3 = N(t + h / 2, xb)
+    k3 = N(t + c / 2, xb)
     xc = pick(E * xa + h / 2 * p1h * (2 * k3 - k1), x + h * k3)
-    k4 = N(t + h, xc)
+    k4 = N(t + c, xc)
     return pick(E2 * x + h * (f1 * k1 + 2 * f2 * (k2 + k3) + f3 * k4),
                 x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
 
 
 def _symbols(spec, sym):
     return (sym("x", spec.nx), sym("y_prev", spec.ny), sym("y", spec.ny),
-            sym("u_prev", spec.nu), sym("u", spec.nu), sym("p", spec.np), sym("active", 1))
+            sym("u_prev", spec.nu), sym("u", spec.nu), sym("p", spec.np), sym("dt", 1))
 
 
 def rate_mask(spec):
@@ -138,19 +151,27 @@ def rate_mask(spec):
     return [1 if name in spec.rate_states else 0 for name in spec.x_names]
 
 
-def _advance(spec, x, y_of_t, u, p, dt, method, substeps, midpoint=False):
-    """x advanced over dt; ``midpoint``: a family's model (``spec.rhs_split``) at the configuration
-    y(t_i + h/2) of each sub-step i, its output injection at y(t)."""
+def _advance(spec, x, y_of, u, p, dt, method, substeps, midpoint=False):
+    """x advanced over dt (s, symbolic), y = y_of(s) at the fraction s in [0, 1] of the interval;
+    ``midpoint``: a family's model (``spec.rhs_split``) at the configuration y((i + 1/2)/substeps)
+    of each sub-step i, its output injection at y(s)."""
     h = dt / substeps
     rate = spec.rate(x, p) if (spec.rate is not None and method == "etdrk4") else None
     mask = rate_mask(spec)
     split = midpoint and spec.rhs_split is not None
     for i in range(substeps):
-        y_cfg = y_of_t((i + 0.5) * h)
-        flow = ((lambda t, s: spec.rhs_split(s, y_cfg, y_of_t(t), u, p)) if split else
-                (lambda t, s: spec.rhs(s, y_of_t(t), u, p)))
-        x = integrator_step(flow, x, i * h, h, method, rate, mask)
+        y_cfg = y_of((i + 0.5) / substeps)
+        flow = ((lambda s, xs: spec.rhs_split(xs, y_cfg, y_of(s), u, p)) if split else
+                (lambda s, xs: spec.rhs(xs, y_of(s), u, p)))
+        x = integrator_step(flow, x, i / substeps, h, method, rate, mask, clock=1 / substeps)
     return x
+
+
+def _linear(y_prev, y):
+    """y(s) = y_prev + s (y - y_prev) at a constant fraction s, exact at both ends."""
+    def y_of(s):
+        return y_prev if s == 0 else (y if s == 1 else y_prev + s * (y - y_prev))
+    return y_of
 
 
 def _inline(spec, method, substeps, inline):
@@ -160,25 +181,24 @@ def _inline(spec, method, substeps, inline):
     return spec.rhs.n_instructions() * stages <= INLINE_LIMIT
 
 
-def _pieces(spec, dt, method, substeps, hold, inline, syms=None):
+def _pieces(spec, method, substeps, hold, inline, syms=None):
     inline = _inline(spec, method, substeps, inline)
-    x, yp, y, up, u, p, active = syms or _symbols(spec, ca.SX.sym if inline else ca.MX.sym)
+    x, yp, y, up, u, p, dt = syms or _symbols(spec, ca.SX.sym if inline else ca.MX.sym)
     if hold == "zoh":
         xj = spec.jump(x, y, p) if spec.jump is not None else x
         est = spec.output(xj, y, u, p)
-        xn = _advance(spec, xj, lambda t: y, u, p, dt, method, substeps)
+        xn = _advance(spec, xj, lambda s: y, u, p, dt, method, substeps)
         flow = (xj, xn)
     else:
-        # linear y over the last interval; active = 0 collapses it to no step at all
-        xa = _advance(spec, x, lambda t: yp + (t / dt) * (y - yp), up, p, active * dt, method, substeps,
-                      midpoint=True)
+        # linear y over the last interval; dt = 0 collapses it to no step at all
+        xa = _advance(spec, x, _linear(yp, y), up, p, dt, method, substeps, midpoint=True)
         xn = spec.jump(xa, y, p) if spec.jump is not None else xa
         est = spec.output(xn, y, u, p)
         flow = (x, xa)
-    return [x, yp, y, up, u, p, active], xn, est, flow
+    return [x, yp, y, up, u, p, dt], xn, est, flow
 
 
-_NAMES_IN = ["x", "y_prev", "y", "u_prev", "u", "p", "active"]
+_NAMES_IN = ["x", "y_prev", "y", "u_prev", "u", "p", "dt"]
 
 
 def _shared(outs):
@@ -196,24 +216,25 @@ def discretize(spec, disc, inline="auto"):
     ----------
     spec : ObserverSpec
     disc : codegen.core.target.Discretization
-        dt (s), method, hold, substeps.
+        method, hold, substeps (its dt is what the C's fixed-rate entry point passes as dt).
     inline : "auto" or bool
         True: one flat SX expression; False: MX calling the spec's functions; "auto": by size.
 
     Returns
     -------
     casadi.Function
-        ``step(x, y_prev, y, u_prev, u, p, active) -> (x_next, est)``.
+        ``step(x, y_prev, y, u_prev, u, p, dt) -> (x_next, est)``, dt (s) the time integrated
+        over (foh: since the last sample, 0 on the first; zoh: to the next sample).
     """
-    ins, xn, est, _ = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
+    ins, xn, est, _ = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
     return ca.Function("step", ins, _shared([xn, est]), _NAMES_IN, ["x_next", "est"])
 
 
 def estimate(spec, disc, inline="auto"):
-    """The estimate of ``discretize(spec, disc)`` as its own Function (same inputs), without
-    advancing the state; ``spec`` the observer, ``disc`` its Discretization, ``inline``: True
-    (SX), False (MX calls) or "auto" (SX when the unrolled step is small)."""
-    ins, _, est, _ = _pieces(spec, disc.dt, disc.method, disc.substeps, disc.hold, inline)
+    """The estimate of ``discretize(spec, disc)`` as its own Function (same inputs, dt included),
+    without advancing the state; ``spec`` the observer, ``disc`` its Discretization, ``inline``:
+    True (SX), False (MX calls) or "auto" (SX when the unrolled step is small)."""
+    ins, _, est, _ = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
     return ca.Function("estimate", ins, _shared([est]), _NAMES_IN, ["est"])
 
 
@@ -233,8 +254,8 @@ def step_jacobians(spec, disc, inline="auto"):
     -------
     casadi.Function
         ``(x, y, u, p, dt) -> (dx_next/dx, J(x_a), J(x_b))``: the step of ``disc`` (its
-        method, hold, substeps; its dt replaced by the input dt) at y_prev = y, u_prev = u,
-        active = 1 (the measurement held over the sample, so a split flow's midpoint
+        method, hold, substeps; its dt replaced by the input dt) at y_prev = y, u_prev = u
+        (the measurement held over the sample, so a split flow's midpoint
         configuration is y too: the step the observer takes there), and the continuous-time Jacobian
         J = drhs/dx of the flow at both ends x_a, x_b of the step's flow (a hybrid jump, before
         or after it, is not part of the flow).
@@ -242,8 +263,8 @@ def step_jacobians(spec, disc, inline="auto"):
     inline = _inline(spec, disc.method, disc.substeps, inline)
     sym = ca.SX.sym if inline else ca.MX.sym
     x, y, u, p, dt = sym("x", spec.nx), sym("y", spec.ny), sym("u", spec.nu), sym("p", spec.np), sym("dt")
-    _, xn, _, (xa, xb) = _pieces(spec, dt, disc.method, disc.substeps, disc.hold, inline,
-                                 syms=(x, y, y, u, u, p, 1))
+    _, xn, _, (xa, xb) = _pieces(spec, disc.method, disc.substeps, disc.hold, inline,
+                                 syms=(x, y, y, u, u, p, dt))
     J = ca.Function("J", [x, y, u, p], [ca.jacobian(spec.rhs(x, y, u, p), x)])
     return ca.Function("step_jacobians", [x, y, u, p, dt],
                        [ca.jacobian(xn, x), J(xa, y, u, p), J(xb, y, u, p)],

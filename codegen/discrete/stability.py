@@ -12,9 +12,18 @@ points: sampled configurations y (``spec.inputs``), each at rest (estimate 0) an
 The discretisation is *stable* when rho_i <= max(1, rho_c,i) (1 + 1e-6) at every point (it adds
 no growth the continuous-time observer does not have) and every declared gain (``spec.gains``)
 is >= 0 (a negative output-injection gain makes the continuous observer itself unstable).
-Reported with it: the largest stable value of each gain for this dt (bisection, the other
-parameters fixed), the largest stable dt and the substeps that would make it stable, and the
-accuracy of the step, max_i ||dPhi/dx - expm(dt (J(x_i) + J(x_i+)) / 2)||_2.
+
+The step takes the elapsed time as an input, so this must hold at every sample time of the
+declared range [dt_min, dt_max] (``Discretization.dt_range``): it is checked on ``sample_times``,
+dt_min, dt, dt_max and the geometric midpoints dt_min-dt and dt-dt_max. A range where it fails is
+refused naming the fix (more substeps, or a smaller dt_max: a longer interval is integrated in
+sub-intervals of at most dt_max by the C, so any dt_max >= dt that is stable is a fix). Where is
+the worst point: an explicit step's amplification R(lambda h) leaves the stability region as h
+grows, so dt_max decides for the gain terms (RK4 on z' = -k0 z: k0 dt_max <= 2.785); the grid
+also covers a non-monotone case, and the accuracy figure below is taken at dt.
+Reported with it: the largest value of each gain stable over the whole range (bisection, the
+other parameters fixed), the largest stable sample time and the substeps that would make the
+range stable, and the accuracy of the step at dt, max_i ||dPhi/dx - expm(dt (J(x_i) + J(x_i+)) / 2)||_2.
 
     report = check(spec, disc)               # StabilityReport; cached on disk
     require_stable(spec, disc)               # the report, or UnstableDiscretization (a ValueError)
@@ -32,7 +41,7 @@ from ..core.cache import cached_json
 from .sampling import declared_slots, measurements
 from .discretize import step_jacobians
 
-VERSION = 4            # of this check (part of the cache key)
+VERSION = 5            # of this check (part of the cache key)
 POINTS = 8             # sampled configurations; each at rest and moving
 TOL = 1e-6             # relative slack on the spectral radius
 GROWTH = 4.0 ** 10     # a gain is searched up to this multiple of its value (x4 at a time)
@@ -52,11 +61,11 @@ class StabilityReport:
     ----------
     stable : bool
     spectral_radius : float
-        max_i rho(dPhi/dx) over the working points.
+        max_i rho(dPhi/dx) over the working points, at the sample time ``worst_dt``.
     flow_radius : float
         max(1, rho_c) at the worst point: what the exact flow allows there.
     step_error : float
-        max_i ||dPhi/dx - expm(dt (J_i + J_i+)/2)||_2 (accuracy of the step over one sample).
+        max_i ||dPhi/dx - expm(dt (J_i + J_i+)/2)||_2 (accuracy of the step over one sample dt).
     gains : dict
         gain -> {"value": current (largest slot), "slots": parameter names, "max_stable": the
         largest stable value (None: unstable even at 0, or not computed), "limit_found": False
@@ -64,10 +73,14 @@ class StabilityReport:
     negative : list
         Gains below 0.
     dt, method, hold, substeps : the discretisation checked
-    dt_max : float or None
-        Largest stable dt with these parameters (computed when unstable).
+    dt_min, dt_max : float or None
+        The declared range of the elapsed time (s), checked at ``sample_times`` (``dts``).
+    worst_dt : float or None
+        The sample time of the range where rho / max(1, rho_c) is largest.
+    dt_limit : float or None
+        Largest stable sample time with these parameters (computed when unstable).
     substeps_needed : int or None
-        ceil(dt / dt_max) (computed when unstable).
+        ceil(dt_max / dt_limit) (computed when unstable): the factor on substeps that makes the range stable.
     points : int
     """
 
@@ -81,7 +94,11 @@ class StabilityReport:
     substeps: int
     gains: dict = field(default_factory=dict)
     negative: list = field(default_factory=list)
+    dt_min: float | None = None
     dt_max: float | None = None
+    worst_dt: float | None = None
+    dts: list = field(default_factory=list)
+    dt_limit: float | None = None
     substeps_needed: int | None = None
     points: int = 0
     checked: bool = True
@@ -95,8 +112,11 @@ class StabilityReport:
         """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius
         and the fixes."""
         where = f"at dt = {self.dt:g} with {self.method} ({self.hold} hold, {self.substeps} substep(s))"
+        if self.dt_min is not None and self.dt_max is not None and self.dt_min < self.dt_max:
+            where += f", elapsed time in [{self.dt_min:g}, {self.dt_max:g}]"
         gains = ", ".join(f"{g} = {v['value']:.6g}" for g, v in self.gains.items()) or family
-        why = (f"spectral radius {self.spectral_radius:.4g} > 1 (the continuous-time observer: "
+        at = f" at elapsed time {self.worst_dt:g}" if self.worst_dt is not None and self.worst_dt != self.dt else ""
+        why = (f"spectral radius {self.spectral_radius:.4g} > 1{at} (the continuous-time observer: "
                f"{self.flow_radius:.4g})")
         if self.negative:
             why = f"{', '.join(self.negative)} must be >= 0; {why}"
@@ -105,8 +125,9 @@ class StabilityReport:
                  for g, v in self.gains.items() if v["max_stable"]]
         if self.substeps_needed:
             fixes.append(f"or use substeps >= {self.substeps_needed * self.substeps}")
-        if self.dt_max:
-            fixes.append(f"or dt <= {self.dt_max:.3g}")
+        if self.dt_limit:
+            fixes.append(f"or dt_max <= {self.dt_limit:.3g} (longer intervals are split)"
+                         if self.dt_limit >= self.dt else f"or dt <= {self.dt_limit:.3g}")
         if not self.negative:                 # sub-steps cannot make a negative gain stable
             fixes.append('or substeps="auto" to choose them')
         return f"{gains} {where}: {why}; " + ", ".join(fixes)
@@ -144,8 +165,17 @@ def _working_points(spec, points, seed, rng):
     return np.vstack([Y, Y]), np.vstack([U, U]), EST
 
 
+def sample_times(disc):
+    """The sample times the check covers (s, ascending): dt_min, dt, dt_max of ``disc`` (a
+    Discretization) and the geometric midpoints of [dt_min, dt] and [dt, dt_max], without repeats."""
+    lo, hi = disc.dt_range
+    dts = {lo, disc.dt, hi, math.sqrt(lo * disc.dt), math.sqrt(disc.dt * hi)}
+    return sorted(d for d in dts if lo <= d <= hi)
+
+
 class _Linearisation:
-    """The step's Jacobian and the exact flow's growth at the working points, for any p, dt."""
+    """The step's Jacobian and the exact flow's growth at the working points, for any p and
+    sample times (one mapped call for all of them)."""
 
     def __init__(self, spec, disc, points=POINTS, seed=0):
         self.spec, self.disc = spec, disc
@@ -157,40 +187,56 @@ class _Linearisation:
         integer = {spec.x_names.index(name) for name, _, _ in spec.inputs.x_integer}
         self.slots = {i: v for i, v in slots.items() if i not in integer}
         self.S = len(self.Y)
-        self.jac = step_jacobians(spec, disc).map(self.S)
+        self._jac, self._maps = step_jacobians(spec, disc), {}
         self.init = spec.init.map(self.S)
 
-    def at(self, p, dt):
-        """(Phi, J) (S, nx, nx) at parameters p and sample time dt: the step's Jacobian and
-        (J(x) + J(x_next)) / 2, whose exponential expm(dt J) is the exact linearised flow over
-        the step to O(dt^3); None for J when anything is not finite."""
-        nx, S = self.spec.nx, self.S
+    def _map(self, count):
+        if count not in self._maps:
+            self._maps[count] = self._jac.map(count)
+        return self._maps[count]
+
+    def at(self, p, dts):
+        """(Phi, J) (G, S, nx, nx) at parameters p and the G sample times ``dts``: the step's
+        Jacobian and (J(x) + J(x_next)) / 2, whose exponential expm(dt J) is the exact linearised
+        flow over the step to O(dt^3); None for J when anything is not finite."""
+        nx, S, G = self.spec.nx, self.S, len(dts)
         P = np.tile(np.asarray(p, float)[:, None], S)
         X = np.asarray(self.init(self.Y.T, self.EST.T, P)).reshape(nx, S)
         for i, values in self.slots.items():
             X[i] = values
-        # a mapped matrix output is [A_1 A_2 ...] side by side
-        Phi, J0, J1 = (np.asarray(m).reshape(nx, S, nx).transpose(1, 0, 2)
-                       for m in self.jac(X, self.Y.T, self.U.T, P, dt))
+        # a mapped matrix output is [A_1 A_2 ...] side by side; the points repeat per sample time
+        T = np.repeat(np.asarray(dts, float), S)[None, :]
+        Phi, J0, J1 = (np.asarray(m).reshape(nx, G, S, nx).transpose(1, 2, 0, 3)
+                       for m in self._map(G * S)(np.tile(X, G), np.tile(self.Y.T, G), np.tile(self.U.T, G),
+                                                np.tile(P, G), T))
         J = 0.5 * (J0 + J1)
         return Phi, (J if np.all(np.isfinite(Phi)) and np.all(np.isfinite(J)) else None)
 
-    def radii(self, p, dt, accuracy=False):
-        """(max rho(Phi), max(1, rho_c) at the worst point, max_i rho(Phi_i) / max(1, rho_c,i),
-        max_i ||Phi_i - expm(dt J_i)||_2 if ``accuracy`` else None), rho_c = exp(dt max Re eig J)
-        (= rho(expm(dt J)))."""
-        Phi, J = self.at(p, dt)
+    def radii(self, p, dts, accuracy=None):
+        """At each sample time of ``dts``: (max rho(Phi), max(1, rho_c) at the worst point,
+        max_i rho(Phi_i) / max(1, rho_c,i)) as three (G,) arrays, rho_c = exp(dt max Re eig J)
+        (= rho(expm(dt J))); and max_i ||Phi_i - expm(dt J_i)||_2 at the sample time
+        ``accuracy`` (one of dts) if given, else None. Infinite when anything is not finite."""
+        G = len(dts)
+        Phi, J = self.at(p, dts)
         if J is None:
-            return math.inf, math.inf, math.inf, math.inf if accuracy else None
-        rho = np.max(np.abs(np.linalg.eigvals(Phi)), axis=1)
-        rho_c = np.maximum(1.0, np.exp(np.minimum(dt * np.max(np.linalg.eigvals(J).real, axis=1), 700.0)))
+            inf = np.full(G, math.inf)
+            return inf, inf, inf, math.inf if accuracy is not None else None
+        d = np.asarray(dts, float)[:, None]
+        rho = np.max(np.abs(np.linalg.eigvals(Phi)), axis=2)
+        rho_c = np.maximum(1.0, np.exp(np.minimum(d * np.max(np.linalg.eigvals(J).real, axis=2), 700.0)))
         excess = rho / rho_c
-        worst = int(np.argmax(excess))
-        error = float(max(_distance(a, expm(dt * b)) for a, b in zip(Phi, J))) if accuracy else None
-        return float(rho.max()), float(rho_c[worst]), float(excess[worst]), error
+        worst = np.argmax(excess, axis=1)
+        rows = np.arange(G)
+        error = None
+        if accuracy is not None:
+            g = list(dts).index(accuracy)
+            error = float(max(_distance(a, expm(accuracy * b)) for a, b in zip(Phi[g], J[g])))
+        return rho.max(axis=1), rho_c[rows, worst], excess[rows, worst], error
 
-    def stable(self, p, dt):
-        return self.radii(p, dt)[2] <= 1 + TOL
+    def stable(self, p, dts):
+        """True when the step is stable (module docstring) at every sample time of ``dts``."""
+        return bool(np.all(self.radii(p, dts)[2] <= 1 + TOL))
 
 
 def _distance(a, b):
@@ -215,16 +261,17 @@ def _largest(ok, lo, hi, grow):
     return lo, True
 
 
-def _max_stable(lin, p, idx, dt):
-    """(largest stable value of the gain at slots ``idx`` (all scaled together, others fixed),
-    whether an unstable value was found); (None, True) when unstable even at 0."""
+def _max_stable(lin, p, idx, dts):
+    """(largest value of the gain at slots ``idx`` (all scaled together, others fixed) stable at
+    every sample time of ``dts``, whether an unstable value was found); (None, True) when unstable
+    even at 0."""
     v0 = _gain_value(p, idx)
     base = p[idx] / v0 if v0 > 0 else np.ones(len(idx))
 
     def ok(v):
         q = p.copy()
         q[idx] = base * v
-        return lin.stable(q, dt)
+        return lin.stable(q, dts)
     if not ok(0.0):
         return None, True
     return _largest(ok, 0.0, v0 if v0 > 0 else 1.0, round(math.log(GROWTH, 4)))
@@ -232,25 +279,31 @@ def _max_stable(lin, p, idx, dt):
 
 def _compute(spec, disc, p, gains, bounds=True):
     lin = _Linearisation(spec, disc)
-    rho, flow, excess, step_error = lin.radii(p, disc.dt, accuracy=True)
+    dts = sample_times(disc)
+    rho, flow, excess, step_error = lin.radii(p, dts, accuracy=disc.dt)
+    w = int(np.argmax(excess))                     # the worst sample time of the range
     idx = {g: [spec.p_names.index(s) for s in slots] for g, slots in gains.items()}
     negative = [g for g, i in idx.items() if np.any(p[i] < 0)]
     # a step that is not finite at p (e.g. a guard parameter that rejects every pivot) is not
     # judged here: the C reports it at run time (status 3); growth is what this check refuses
-    evaluable = math.isfinite(rho)
-    stable = (excess <= 1 + TOL or not evaluable) and not negative
+    evaluable = bool(np.all(np.isfinite(rho)))
+    stable = bool(excess[w] <= 1 + TOL or not evaluable) and not negative
     report = {"gains": {}}
     for g, i in idx.items():
-        top, found = _max_stable(lin, p, i, disc.dt) if bounds else (None, False)
+        top, found = _max_stable(lin, p, i, dts) if bounds else (None, False)
         report["gains"][g] = {"value": _gain_value(p, i), "slots": list(gains[g]), "max_stable": top,
                               "limit_found": found}
+    lo, hi = disc.dt_range
     report.update({
-        "stable": stable, "spectral_radius": rho, "flow_radius": flow, "step_error": step_error,
-        "negative": negative, "points": lin.S, "evaluable": evaluable})
+        "stable": stable, "spectral_radius": float(rho[w]), "flow_radius": float(flow[w]),
+        "step_error": step_error, "negative": negative, "points": lin.S, "evaluable": evaluable,
+        "dt_min": lo, "dt_max": hi, "worst_dt": dts[w], "dts": dts})
     if bounds and not stable and not negative:
-        dt_max = _largest(lambda dt: lin.stable(p, dt), 0.0, disc.dt, 0)[0]
-        report["dt_max"] = dt_max if dt_max > 0 else None
-        report["substeps_needed"] = math.ceil(disc.dt / dt_max) if dt_max > 0 else None
+        # the largest h stable from 0 (below the smallest failing sample time)
+        failing = min(d for d, e in zip(dts, excess) if not e <= 1 + TOL)
+        limit = _largest(lambda h: lin.stable(p, [h]), 0.0, failing, 0)[0]
+        report["dt_limit"] = limit if limit > 0 else None
+        report["substeps_needed"] = math.ceil(hi / limit) if limit > 0 else None
     return report
 
 
@@ -285,13 +338,15 @@ def check(spec, disc, p=None, cache=True, bounds=True):
     if spec.nx == 0 or spec.ny == 0:
         # a stateless law has nothing to diverge; a plant (no measurement) is no observer: its
         # step is the simulation's business (codegen.evaluate.sim), not checked here
+        lo, hi = disc.dt_range
         return StabilityReport(stable=True, spectral_radius=0.0, flow_radius=1.0, step_error=0.0, dt=disc.dt,
                                method=disc.method, hold=disc.hold, substeps=disc.substeps,
-                               checked=spec.nx == 0)
+                               checked=spec.nx == 0, dt_min=lo, dt_max=hi)
     if not np.all(np.isfinite(p)):
         raise ValueError(f"{spec.family}: non-finite parameter(s) "
                          f"{[n for n, v in zip(spec.p_names, p) if not np.isfinite(v)]}")
-    key = {"version": VERSION, "spec": _digest(spec), "disc": disc.to_dict(), "p": p.tolist(),
+    key = {"version": VERSION, "spec": _digest(spec), "disc": disc.to_dict(), "range": list(disc.dt_range),
+           "p": p.tolist(),
            "gains": {g: list(s) for g, s in spec.gains.items()}, "points": POINTS, "bounds": bounds}
 
     def compute():

@@ -28,7 +28,7 @@ from ..core.version import __version__
 from ..discrete.discretize import discretize, estimate
 from ..core.spec import ObserverSpec, real_number
 from ..discrete.stability import require_stable
-from ..core.target import REAL_TYPES, sanitize
+from ..core.target import REAL_TYPES, SPLIT_MAX, STAMP_ULPS, sanitize
 
 HOLD_TEXT = {
     "zoh": "zero-order hold: y and u are held over [t_k, t_k+1];\n * step() returns the estimate at t_k, then advances the state to t_k+1.",
@@ -42,6 +42,18 @@ SPLIT_TEXT = ("\n * The model (M, C, g, F) is evaluated once per sub-step, at th
 
 TEMPLATES = {"observer.h.in": "{prefix}.h", "observer.c.in": "{prefix}.c", "Makefile.in": "Makefile",
              "CMakeLists.txt.in": "CMakeLists.txt"}   # template -> file of the target folder
+
+DT_TEXT = {
+    "foh": ("First-order hold: dt is the time since the last sample.",
+            "dt the time since the last sample",
+            "the interval before sample k,\n   t_k - t_k-1; for k = 0 since t_last, the stamp of "
+            "the state's last sample (right after init nothing\n   is integrated before it; a "
+            "state stepped since init by step() or step_dt() only has none: ERR_BAD_ARG)."),
+    "zoh": ("Zero-order hold: dt is the time to the next sample (the step advances over it).",
+            "dt the time to the next sample (the zero-order hold advances over it)",
+            "the interval after sample k,\n   t_k+1 - t_k; after the last sample DT (the next "
+            "stamp is not known yet)."),
+}
 
 STATUS = {"OK": 0, "ERR_BAD_ARG": 1, "ERR_NONFINITE_INPUT": 2, "ERR_NONFINITE_RESULT": 3,
           "ERR_KERNEL": 4}
@@ -130,7 +142,10 @@ def metadata(spec, target, kernels, stability=None):
                   "est": spec.est_names},
         "p_default": [float(v) for v in spec.p_default],
         "options": spec.options.to_dict(),
-        "discretization": {**d.to_dict(), "hybrid": spec.jump is not None},
+        "discretization": {**d.to_dict(), "hybrid": spec.jump is not None, "dt_min": d.dt_range[0],
+                           "dt_max": d.dt_range[1], "split_max": SPLIT_MAX,
+                           "stamp_tol": STAMP_ULPS * float(np.finfo(np.float32 if target.precision == "float"
+                                                                    else np.float64).eps)},
         "rate_states": list(spec.rate_states),
         "rhs_split": spec.rhs_split is not None,
         "gains": {g: list(slots) for g, slots in spec.gains.items()},
@@ -307,6 +322,9 @@ def template_values(meta):
         "codegen_version": meta["generator"]["codegen"], "casadi_version": meta["generator"]["casadi"],
         "real": REAL_TYPES[precision], "precision": precision,
         "method": d["method"], "dt": _num(d["dt"], precision), "dt_text": _num(d["dt"]),
+        "dt_min": _num(d["dt_min"], precision), "dt_max": _num(d["dt_max"], precision),
+        "split_max": d["split_max"], "stamp_tol": _num(d["stamp_tol"], precision), "stamp_ulps": STAMP_ULPS,
+        **dict(zip(("dt_text_hold", "dt_arg_text", "run_t_text"), DT_TEXT[d["hold"]])),
         "substeps": d["substeps"],
         "hold_text": HOLD_TEXT[d["hold"]] + (SPLIT_TEXT if d["hold"] == "foh" and meta.get("rhs_split")
                                              else ""),

@@ -1,8 +1,9 @@
 """ctypes loader: CompiledObserver with step() and run(), the loop of run() in C.
 
-Buffers are preallocated once; ``step`` copies y and u into them and calls the C step.
-Bad input (shape, NaN/Inf) raises before reaching C; a non-zero C status raises
-ObserverError naming the status. A single-precision target (metadata "precision": "float")
+Buffers are preallocated once; ``step`` copies y and u into them and calls the C step
+(``step(y, u, dt)``: the C's step_dt with the elapsed time dt; ``run(Y, U, t)``: its run_t over
+time stamps). Bad input (shape, NaN/Inf, dt <= 0, stamps that do not increase) raises before
+reaching C; a non-zero C status raises ObserverError naming the status. A single-precision target (metadata "precision": "float")
 gets float32 buffers: inputs are rounded to float32 at the boundary (a value beyond float32's
 range is refused), results come back as float64 arrays.
 """
@@ -14,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.arrays import as_matrix, as_vector
+from ..core.arrays import as_matrix, as_vector, positive, time_stamps
 from .compile import verify
 
 REALS = {"double": (np.float64, ct.c_double), "float": (np.float32, ct.c_float)}  # precision -> types
@@ -28,8 +29,10 @@ class ObserverError(RuntimeError):
 class CompiledObserver:
     """A generated observer loaded from its shared library.
 
-    ``obs.reset(y0, est0=None, p=None)``, ``obs.step(y, u) -> est``, ``obs.run(Y, U) -> EST``,
-    ``obs.rhs(x, y, u)``; ``obs.state``, ``obs.params``; ``obs.meta`` is the target's metadata.
+    ``obs.reset(y0, est0=None, p=None)``, ``obs.step(y, u, dt=None) -> est``,
+    ``obs.run(Y, U, t=None) -> EST``, ``obs.rhs(x, y, u)``; ``obs.state``, ``obs.params``;
+    ``obs.meta`` is the target's metadata. ``dt`` (s) is the elapsed time of a jittered loop
+    (default: the designed ``obs.dt``), ``t`` the time stamps of a jittered log (see ``run``).
 
     New parameters (``obs.params = p``, ``reset(..., p=p)``) are checked for discrete stability:
     with ``obs.spec`` known (``compile_observer`` attaches it) by the full check
@@ -47,7 +50,12 @@ class CompiledObserver:
         self.prefix = self.meta["prefix"]
         s = self.meta["sizes"]
         self.nx, self.ny, self.nu, self.np, self.nest = s["nx"], s["ny"], s["nu"], s["np"], s["nest"]
-        self.dt = self.meta["discretization"]["dt"]
+        d = self.meta["discretization"]
+        self.dt = d["dt"]
+        self.foh = d["hold"] == "foh"
+        # the longest elapsed time one step_dt takes (longer: ERR_BAD_ARG); older metadata: DT
+        self.dt_range = (d.get("dt_min", self.dt), d.get("dt_max", self.dt))
+        self.dt_limit = d.get("split_max", 1) * self.dt_range[1]
         self.status_names = {v: k for k, v in self.meta["status"].items()}
         self.precision = self.meta.get("precision", "double")
         self.dtype, ctype = REALS[self.precision]
@@ -61,6 +69,11 @@ class CompiledObserver:
         self._init, self._step, self._run, self._rhs = f("init"), f("step"), f("run"), f("rhs")
         self._estimate = f("estimate")
         self._estimate.argtypes = [ct.c_void_p, R, R, R]
+        self._step_dt, self._estimate_dt, self._run_t = f("step_dt"), f("estimate_dt"), f("run_t")
+        for g in (self._step_dt, self._estimate_dt):
+            g.argtypes = [ct.c_void_p, ctype, R, R, R]
+        self._run_t.argtypes = [ct.c_void_p, ct.c_long, R, R, R, R, ct.POINTER(ct.c_long)]
+        self._ctype = ctype
         self._set_params, self._get_state, self._set_state = f("set_params"), f("get_state"), f("set_state")
         self._get_params = f("get_params")
         self._init.argtypes = [ct.c_void_p, R, R, R]
@@ -106,19 +119,49 @@ class CompiledObserver:
         p = as_vector("p", self.p_default if p is None else self.check_params(p), self.np, self.dtype)
         arr = [np.ascontiguousarray(a) for a in (p, y0, est0)]
         self._check(self._init(self._s, *(a.ctypes.data_as(self._R) for a in arr)), "init")
+        self._primed, self._stamp = False, None     # as the C state's primed, stamped/t_last
 
-    def step(self, y, u):
-        """Estimate at this sample from measurement y and input u; the state advances by dt."""
+    def _elapsed(self, dt):
+        """dt (s) as the C's real: positive, finite and at most ``dt_limit``, or ValueError."""
+        if dt is None:
+            return None
+        value = positive("dt", dt)
+        if value > self.dt_limit:
+            raise ValueError(f"dt must be at most {self.dt_limit:g} s (split_max x dt_max), got {dt!r}: "
+                             f"after an outage that long, reset the observer")
+        return self.dtype(value)
+
+    def _stepped(self, dt):
+        """Keep the time stamp of the last sample as the C does after a step of ``dt`` (s)."""
+        if self._primed and self._stamp is not None:
+            self._stamp += float(dt)
+        self._primed = True
+
+    def step(self, y, u, dt=None):
+        """Estimate at this sample from measurement y (ny,) and input u (nu,).
+
+        ``dt`` (s): the elapsed time (first-order hold: since the last sample; zero-order hold:
+        to the next one), default the designed ``obs.dt``; above dt_max it is integrated in
+        ceil(dt / dt_max) sub-intervals (the C's step_dt)."""
+        h = self._elapsed(dt)
         yp = self._load("y", "y", y, self.ny)
         up = self._load("u", "u", u, self.nu)
-        self._check(self._step(self._s, yp, up, self._ptr["est"]), "step")
+        if h is None:
+            self._check(self._step(self._s, yp, up, self._ptr["est"]), "step")
+        else:
+            self._check(self._step_dt(self._s, h, yp, up, self._ptr["est"]), "step_dt")
+        self._stepped(self.dt if h is None else h)
         return self._out("est", self.nest)
 
-    def estimate(self, y, u):
-        """The estimate step(y, u) would return, without advancing the state."""
+    def estimate(self, y, u, dt=None):
+        """The estimate step(y, u, dt) would return, without advancing the state."""
+        h = self._elapsed(dt)
         yp = self._load("y", "y", y, self.ny)
         up = self._load("u", "u", u, self.nu)
-        self._check(self._estimate(self._s, yp, up, self._ptr["est"]), "estimate")
+        if h is None:
+            self._check(self._estimate(self._s, yp, up, self._ptr["est"]), "estimate")
+        else:
+            self._check(self._estimate_dt(self._s, h, yp, up, self._ptr["est"]), "estimate_dt")
         return self._out("est", self.nest)
 
     def bind(self, y, u, est):
@@ -147,29 +190,72 @@ class CompiledObserver:
                 check(st, "estimate")
         return step, estimate
 
-    def c_step(self, y, u):
-        """The raw C step on measurement ``y`` (ny,) and input ``u`` (nu,), no Python-side checks:
-        returns (status, est). For tests of the C."""
+    def c_step(self, y, u, dt=None):
+        """The raw C step (``dt`` given: step_dt with that elapsed time, any float) on measurement
+        ``y`` (ny,) and input ``u`` (nu,), no Python-side checks: returns (status, est). For tests
+        of the C."""
         self._buf["y"][: self.ny] = np.asarray(y, float).reshape(-1)[: self.ny]
         self._buf["u"][: self.nu] = np.asarray(u, float).reshape(-1)[: self.nu]
-        st = self._step(self._s, self._ptr["y"], self._ptr["u"], self._ptr["est"])
+        if dt is None:
+            st = self._step(self._s, self._ptr["y"], self._ptr["u"], self._ptr["est"])
+        else:
+            with np.errstate(over="ignore"):
+                h = self.dtype(dt)
+            st = self._step_dt(self._s, h, self._ptr["y"], self._ptr["u"], self._ptr["est"])
+        if st == 0:
+            self._stepped(self.dt if dt is None else dt)
         return st, self._out("est", self.nest)
 
-    def run(self, Y, U):
+    def run(self, Y, U, t=None):
         """Many samples at once (rows of Y, U); the loop runs in C. Returns EST (N, nest).
+
+        ``t`` (N,): the samples' time stamps (s, increasing; the C's run_t): first-order hold,
+        the step before sample k covers t[k] - t[k-1], and before sample 0 the time since the
+        last sample of the previous ``run(..., t)`` (plus the ``dt`` of steps since; right after
+        ``reset`` nothing); zero-order hold, the step after sample k covers t[k+1] - t[k] (after
+        the last, dt). An interval equal to dt up to its stamps' rounding is dt, so uniform
+        stamps give ``run(Y, U)``'s estimates bit for bit. Default: the samples dt apart.
 
         On a non-zero status at sample k, ObserverError names k, and the C has rolled the
         state back to what it was before the call."""
         Y = as_matrix("Y", Y, self.ny, dtype=self.dtype)
         U = as_matrix("U", U, self.nu, rows=len(Y), dtype=self.dtype)
+        if t is not None:
+            t = self._stamps(t, len(Y))
         EST = np.empty((len(Y), self.nest), self.dtype)
         done = ct.c_long(0)
-        st = self._run(self._s, len(Y), *(a.ctypes.data_as(self._R) for a in (Y, U, EST)), ct.byref(done))
+        arrays = (Y, U, EST) if t is None else (t, Y, U, EST)
+        st = (self._run if t is None else self._run_t)(self._s, len(Y), *(a.ctypes.data_as(self._R) for a in arrays),
+                                                      ct.byref(done))
         if st != 0:
-            raise ObserverError(f"{self.prefix}_run stopped at sample {done.value} with status {st} "
-                                f"({self.status_names.get(st, 'unknown')}); state rolled back to "
-                                f"before the run")
+            raise ObserverError(f"{self.prefix}_{'run' if t is None else 'run_t'} stopped at sample "
+                                f"{done.value} with status {st} ({self.status_names.get(st, 'unknown')}); "
+                                f"state rolled back to before the run")
+        if len(Y):
+            if t is not None:
+                self._stamp = float(t[-1])
+            elif self._stamp is not None:
+                self._stamp += self.dt * (len(Y) - (0 if self._primed else 1))
+            self._primed = True
         return EST.astype(np.float64, copy=False)
+
+    def _stamps(self, t, rows):
+        """The time stamps ``t`` of a run of ``rows`` samples as the C's reals, checked (module
+        docstring): increasing, intervals (and the one before t[0]) at most ``dt_limit``."""
+        t = np.ascontiguousarray(time_stamps("t", t, rows, self.dtype))
+        gaps = np.diff(t.astype(float))
+        if self.foh and self._primed and rows:
+            if self._stamp is None:
+                raise ValueError("t: the observer's last sample has no time stamp (it was stepped "
+                                 "without one since reset): reset it, or step it with dt")
+            gaps = np.concatenate([[float(t[0]) - self._stamp], gaps])
+            if gaps[0] <= 0:
+                raise ValueError(f"t: t[0] = {float(t[0])!r} is not after the last sample's stamp "
+                                 f"{self._stamp!r}")
+        if np.any(gaps > self.dt_limit):
+            raise ValueError(f"t: an interval of {gaps.max():g} s is longer than {self.dt_limit:g} s "
+                             f"(split_max x dt_max): reset the observer after an outage that long")
+        return t
 
     def rhs(self, x, y, u):
         """Continuous-time right-hand side xdot (nx,) at state ``x`` (nx,), measurement ``y`` (ny,) and
@@ -207,9 +293,9 @@ class CompiledObserver:
         """p as a finite vector, refused (codegen.discrete.stability.UnstableDiscretization, a ValueError)
         when the discrete observer would be unstable with it (see the class docstring)."""
         from ..discrete.stability import UnstableDiscretization, require_stable
-        from ..core.target import Discretization
+        from ..core.target import FIELDS, Discretization
         p = as_vector("p", p, self.np)
-        disc = Discretization.from_dict({k: v for k, v in self.meta["discretization"].items() if k != "hybrid"})
+        disc = Discretization.from_dict({k: v for k, v in self.meta["discretization"].items() if k in FIELDS})
         if self.spec is not None:
             require_stable(self.spec, disc, p)
             return p

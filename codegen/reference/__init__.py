@@ -10,7 +10,15 @@ target's metadata JSON, and a ``codegen.core.target.Discretization`` (plain data
     ref = reference_observer(spec, dt=1e-3, method="rk4", substeps=1, hold="foh")
     ref.reset(y0, est0=None, p=None)
     est = ref.step(y, u)          # est from the current state, then x advances over dt
+    est = ref.step(y, u, dt=h)    # the elapsed time h (s) instead of dt (a jittered loop)
     EST = ref.run(Y, U)           # (N, ny), (N, nu) -> (N, nest)
+    EST = ref.run(Y, U, t)        # over time stamps t (N,) (a jittered log)
+
+The elapsed time follows the contract of the generated C's step_dt and run_t (codegen.core.target:
+``SPLIT_MAX``, ``STAMP_ULPS``): longer than dt_max, it is integrated in m = ceil(h / dt_max)
+equal sub-intervals, at virtual samples where y is interpolated linearly (first-order hold; held,
+zero-order) and the last input is held; an interval between stamps equal to dt up to their
+rounding is dt.
 
 A family module gives ``rhs(robot, x, y, u, p)``, ``output(robot, x, y, u, p)``,
 ``init(robot, y0, est0, p)``, ``sizes(robot)``, optionally ``P_NAMES``, for hybrid
@@ -32,8 +40,9 @@ import pkgutil
 
 import numpy as np
 
-from ..core.arrays import as_matrix, as_vector
+from ..core.arrays import as_matrix, as_vector, positive, time_stamps
 from ..core.options import options_from_dict
+from ..core.target import SPLIT_MAX, interval, split_count
 from ..core.target import discretization as as_discretization
 from . import discretize, families
 from .robots import SEED_SOURCES, reference_robot
@@ -45,7 +54,8 @@ FAMILIES = {m.name: importlib.import_module(f"{families.__name__}.{m.name}")
 __all__ = ["reference_observer", "reference_robot", "ReferenceObserver", "FAMILIES", "SEED_SOURCES"]
 
 
-def reference_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None):
+def reference_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,
+                       dt_min=None, dt_max=None):
     """The numpy reference of an observer, stepped like the generated C.
 
     Parameters
@@ -55,7 +65,8 @@ def reference_observer(spec, discretization=None, *, dt=None, method=None, subst
         keys of ``ObserverSpec.describe``; a generated target's metadata JSON has them).
     discretization : codegen.core.target.Discretization or dict, optional
         Default: ``codegen.core.target.DEFAULT_DISCRETIZATION`` (for metadata: the recorded one).
-        ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields.
+        ``dt``, ``dt_min``, ``dt_max`` (s), ``method``, ``substeps`` and ``hold`` override single
+        fields.
 
     Returns
     -------
@@ -67,7 +78,8 @@ def reference_observer(spec, discretization=None, *, dt=None, method=None, subst
                 "hybrid": desc.get("hybrid", desc["discretization"]["hybrid"])}
     if discretization is None and "target" in desc:
         discretization = desc["target"]["discretization"]
-    disc = as_discretization(discretization, dt=dt, method=method, substeps=substeps, hold=hold)
+    disc = as_discretization(discretization, dt=dt, method=method, substeps=substeps, hold=hold,
+                             dt_min=dt_min, dt_max=dt_max)
     return ReferenceObserver(desc, disc)
 
 
@@ -98,7 +110,10 @@ class ReferenceObserver:
             raise ValueError(f"no reference for observer family {family_name!r}; known: {sorted(FAMILIES)}")
         self.disc = disc
         self.dt, self.method, self.substeps, self.hold = disc.dt, disc.method, disc.substeps, disc.hold
+        self.dt_range = disc.dt_range
+        self.dt_limit = SPLIT_MAX * self.dt_range[1]   # the longest elapsed time of one step
         self._prev = None   # (y, u) of the last sample, for the first-order hold
+        self._stamp = None  # time stamp of the last sample (s), set by run(Y, U, t)
         self.robot = reference_robot(desc["robot"])
         family = FAMILIES[family_name]
         configure = getattr(family, "configure", None)
@@ -164,11 +179,11 @@ class ReferenceObserver:
 
     def check_params(self, p, x=None):
         """The reference's own stability check of parameters p: each declared gain >= 0, and, at
-        the state x (default: the current one, retuned to p) and the last measurement held, the
-        spectral radius of the step's Jacobian
-        (central differences) at most that of the exact linearised flow, exp(dt max Re eig J),
-        J = (J(x) + J(x_next))/2 by central differences, or 1 (relative slack 1e-5).
-        ValueError naming the gain, dt and method otherwise."""
+        the state x (default: the current one, retuned to p) and the last measurement held, at
+        the sample times dt_min, dt and dt_max of the declared range, the spectral radius of the
+        step's Jacobian (central differences) at most that of the exact linearised flow,
+        exp(h max Re eig J), J = (J(x) + J(x_next))/2 by central differences, or 1 (relative
+        slack 1e-5). ValueError naming the gain, dt and method otherwise."""
         p = as_vector("p", p, self.np)
         where = f"at dt = {self.dt:g} with {self.method}"
         for gain, slots in self.gains.items():
@@ -181,19 +196,21 @@ class ReferenceObserver:
         y = self._y_last
         u = self._prev[1] if self._prev is not None else np.zeros(self.nu)
         saved = self._p
-        try:
-            self._p = p
-            step = lambda x: self._advance(x, (y, u), y, u)[1]                        # noqa: E731
-            flow = lambda x: np.asarray(self.family.rhs(self.robot, x, y, u, p), float)  # noqa: E731
-            Phi = _jacobian(step, x0)
-            J = 0.5 * (_jacobian(flow, x0) + _jacobian(flow, step(x0)))
-        finally:
-            self._p = saved
-        rho = np.max(np.abs(np.linalg.eigvals(Phi)))
-        rho_c = max(1.0, float(np.exp(self.dt * np.max(np.linalg.eigvals(J).real))))
-        if not rho <= rho_c * (1 + 1e-5):
-            raise ValueError(f"parameters {dict(zip(self.p_names, p.tolist()))} {where}: spectral radius "
-                             f"{rho:.4g} > {rho_c:.4g} (the continuous-time observer's) at the current state")
+        flow = lambda x: np.asarray(self.family.rhs(self.robot, x, y, u, p), float)  # noqa: E731
+        for h in sorted({self.dt_range[1], self.dt, self.dt_range[0]}, reverse=True):
+            try:
+                self._p = p
+                step = lambda x: self._advance(x, (y, u), y, u, h)[1]                 # noqa: E731
+                Phi = _jacobian(step, x0)
+                J = 0.5 * (_jacobian(flow, x0) + _jacobian(flow, step(x0)))
+            finally:
+                self._p = saved
+            rho = np.max(np.abs(np.linalg.eigvals(Phi)))
+            rho_c = max(1.0, float(np.exp(h * np.max(np.linalg.eigvals(J).real))))
+            if not rho <= rho_c * (1 + 1e-5):
+                raise ValueError(f"parameters {dict(zip(self.p_names, p.tolist()))} {where}: spectral radius "
+                                 f"{rho:.4g} > {rho_c:.4g} (the continuous-time observer's) at elapsed time "
+                                 f"{h:g} and the current state")
 
     def _p_or(self, p):
         return self._p if p is None else as_vector("p", p, self.np)
@@ -263,7 +280,7 @@ class ReferenceObserver:
         x0 = np.asarray(self.family.init(self.robot, y0, est0, p), dtype=float).reshape(self.nx)
         if not np.all(np.isfinite(x0)):
             raise FloatingPointError(f"non-finite initial state {x0}")
-        self._p, self._x, self._prev, self._y_last = p, x0, None, y0
+        self._p, self._x, self._prev, self._y_last, self._stamp = p, x0, None, y0, None
         return self.state
 
     def _flow(self, x, y_of_t, u, dt, midpoint=False):
@@ -278,25 +295,56 @@ class ReferenceObserver:
         return discretize.integrate(lambda t, xi: family.rhs(robot, xi, y_of_t(t), u, p),
                                     x, dt, self.method, self.substeps, rate, self._mask)
 
-    def _advance(self, x, prev, y, u):
-        """(est, x_next) for one sample from state x; raises on a non-finite result."""
-        p = self._p
-        if self.hold == "foh" and prev is not None:
-            yp, up = prev
-            x = self._flow(x, lambda t: yp + (t / self.dt) * (y - yp), up, self.dt, midpoint=True)
-        if self.hybrid:
-            x = self.family.jump(self.robot, x, y, p)
-        est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)
-        x_next = self._flow(x, lambda t: y, u, self.dt) if self.hold == "zoh" else x
+    def _jumped(self, x, y):
+        """x after the jump map at measurement y (the identity for non-hybrid families)."""
+        return self.family.jump(self.robot, x, y, self._p) if self.hybrid else x
+
+    def _advance(self, x, prev, y, u, dt=None):
+        """(est, x_next) for one sample from state x after the elapsed time ``dt`` (s, default
+        the designed dt; first-order hold: since the last sample ``prev`` = (y, u), nothing to
+        integrate when it is None; zero-order hold: to the next sample), in m = ceil(dt / dt_max)
+        equal sub-intervals h, each ending at a virtual sample with its jump (module docstring);
+        raises on a non-finite result."""
+        p, dt = self._p, self.dt if dt is None else dt
+        m = split_count(dt, self.dt_range[1])
+        h = dt / m
+        if self.hold == "foh":
+            if prev is not None:
+                yp, up = prev
+                ya = yp
+                for j in range(1, m + 1):       # y linear from yp to y, the last input held
+                    yb = y if j == m else yp + (j / m) * (y - yp)
+                    x = self._flow(x, lambda t, a=ya, b=yb: a + (t / h) * (b - a), up, h, midpoint=True)
+                    if j < m:
+                        x = self._jumped(x, yb)
+                    ya = yb
+            x = self._jumped(x, y)
+            est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)
+            x_next = x
+        else:                                   # y and u held over the interval after the sample
+            x = self._jumped(x, y)
+            est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)
+            x_next = self._flow(x, lambda t: y, u, h)
+            for _ in range(m - 1):
+                x_next = self._flow(self._jumped(x_next, y), lambda t: y, u, h)
         if not (np.all(np.isfinite(est)) and np.all(np.isfinite(x_next))):
             raise FloatingPointError(f"non-finite result (est={est}, x={x_next}); state unchanged")
         return est, x_next
+
+    def _elapsed(self, dt):
+        """The elapsed time ``dt`` (s) of a step: positive, finite, at most ``dt_limit``; None: dt."""
+        if dt is None:
+            return self.dt
+        h = positive("dt", dt)
+        if h > self.dt_limit:
+            raise ValueError(f"dt must be at most {self.dt_limit:g} s (split_max x dt_max), got {dt!r}")
+        return h
 
     def _require_reset(self):
         if self._x is None:
             raise RuntimeError("call reset(y0, est0=None, p=None) before step/run")
 
-    def step(self, y, u):
+    def step(self, y, u, dt=None):
         """One sample: est from the current state (after the first-order-hold interval and
         the jump map, if any), then x advances over dt (zero-order hold).
 
@@ -304,31 +352,46 @@ class ReferenceObserver:
         ----------
         y : (ny,) array
         u : (nu,) array
+        dt : float, optional
+            The elapsed time (s): first-order hold, since the last sample (unused on the first
+            after reset); zero-order hold, to the next sample. Default: the designed dt.
 
         Returns
         -------
         (nest,) array
         """
         self._require_reset()
+        h = self._elapsed(dt)
         y = as_vector("y", y, self.ny)
         u = as_vector("u", u, self.nu)
-        est, self._x = self._advance(self._x, self._prev, y, u)
+        est, self._x = self._advance(self._x, self._prev, y, u, h)
+        if self._prev is not None and self._stamp is not None:
+            self._stamp += h
         self._prev, self._y_last = (y, u), y
         return est
 
-    def estimate(self, y, u):
-        """The estimate (nest,) ``step(y, u)`` would return, without advancing the state."""
+    def estimate(self, y, u, dt=None):
+        """The estimate (nest,) ``step(y, u, dt)`` would return, without advancing the state."""
         self._require_reset()
+        h = self._elapsed(dt)
         y, u = as_vector("y", y, self.ny), as_vector("u", u, self.nu)
-        return self._advance(self._x, self._prev, y, u)[0]
+        return self._advance(self._x, self._prev, y, u, h)[0]
 
-    def run(self, Y, U):
+    def run(self, Y, U, t=None):
         """Repeated ``step``, all-or-nothing: on an error the state is left unchanged.
 
         Parameters
         ----------
         Y : (N, ny) array
         U : (N, nu) array
+        t : (N,) array, optional
+            Time stamps (s, increasing). First-order hold: the step before sample k covers
+            t[k] - t[k-1], before sample 0 the time since the last sample's stamp (the last
+            stamp of a previous ``run(..., t)`` plus the dt of the steps since; nothing right
+            after ``reset``; ValueError when the last sample has no stamp). Zero-order hold: the
+            step after sample k covers t[k+1] - t[k], after the last one dt. An interval equal to
+            dt up to its stamps' rounding (codegen.core.target.interval) is dt.
+            Default: the samples dt apart.
 
         Returns
         -------
@@ -337,12 +400,35 @@ class ReferenceObserver:
         self._require_reset()
         Y = as_matrix("Y", Y, self.ny)
         U = as_matrix("U", U, self.nu, rows=Y.shape[0])
-        x, prev = self._x, self._prev
-        EST = np.empty((Y.shape[0], self.nest))
-        for k in range(Y.shape[0]):
-            EST[k], x = self._advance(x, prev, Y[k], U[k])
+        N = Y.shape[0]
+        H = np.full(N, self.dt)
+        if t is not None:
+            t = time_stamps("t", t, N)
+            if self.hold == "foh":
+                for k in range(N):
+                    if k > 0:
+                        H[k] = interval(t[k - 1], t[k], self.dt)
+                    elif self._prev is not None:
+                        if self._stamp is None:
+                            raise ValueError("t: the observer's last sample has no time stamp (stepped "
+                                             "without one since reset): reset it, or step it with dt")
+                        H[0] = interval(self._stamp, t[0], self.dt)
+            else:
+                H[:-1] = [interval(a, b, self.dt) for a, b in zip(t[:-1], t[1:])]
+            bad = np.flatnonzero(~((H > 0) & (H <= self.dt_limit)))
+            if len(bad):
+                raise ValueError(f"t: the interval of sample {int(bad[0])} is {H[bad[0]]:g} s, expected "
+                                 f"0 < interval <= {self.dt_limit:g} s (split_max x dt_max)")
+        x, prev, stamp = self._x, self._prev, self._stamp
+        EST = np.empty((N, self.nest))
+        for k in range(N):
+            EST[k], x = self._advance(x, prev, Y[k], U[k], float(H[k]))
+            if prev is not None and stamp is not None:
+                stamp += H[k]
             prev = (Y[k], U[k])
-        self._x, self._prev = x, prev
+            if t is not None:
+                stamp = float(t[k])
+        self._x, self._prev, self._stamp = x, prev, stamp
         if len(Y):
             self._y_last = Y[-1]
         return EST

@@ -14,7 +14,8 @@ from codegen.core.target import DEFAULT_DISCRETIZATION, Discretization
 from models import load_robot
 
 DAMPED = Path(__file__).parents[1] / "data" / "damped_arm.urdf"
-RK4 = Discretization(method="rk4")
+RK4 = Discretization(method="rk4")                    # the default range: elapsed time up to 2 dt
+RK4_AT_DT = Discretization(method="rk4", dt_max=1e-3)  # the elapsed time never above dt = 1 ms
 
 
 @pytest.fixture(scope="module")
@@ -52,21 +53,24 @@ def test_damped_urdf_default_design_and_discretisation_are_stable(damped, tmp_pa
 
 def test_damped_urdf_with_rk4_is_refused_with_the_fix(damped, tmp_path):
     """The guarantee gain with plain RK4 at 1 kHz: one error naming the gain, dt and the fix;
-    substeps="auto" picks the fix and the run stays finite."""
+    substeps="auto" picks the fix and the run stays finite. The default range lets the elapsed
+    time reach dt_max = 2 ms: (k0 + lambda) dt_max ~ 6.6 needs ceil(6.6 / 2.785) = 3 substeps
+    (2 at dt = 1 ms alone)."""
     from codegen.verify.trajectory import demo_trajectory
     spec = observers.build("reduced_order", damped, design="guarantee")
     with pytest.raises(UnstableDiscretization) as err:
         compile_observer(spec, method="rk4", out_dir=tmp_path)
     msg = str(err.value)
     assert f"k0 = {spec.p_default[0]:.6g} at dt = 0.001 with rk4" in msg
-    assert "spectral radius" in msg and "stable for 0 <= k0 <=" in msg and "substeps >= 2" in msg
-    assert "dt <=" in msg
+    assert "spectral radius" in msg and "stable for 0 <= k0 <=" in msg and "substeps >= 3" in msg
+    assert "dt <=" in msg and "elapsed time in [0.00025, 0.002]" in msg
     report = check(spec, RK4)
     top = report.gains["k0"]["max_stable"]
     assert report.gains["k0"]["limit_found"] and top < spec.p_default[0]
     assert check(spec, RK4, p=[0.999 * top]).stable and not check(spec, RK4, p=[1.001 * top]).stable
+    assert check(spec, RK4_AT_DT).substeps_needed == 2
     obs = compile_observer(spec, method="rk4", substeps="auto", out_dir=tmp_path)
-    assert obs.meta["discretization"]["substeps"] == report.substeps_needed == 2
+    assert obs.meta["discretization"]["substeps"] == report.substeps_needed == 3
     t, Q, QD, TAU = demo_trajectory(damped, T=0.5)
     obs.reset(Q[0])
     assert np.all(np.isfinite(obs.run(Q, TAU)))
@@ -79,8 +83,9 @@ def test_unstable_gains_are_refused(k0, method, tmp_path):
     spec = observers.build("reduced_order", robot, k0=k0)
     with pytest.raises(UnstableDiscretization, match=rf"k0 = {k0:g} at dt = 0.001 with {method}"):
         compile_observer(spec, method=method, out_dir=tmp_path)
-    if k0 > 0:
-        assert check(spec, RK4).gains["k0"]["max_stable"] == pytest.approx(2784, abs=2)
+    if k0 > 0:          # RK4's limit (2784 at dt = 1 ms) at dt_max = 2 ms over the default range
+        assert check(spec, RK4_AT_DT).gains["k0"]["max_stable"] == pytest.approx(2784, abs=2)
+        assert check(spec, RK4).gains["k0"]["max_stable"] == pytest.approx(2784 / 2, abs=1)
     else:
         assert "k0 must be >= 0" in check(spec, Discretization(method=method)).message("reduced_order")
 
@@ -88,7 +93,7 @@ def test_unstable_gains_are_refused(k0, method, tmp_path):
 def test_etdrk4_has_no_gain_limit_and_rk4_the_textbook_one():
     """RK4 on z' = -k0 z alone is stable for k0 dt <= 2.7853; ETD-RK4 for any k0 >= 0."""
     spec = observers.build("reduced_order", load_robot("seed000_2r"), k0=100.0)
-    assert 2775 < check(spec, RK4).gains["k0"]["max_stable"] < 2785.3
+    assert 2775 < check(spec, RK4_AT_DT).gains["k0"]["max_stable"] < 2785.3
     etd = check(spec, DEFAULT_DISCRETIZATION).gains["k0"]
     assert not etd["limit_found"] and etd["max_stable"] > 1e7
 
@@ -100,15 +105,16 @@ def test_header_and_metadata_record_the_bound(tmp_path):
     header = (folder / f"{folder.name}.h").read_text()
     import json
     meta = json.loads((folder / f"{folder.name}.json").read_text())
-    top = meta["stability"]["gains"]["k0"]["max_stable"]
-    assert meta["stability"]["stable"] and 2775 < top < 2785.3
+    top = meta["stability"]["gains"]["k0"]["max_stable"]       # at dt_max = 2 ms: 2.7853 / 2e-3
+    assert meta["stability"]["stable"] and 2775 / 2 < top < 2785.3 / 2
     assert f"#define {folder.name.upper()}_K0_MAX_STABLE {top!r}" in header
     assert "set_params() does not check these bounds" in header
 
 
 def test_params_setter_runs_the_check_in_python_and_the_reference(spec_of, tmp_path):
     """obs.params = ... (with the spec known, and from the metadata bounds alone) and the
-    reference refuse an unstable or negative gain and keep the old parameters."""
+    reference refuse an unstable or negative gain and keep the old parameters; k0 = 2000 is
+    stable at dt = 1 ms (k0 dt = 2 < 2.785) but not at dt_max = 2 ms (4), so it is refused too."""
     spec = spec_of("seed000_2r")
     obs = compile_observer(spec, method="rk4", out_dir=tmp_path)
     ref = reference_observer(spec, method="rk4")
@@ -116,12 +122,12 @@ def test_params_setter_runs_the_check_in_python_and_the_reference(spec_of, tmp_p
     for o in (obs, ref):
         o.reset(y)
         o.step(y, u)
-        for bad in ([3000.0], [-1.0]):
+        for bad in ([3000.0], [2000.0], [-1.0]):
             with pytest.raises(ValueError, match="k0"):
                 o.params = bad
         assert o.params == pytest.approx(spec.p_default)
-        o.params = [2000.0]
-        assert o.params == pytest.approx([2000.0])
+        o.params = [1000.0]
+        assert o.params == pytest.approx([1000.0])
     obs.spec = None                     # only the metadata's recorded bounds
     with pytest.raises(ValueError, match="recorded stable range"):
         obs.params = [3000.0]

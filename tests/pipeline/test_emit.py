@@ -53,12 +53,15 @@ def test_metadata_and_header_describe_the_target(spec_of, tmp_path):
     meta = json.loads((target / f"{target.name}.json").read_text())
     assert meta["sizes"] == {"nx": 2, "ny": 2, "nu": 2, "np": 1, "nest": 2}
     assert meta["discretization"] == {"dt": 2e-3, "method": "euler", "substeps": 2, "hybrid": False,
-                                      "hold": "zoh"}
+                                      "hold": "zoh", "dt_min": 2e-3 / 4, "dt_max": 2 * 2e-3,
+                                      "split_max": 1000, "stamp_tol": 4 * 2.0 ** -52}
     assert meta["p_default"] == [float(spec.p_default[0])]
     assert meta["robot"]["fingerprint"] == spec.robot.fingerprint
     h = (target / f"{target.name}.h").read_text()
     P = target.name.upper()
     assert f"#define {P}_NX 2" in h and f"#define {P}_P_K0 0" in h and f"{target.name}_step(" in h
+    assert f"#define {P}_DT_MIN 0.0005" in h and f"#define {P}_DT_MAX 0.004" in h
+    assert f"{target.name}_step_dt(" in h and f"{target.name}_run_t(" in h
 
 
 def test_sanitized_identifiers():

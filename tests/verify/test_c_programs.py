@@ -1,8 +1,9 @@
 """c_harness/ programs (run_csv, time_step, pin_aba) through codegen.verify.c_programs.
 
 The observer programs are exercised on a hand-made FAKE target that follows the generated
-C API exactly (x' = -p x + y + u, Euler, est = (x1, x2, x1 x2)), so these tests depend on
-nothing but the harness and a C compiler."""
+C API exactly (x' = -p x + y + u, Euler, est = (x1, x2, x1 x2), a zero-order hold: step_dt
+advances over the time to the next sample), so these tests depend on nothing but the harness
+and a C compiler."""
 import json
 import subprocess
 
@@ -21,6 +22,8 @@ FAKE_H = """\
 #define FAKEOBS_NP 1
 #define FAKEOBS_NEST 3
 #define FAKEOBS_DT 0.001
+#define FAKEOBS_HOLD_FOH 0
+#define FAKEOBS_STAMP_ULPS 4
 enum { FAKEOBS_OK = 0, FAKEOBS_ERR_BAD_ARG = 1, FAKEOBS_ERR_NONFINITE_INPUT = 2,
        FAKEOBS_ERR_NONFINITE_RESULT = 3, FAKEOBS_ERR_KERNEL = 4 };
 typedef double fakeobs_real;
@@ -28,6 +31,7 @@ typedef struct { double x[FAKEOBS_NX]; double p[FAKEOBS_NP]; double w[4]; } fake
 void fakeobs_default_params(double *p);
 int fakeobs_init(fakeobs_state *s, const double *p, const double *y0, const double *est0);
 int fakeobs_step(fakeobs_state *s, const double *y, const double *u, double *est);
+int fakeobs_step_dt(fakeobs_state *s, double dt, const double *y, const double *u, double *est);
 int fakeobs_run(fakeobs_state *s, long n, const double *Y, const double *U, double *EST,
                 long *n_done);
 int fakeobs_rhs(fakeobs_state *s, const double *x, const double *y, const double *u,
@@ -56,15 +60,18 @@ int fakeobs_rhs(fakeobs_state *s, const double *x, const double *y, const double
   return fakeobs_kernel(s->p, x, y, u, xdot);
 }
 int fakeobs_step(fakeobs_state *s, const double *y, const double *u, double *est) {
+  return fakeobs_step_dt(s, FAKEOBS_DT, y, u, est);
+}
+int fakeobs_step_dt(fakeobs_state *s, double dt, const double *y, const double *u, double *est) {
   double xd[FAKEOBS_NX], xn[FAKEOBS_NX];
   int i, st;
-  if (!s || !y || !u || !est) return FAKEOBS_ERR_BAD_ARG;
+  if (!s || !y || !u || !est || !(dt > 0) || !(dt <= 1.0)) return FAKEOBS_ERR_BAD_ARG;
   for (i = 0; i < FAKEOBS_NY; ++i) if (!isfinite(y[i])) return FAKEOBS_ERR_NONFINITE_INPUT;
   for (i = 0; i < FAKEOBS_NU; ++i) if (!isfinite(u[i])) return FAKEOBS_ERR_NONFINITE_INPUT;
   st = fakeobs_rhs(s, s->x, y, u, xd);
   if (st) return st;
   for (i = 0; i < FAKEOBS_NX; ++i) {
-    xn[i] = s->x[i] + FAKEOBS_DT * xd[i];
+    xn[i] = s->x[i] + dt * xd[i];
     if (!isfinite(xn[i])) return FAKEOBS_ERR_NONFINITE_RESULT;
   }
   est[0] = s->x[0]; est[1] = s->x[1]; est[2] = s->x[0] * s->x[1];
@@ -97,14 +104,16 @@ int fakeobs_kernel(const double *p, const double *x, const double *y, const doub
 DT = 0.001
 
 
-def fake_reference(Y, U, est0=None, p=2.0):
-    """The fake observer in plain Python floats, same operations in the same order."""
+def fake_reference(Y, U, est0=None, p=2.0, H=None):
+    """The fake observer in plain Python floats, same operations in the same order; H: the
+    interval each sample advances over (default DT)."""
     x = [0.0, 0.0] if est0 is None else [float(est0[0]), float(est0[1])]
     out = []
-    for y, u in zip(Y, U):
+    for k, (y, u) in enumerate(zip(Y, U)):
         out.append([x[0], x[1], x[0] * x[1]])
         xd = [-p * x[i] + float(y[i]) + float(u[0]) for i in range(2)]
-        x = [x[i] + DT * xd[i] for i in range(2)]
+        h = DT if H is None else H[k]
+        x = [x[i] + h * xd[i] for i in range(2)]
     return np.array(out)
 
 
@@ -162,6 +171,27 @@ def test_run_csv_matches_python(fake, exe, tmp_path):
         assert EST.shape == (len(t), 3)
         ref = fake_reference(Y, U, est0)
         np.testing.assert_allclose(EST, ref, rtol=1e-15, atol=1e-15)
+
+
+def test_run_csv_uses_the_time_stamps(fake, exe, tmp_path):
+    """A jittered t column: each row advances over the interval to the next one (the fake's
+    zero-order hold), the last over DT; stamps k DT shifted by 1e4 s (rounded) count as DT; stamps
+    that do not increase are ERR_BAD_ARG, naming the row and the interval."""
+    d, build = fake
+    t, Y, U = trajectory(200)
+    rng = np.random.default_rng(4)
+    tj = np.cumsum(DT * rng.uniform(0.7, 1.6, len(t)))
+    c_programs.write_csv(tmp_path / "in.csv", tj, Y, U)
+    _, EST = c_programs.read_csv(c_programs.run_csv(d, tmp_path / "in.csv", tmp_path / "out.csv", work_dir=build))
+    H = np.append(np.diff(tj), DT)
+    np.testing.assert_allclose(EST, fake_reference(Y, U, H=H), rtol=1e-15, atol=1e-15)
+    c_programs.write_csv(tmp_path / "in.csv", 1e4 + t, Y, U)
+    _, EST = c_programs.read_csv(c_programs.run_csv(d, tmp_path / "in.csv", tmp_path / "out.csv", work_dir=build))
+    np.testing.assert_array_equal(EST, fake_reference(Y, U))
+    (tmp_path / "in.csv").write_text("t,y1,y2,u\n0,1,2,0\n0.001,1,2,0\n0.001,1,2,0\n0.003,1,2,0\n")
+    r = run(exe["run_csv"], tmp_path / "in.csv", tmp_path / "out.csv")
+    assert r.returncode == 3 and "data row 2 (t=0.001): fakeobs_step_dt returned 1: ERR_BAD_ARG" in r.stderr
+    assert "(dt = 0, from the t column)" in r.stderr
 
 
 def test_run_csv_tolerant_formatting(exe, tmp_path):
