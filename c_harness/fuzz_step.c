@@ -1,6 +1,7 @@
 /*
- * fuzz_step - libFuzzer harness: a generated target's step (and run, estimate, rhs,
- * set_state, set_params) on hostile numbers, asserting the contract its header documents.
+ * fuzz_step - libFuzzer harness: a generated target's step (and step_dt, run, run_t, estimate,
+ * estimate_dt, rhs, set_state, set_params) on hostile numbers, asserting the contract its
+ * header documents.
  *
  * Build (codegen/verify/sanitize.py does this; clang with libFuzzer, e.g. Debian's clang and
  * libclang-rt-14-dev):
@@ -13,14 +14,20 @@
  * operations, each one byte and the numbers it takes. A number is one selector byte: a
  * special value (0, -0, +-1, +-1e300, +-DBL_MAX, NaN, +-Inf, denormals, 1e-300, 0.5; for a float
  * target the float ones: +-1e30, +-FLT_MAX, float denormals, 1e-30), a small value in [-8, 7],
- * or the next sizeof(<prefix>_real) bytes as a raw number of the target's real type. Checked on
- * every call (a violation prints what and aborts; libFuzzer keeps the input):
+ * or the next sizeof(<prefix>_real) bytes as a raw number of the target's real type. An elapsed
+ * time (step_dt, estimate_dt) is SPLIT_MAX * DT_MAX (the longest allowed), the next real above
+ * it, or DT times a number (0, -0, NaN, +-Inf, huge, denormal, ...); a run_t's stamps start at a
+ * number and go on by DT times a number (repeated, decreasing, NaN stamps). Checked on every
+ * call (a violation prints what and aborts; libFuzzer keeps the input):
  *   - the status is one the header documents;
- *   - a non-finite argument gives ERR_NONFINITE_INPUT, a finite one never does;
- *   - a non-zero status leaves the state (x, p, y_prev, u_prev, primed) byte-identical;
- *     run() failing at sample k sets *n_done = k and rolls the state back to its entry;
- *   - OK: outputs and the new state are finite; run() equals as many step() calls and
- *     estimate() equals the estimate step() returns, bit for bit.
+ *   - a dt outside (0, SPLIT_MAX * DT_MAX] (NaN, Inf, <= 0, huge) gives ERR_BAD_ARG; otherwise
+ *     a non-finite argument gives ERR_NONFINITE_INPUT, a finite one never does;
+ *   - a non-zero status leaves the state (x, p, y_prev, u_prev, primed, t_last, stamped)
+ *     byte-identical; run() and run_t() failing at sample k set *n_done = k and roll the state
+ *     back to its entry;
+ *   - OK: outputs and the new state are finite; run() equals as many step() calls, run_t()
+ *     as many step_dt() calls over the intervals its header documents, step() is step_dt(DT),
+ *     and estimate() (estimate_dt()) equals the estimate step() (step_dt()) returns, bit for bit.
  */
 #include <float.h>
 #include <math.h>
@@ -98,7 +105,37 @@ static int same_state(const OBS_STATE *a, const OBS_STATE *b)
 {
     return memcmp(a->x, b->x, sizeof a->x) == 0 && memcmp(a->p, b->p, sizeof a->p) == 0
         && memcmp(a->y_prev, b->y_prev, sizeof a->y_prev) == 0
-        && memcmp(a->u_prev, b->u_prev, sizeof a->u_prev) == 0 && a->primed == b->primed;
+        && memcmp(a->u_prev, b->u_prev, sizeof a->u_prev) == 0 && a->primed == b->primed
+        && memcmp(&a->t_last, &b->t_last, sizeof a->t_last) == 0 && a->stamped == b->stamped;
+}
+
+/* The longest elapsed time one step_dt takes. */
+static real dt_limit(void)
+{
+    return (real)ST(SPLIT_MAX) * ST(DT_MAX);
+}
+
+static int dt_ok(real dt)
+{
+    return dt > 0 && dt <= dt_limit();
+}
+
+/* An elapsed time: the limit, just above it, or DT times a number. */
+static real elapsed(source *in)
+{
+    int b = next_byte(in);
+    real top = dt_limit();
+    if (b == 0) return top;
+    if (b == 1) return top + top * (sizeof(real) == sizeof(float) ? (real)FLT_EPSILON : (real)DBL_EPSILON);
+    return ST(DT) * number(in);
+}
+
+/* run_t()'s documented interval: b - a, or DT when within STAMP_TOL max(|a|, |b|) of it. */
+static real stamp_interval(real a, real b)
+{
+    real h = b - a, d = h > ST(DT) ? h - ST(DT) : ST(DT) - h, m = a < 0 ? -a : a, mb = b < 0 ? -b : b;
+    if (mb > m) m = mb;
+    return isfinite(h) && d <= ST(STAMP_TOL) * m ? ST(DT) : h;
 }
 
 /* A call given inputs that are all finite (or not): the documented statuses. */
@@ -121,6 +158,95 @@ static void step_op(OBS_STATE *s, source *in)
     if (st != ST(OK) && !same_state(s, &before)) fail("step: state changed on error", st);
     if (st == ST(OK) && !(finite(est, OBS_NEST) && finite(s->x, OBS_NX)))
         fail("step: OK with a non-finite estimate or state", st);
+}
+
+static void step_dt_op(OBS_STATE *s, source *in)
+{
+    real y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], est[OBS_LEN(OBS_NEST)], est2[OBS_LEN(OBS_NEST)];
+    OBS_STATE before = *s, t = *s;
+    int st, st2;
+    real dt = elapsed(in);
+    numbers(in, y, OBS_NY);
+    numbers(in, u, OBS_NU);
+    st = OBS_FN(step_dt)(s, dt, y, u, est);
+    if (!dt_ok(dt)) {
+        if (st != ST(ERR_BAD_ARG)) fail("step_dt: a dt outside (0, SPLIT_MAX * DT_MAX] is not ERR_BAD_ARG", st);
+    } else {
+        check_status(st, finite(y, OBS_NY) && finite(u, OBS_NU), 1, "step_dt: status");
+    }
+    if (st != ST(OK) && !same_state(s, &before)) fail("step_dt: state changed on error", st);
+    if (st == ST(OK) && !(finite(est, OBS_NEST) && finite(s->x, OBS_NX)))
+        fail("step_dt: OK with a non-finite estimate or state", st);
+    if (dt == ST(DT)) {                     /* step() is step_dt(DT) */
+        st2 = OBS_FN(step)(&t, y, u, est2);
+        if (st2 != st || (st == ST(OK) && (memcmp(est, est2, sizeof est) != 0 || !same_state(s, &t))))
+            fail("step_dt(DT) differs from step()", st2);
+    }
+}
+
+static void estimate_dt_op(OBS_STATE *s, source *in)
+{
+    real y[OBS_LEN(OBS_NY)], u[OBS_LEN(OBS_NU)], est[OBS_LEN(OBS_NEST)], est2[OBS_LEN(OBS_NEST)];
+    OBS_STATE before = *s, t;
+    int st, st2;
+    real dt = elapsed(in);
+    numbers(in, y, OBS_NY);
+    numbers(in, u, OBS_NU);
+    st = OBS_FN(estimate_dt)(s, dt, y, u, est);
+    if (!dt_ok(dt)) {
+        if (st != ST(ERR_BAD_ARG)) fail("estimate_dt: a bad dt is not ERR_BAD_ARG", st);
+    } else {
+        check_status(st, finite(y, OBS_NY) && finite(u, OBS_NU), 1, "estimate_dt: status");
+    }
+    if (!same_state(s, &before)) fail("estimate_dt: state changed", st);
+    if (st != ST(OK)) return;
+    if (!finite(est, OBS_NEST)) fail("estimate_dt: OK with a non-finite estimate", st);
+    t = *s;
+    st2 = OBS_FN(step_dt)(&t, dt, y, u, est2);
+    if (st2 == ST(OK) && memcmp(est, est2, sizeof est) != 0)
+        fail("estimate_dt: differs from the estimate step_dt() returns", st2);
+}
+
+/* run_t over stamps t[0] = a number, t[k] = t[k-1] + DT * a number: equals step_dt() one by one
+   over the intervals the header documents. */
+static void run_t_op(OBS_STATE *s, source *in)
+{
+    real Y[MAX_RUN * OBS_LEN(OBS_NY)], U[MAX_RUN * OBS_LEN(OBS_NU)], T[MAX_RUN];
+    real EST[MAX_RUN * OBS_LEN(OBS_NEST)], est[OBS_LEN(OBS_NEST)], h;
+    OBS_STATE before = *s, t = *s;
+    long n = 1 + (long)(next_byte(in) & 3), done = -1, k;
+    int st, st_k = ST(OK);
+    T[0] = number(in);
+    for (k = 1; k < n; ++k) T[k] = T[k - 1] + ST(DT) * number(in);
+    numbers(in, Y, (int)(n * OBS_NY));
+    numbers(in, U, (int)(n * OBS_NU));
+    st = OBS_FN(run_t)(s, n, T, Y, U, EST, &done);
+    for (k = 0; k < n; ++k) {
+        if (!isfinite(T[k]) || (!ST(HOLD_FOH) && k + 1 < n && !isfinite(T[k + 1]))) {
+            st_k = ST(ERR_BAD_ARG);
+            break;
+        }
+        if (ST(HOLD_FOH)) {
+            if (k > 0) h = stamp_interval(T[k - 1], T[k]);
+            else if (!t.primed) h = ST(DT);
+            else if (t.stamped) h = stamp_interval(t.t_last, T[0]);
+            else {
+                st_k = ST(ERR_BAD_ARG);
+                break;
+            }
+        } else {
+            h = k + 1 < n ? stamp_interval(T[k], T[k + 1]) : ST(DT);
+        }
+        st_k = OBS_FN(step_dt)(&t, h, Y + k * OBS_NY, U + k * OBS_NU, est);
+        if (st_k != ST(OK)) break;
+        t.t_last = T[k];
+        t.stamped = 1;
+        if (memcmp(est, EST + k * OBS_NEST, sizeof(real) * OBS_NEST) != 0)
+            fail("run_t: estimate differs from step_dt()'s", st);
+    }
+    if (st != st_k || done != k) fail("run_t: status or n_done differs from step_dt() one by one", st);
+    if (st != ST(OK) && !same_state(s, &before)) fail("run_t: state not rolled back on error", st);
+    if (st == ST(OK) && !same_state(s, &t)) fail("run_t: state differs from step_dt() one by one", st);
 }
 
 static void estimate_op(OBS_STATE *s, source *in)
@@ -197,9 +323,15 @@ static void null_op(OBS_STATE *s)
     real y[OBS_LEN(OBS_NY)] = {0}, u[OBS_LEN(OBS_NU)] = {0}, est[OBS_LEN(OBS_NEST)];
     long done;
     OBS_STATE before = *s;
+    real t0 = 0;
     if (OBS_FN(step)(NULL, y, u, est) != ST(ERR_BAD_ARG) || OBS_FN(step)(s, NULL, u, est) != ST(ERR_BAD_ARG)
         || OBS_FN(step)(s, y, u, NULL) != ST(ERR_BAD_ARG) || OBS_FN(run)(s, -1, y, u, est, &done) != ST(ERR_BAD_ARG)
-        || OBS_FN(run)(s, 1, NULL, u, est, &done) != ST(ERR_BAD_ARG) || OBS_FN(set_state)(s, NULL) != ST(ERR_BAD_ARG))
+        || OBS_FN(run)(s, 1, NULL, u, est, &done) != ST(ERR_BAD_ARG) || OBS_FN(set_state)(s, NULL) != ST(ERR_BAD_ARG)
+        || OBS_FN(step_dt)(NULL, ST(DT), y, u, est) != ST(ERR_BAD_ARG)
+        || OBS_FN(step_dt)(s, 0, y, u, est) != ST(ERR_BAD_ARG)
+        || OBS_FN(estimate_dt)(s, -ST(DT), y, u, est) != ST(ERR_BAD_ARG)
+        || OBS_FN(run_t)(s, 1, NULL, y, u, est, &done) != ST(ERR_BAD_ARG)
+        || OBS_FN(run_t)(s, -1, &t0, y, u, est, &done) != ST(ERR_BAD_ARG))
         fail("a NULL or negative argument is not ERR_BAD_ARG", -1);
     if (!same_state(s, &before)) fail("state changed by a bad argument", ST(ERR_BAD_ARG));
 }
@@ -217,13 +349,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     check_status(st, finite(y0, OBS_NY) && finite(est0, OBS_NEST), 1, "init: status");
     if (st != ST(OK)) return 0;
     for (ops = 0; ops < MAX_OPS && in.n > 0; ++ops) {
-        switch (next_byte(&in) % 7) {
+        switch (next_byte(&in) % 10) {
         case 0: step_op(&s, &in); break;
         case 1: run_op(&s, &in); break;
         case 2: estimate_op(&s, &in); break;
         case 3: rhs_op(&s, &in); break;
         case 4: set_op(&s, &in, 0); break;
         case 5: set_op(&s, &in, 1); break;
+        case 6: step_dt_op(&s, &in); break;
+        case 7: estimate_dt_op(&s, &in); break;
+        case 8: run_t_op(&s, &in); break;
         default: null_op(&s); break;
         }
     }

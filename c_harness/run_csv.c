@@ -48,22 +48,22 @@
 static const char *prog = "run_csv";
 
 /* t_b - t_a, or DT when it is DT up to the rounding of the stamps (the target's run_t rule,
-   in double) */
+   in double; stamps that are not finite give what they give: NaN or Inf, refused by step_dt) */
 static double interval(double a, double b)
 {
     double h = b - a, m = fabs(a) > fabs(b) ? fabs(a) : fabs(b);
-    return fabs(h - (double)OBS_DT) <= OBS_SIZE(STAMP_ULPS) * DBL_EPSILON * m ? (double)OBS_DT : h;
+    return isfinite(h) && fabs(h - (double)OBS_DT) <= OBS_SIZE(STAMP_ULPS) * DBL_EPSILON * m ? (double)OBS_DT : h;
 }
 
-/* One sample of the target: <prefix>_step when h < 0 (first-order hold, first row) or h is DT,
+/* One sample of the target: <prefix>_step when `first` (first-order hold, first row) or h is DT,
    else <prefix>_step_dt with h; writes the row of out.csv. Returns 0, or the exit status after
    printing why. */
-static int sample(OBS_STATE *state, const double *vals, double h, FILE *out, const char *in_path,
+static int sample(OBS_STATE *state, const double *vals, int first, double h, FILE *out, const char *in_path,
                   long line_no, long row, const char *tmp_path)
 {
     OBS_REAL yu[N_COLS - 1]; /* y, u of a row in the target's real type */
     OBS_REAL est[OBS_LEN(OBS_NEST)];
-    int i, st, fixed = h < 0 || h == (double)OBS_DT;
+    int i, st, fixed = first || h == (double)OBS_DT;
     for (i = 0; i < N_COLS - 1; ++i) yu[i] = (OBS_REAL)vals[i + 1];
     st = fixed ? OBS_FN(step)(state, yu, yu + OBS_NY, est)
                : OBS_FN(step_dt)(state, (OBS_REAL)h, yu, yu + OBS_NY, est);
@@ -297,14 +297,14 @@ int main(int argc, char **argv)
             }
         }
         if (OBS_HOLD_FOH) {          /* the interval before this row */
-            h = row == 1 ? -1.0 : interval(t_prev, vals[0]);
-            if ((st = sample(&state, vals, h, out, in_path, line_no, row, tmp_path)) != 0) {
+            h = row == 1 ? (double)OBS_DT : interval(t_prev, vals[0]);
+            if ((st = sample(&state, vals, row == 1, h, out, in_path, line_no, row, tmp_path)) != 0) {
                 rc = st;
                 goto done;
             }
         } else if (row > 1) {        /* the pending row, over the interval to this one */
             h = interval(pending[0], vals[0]);
-            if ((st = sample(&state, pending, h, out, in_path, pending_line, row - 1, tmp_path)) != 0) {
+            if ((st = sample(&state, pending, 0, h, out, in_path, pending_line, row - 1, tmp_path)) != 0) {
                 rc = st;
                 goto done;
             }
@@ -320,7 +320,7 @@ int main(int argc, char **argv)
         goto done;
     }
     if (!OBS_HOLD_FOH) {             /* the last row: the next stamp is unknown, DT */
-        int st = sample(&state, pending, (double)OBS_DT, out, in_path, pending_line, row, tmp_path);
+        int st = sample(&state, pending, 0, (double)OBS_DT, out, in_path, pending_line, row, tmp_path);
         if (st != 0) {
             rc = st;
             goto done;

@@ -93,7 +93,7 @@ def _value(text, what):
 
 def _targets(args):
     """[(Target, out folder)] the command line names (module docstring)."""
-    disc = {k: getattr(args, k) for k in ("dt", "method", "hold", "substeps", "precision")
+    disc = {k: getattr(args, k) for k in ("dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision")
             if getattr(args, k) is not None}
     options = {"family": args.family, "variant": args.variant, "name": args.name,
                "design": _pairs(args.design, "--design", _value), "params": _pairs(args.param, "--param", _number),
@@ -242,8 +242,9 @@ def _vs_newlib(rec):
 
 def cmd_embedded(args):
     """Every target in double on an emulated Cortex-M7 and in float on a Cortex-M4F: flash, static
-    RAM, peak stack, instructions per step and the difference from the host build, recorded in
-    each target's JSON and printed as a table.
+    RAM, peak stack, instructions per step (and per step_dt over jittered elapsed times, a few
+    of them split) and the difference from the host build, recorded in each target's JSON and
+    printed as a table.
     ``args``: the parsed argparse namespace; returns the exit status."""
     from .verify import cortex_m
     missing = cortex_m.missing_packages()
@@ -252,7 +253,7 @@ def cmd_embedded(args):
               "(`make embedded` does)", file=sys.stderr)
         return 2
     print(f"{'target':46s} {'cpu':10s} {'flash KB':>8s} {'RAM B':>7s} {'stack B':>7s} {'insn/step':>9s} "
-          f"{'max':>7s} {'vs glibc':>8s} {'vs newlib':>9s} {'vs double':>9s}")
+          f"{'max':>7s} {'step_dt':>7s} {'max':>7s} {'vs glibc':>8s} {'vs newlib':>9s} {'vs double':>9s}")
     from tqdm import tqdm
 
     from .pipeline.emit import with_params
@@ -264,7 +265,8 @@ def cmd_embedded(args):
             rows.append(rec)
             tqdm.write(f"{prefix:46s} {rec['cpu']:10s} {rec['flash_bytes'] / 1024:8.1f} {rec['static_ram_bytes']:7d} "
                        f"{rec['stack_peak_bytes']:7d} {rec['instructions_per_step']:9d} "
-                       f"{rec['instructions_per_step_max']:7d} {rec['rel_diff_host']:8.1e} "
+                       f"{rec['instructions_per_step_max']:7d} {rec['instructions_per_step_dt']:7d} "
+                       f"{rec['instructions_per_step_dt_max']:7d} {rec['rel_diff_host']:8.1e} "
                        f"{_vs_newlib(rec):>9s} {rec.get('rel_diff_double', 0):9.1e}  "
                        f"{'ok' if rec['ok'] else 'FAIL'}", file=sys.stdout)
     folders = ", ".join(sorted({str(out) for _, out in targets}))
@@ -403,6 +405,10 @@ def _target_options(p, out_help):
     a("--param", action="append", metavar="NAME=VALUE", help="runtime parameter overriding the designed "
       "default (e.g. k0=50); repeatable")
     a("--dt", type=float, help="sample time in s (default 1e-3)")
+    a("--dt-min", type=float, help="shortest elapsed time between samples the step is checked for, s "
+      "(default dt/4)")
+    a("--dt-max", type=float, help="longest elapsed time one step integrates, s (default 2 dt); a longer "
+      "one is split into sub-intervals of at most this")
     a("--method", choices=METHODS, help="integrator (default etdrk4: RK4 with the gain term integrated exactly)")
     a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discrete.discretize)")
     a("--substeps", type=int, help="integrator sub-steps per sample (default 1)")

@@ -126,7 +126,7 @@ class ObserverSpec:
 
     def target(self, value=None, *, precision="double", name=None, inline="auto", **overrides):
         """The Target that builds this spec with discretisation ``value`` (None: the default;
-        keyword overrides dt, method, hold, substeps), ``precision``, ``name`` (default
+        keyword overrides dt, dt_min, dt_max, method, hold, substeps), ``precision``, ``name`` (default
         ``<robot>_<family>[_<variant>][_float]``) and ``inline``."""
         build = {k: v for k, v in self.build_args.items() if k != "variant"}
         return Target(robot=self.robot_source, family=self.family, variant=self.variant, build=build,

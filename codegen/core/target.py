@@ -43,9 +43,10 @@ def split_count(elapsed, dt_max):
 
 def interval(a, b, dt, eps=2.0 ** -52):
     """b - a (s) between the time stamps a and b, or ``dt`` when it is dt up to their rounding
-    (|b - a - dt| <= STAMP_ULPS eps max(|a|, |b|), ``eps`` that of the real type)."""
+    (|b - a - dt| <= STAMP_ULPS eps max(|a|, |b|), ``eps`` that of the real type; b - a itself when
+    it is not finite)."""
     h = b - a
-    return dt if abs(h - dt) <= STAMP_ULPS * eps * max(abs(a), abs(b)) else h
+    return dt if math.isfinite(h) and abs(h - dt) <= STAMP_ULPS * eps * max(abs(a), abs(b)) else h
 
 
 def _seconds(name, value):

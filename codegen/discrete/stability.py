@@ -61,7 +61,7 @@ class StabilityReport:
     ----------
     stable : bool
     spectral_radius : float
-        max_i rho(dPhi/dx) over the working points, at the sample time ``worst_dt``.
+        max_i rho(dPhi/dx) over the working points, at dt (stable) or at ``worst_dt`` (unstable).
     flow_radius : float
         max(1, rho_c) at the worst point: what the exact flow allows there.
     step_error : float
@@ -76,7 +76,8 @@ class StabilityReport:
     dt_min, dt_max : float or None
         The declared range of the elapsed time (s), checked at ``sample_times`` (``dts``).
     worst_dt : float or None
-        The sample time of the range where rho / max(1, rho_c) is largest.
+        The sample time of the range where rho / max(1, rho_c) is largest (for a stable observer
+        usually dt_min, where both radii are closest to 1).
     dt_limit : float or None
         Largest stable sample time with these parameters (computed when unstable).
     substeps_needed : int or None
@@ -115,7 +116,8 @@ class StabilityReport:
         if self.dt_min is not None and self.dt_max is not None and self.dt_min < self.dt_max:
             where += f", elapsed time in [{self.dt_min:g}, {self.dt_max:g}]"
         gains = ", ".join(f"{g} = {v['value']:.6g}" for g, v in self.gains.items()) or family
-        at = f" at elapsed time {self.worst_dt:g}" if self.worst_dt is not None and self.worst_dt != self.dt else ""
+        at = (f" at elapsed time {self.worst_dt:g}" if self.worst_dt is not None and self.worst_dt != self.dt
+              and not self.stable else "")
         why = (f"spectral radius {self.spectral_radius:.4g} > 1{at} (the continuous-time observer: "
                f"{self.flow_radius:.4g})")
         if self.negative:
@@ -281,13 +283,14 @@ def _compute(spec, disc, p, gains, bounds=True):
     lin = _Linearisation(spec, disc)
     dts = sample_times(disc)
     rho, flow, excess, step_error = lin.radii(p, dts, accuracy=disc.dt)
-    w = int(np.argmax(excess))                     # the worst sample time of the range
+    worst = int(np.argmax(excess))                 # the sample time of the range closest to growing
     idx = {g: [spec.p_names.index(s) for s in slots] for g, slots in gains.items()}
     negative = [g for g, i in idx.items() if np.any(p[i] < 0)]
     # a step that is not finite at p (e.g. a guard parameter that rejects every pivot) is not
     # judged here: the C reports it at run time (status 3); growth is what this check refuses
     evaluable = bool(np.all(np.isfinite(rho)))
-    stable = bool(excess[w] <= 1 + TOL or not evaluable) and not negative
+    stable = bool(excess[worst] <= 1 + TOL or not evaluable) and not negative
+    w = dts.index(disc.dt) if excess[worst] <= 1 + TOL else worst   # the radii reported: at dt, or failing
     report = {"gains": {}}
     for g, i in idx.items():
         top, found = _max_stable(lin, p, i, dts) if bounds else (None, False)
@@ -297,7 +300,7 @@ def _compute(spec, disc, p, gains, bounds=True):
     report.update({
         "stable": stable, "spectral_radius": float(rho[w]), "flow_radius": float(flow[w]),
         "step_error": step_error, "negative": negative, "points": lin.S, "evaluable": evaluable,
-        "dt_min": lo, "dt_max": hi, "worst_dt": dts[w], "dts": dts})
+        "dt_min": lo, "dt_max": hi, "worst_dt": dts[worst], "dts": dts})
     if bounds and not stable and not negative:
         # the largest h stable from 0 (below the smallest failing sample time)
         failing = min(d for d, e in zip(dts, excess) if not e <= 1 + TOL)

@@ -72,8 +72,8 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), che
 
 
 def compile_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,
-                     out_dir=None, prefix=None, native=False, inline="auto", precision=None, cflags=(),
-                     check=True):
+                     dt_min=None, dt_max=None, out_dir=None, prefix=None, native=False, inline="auto",
+                     precision=None, cflags=(), check=True):
     """Emit, compile and load an observer as C.
 
     Parameters
@@ -82,8 +82,9 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         What to build (a Target is built into its spec first).
     discretization : codegen.core.target.Discretization or dict, optional
         How to step it; default ``codegen.core.target.DEFAULT_DISCRETIZATION`` (or the Target's own).
-        ``dt`` (s), ``method``, ``substeps`` and ``hold`` override single fields;
-        ``substeps="auto"``: the fewest substeps that make the discrete observer stable.
+        ``dt``, ``dt_min``, ``dt_max`` (s), ``method``, ``substeps`` and ``hold`` override single
+        fields; ``substeps="auto"``: the fewest substeps that make the discrete observer stable
+        over the elapsed times [dt_min, dt_max].
     out_dir : path, optional
         Where the generated folder goes (default build/targets in the working folder).
     prefix : str, optional
@@ -115,7 +116,8 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     from ..discrete.stability import auto_substeps
 
     auto = substeps == "auto"
-    over = dict(dt=dt, method=method, substeps=None if auto else substeps, hold=hold)
+    over = dict(dt=dt, method=method, substeps=None if auto else substeps, hold=hold, dt_min=dt_min,
+                dt_max=dt_max)
     if isinstance(spec, Target):
         changes = {k: v for k, v in (("name", prefix), ("precision", precision)) if v is not None}
         changes.update({} if inline == "auto" else {"inline": inline})

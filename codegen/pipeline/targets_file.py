@@ -13,7 +13,9 @@ One ``[[target]]`` table per generated observer; the CLI's options are the same 
     variant = "O2"                 # of families that have variants (default: the family's)
     design = { eigenvalues = [] }  # keyword arguments of the family's build: design inputs, gains
     params = { rcond_min = 1e-9 }  # runtime parameters overriding the designed defaults
-    dt = 1e-3                      # discretisation: dt (s), method, hold, substeps
+    dt = 1e-3                      # discretisation: dt (s), method, hold, substeps, and the range
+    # dt_min = 2.5e-4              #   of the elapsed time between samples (default [dt/4, 2 dt]):
+    # dt_max = 2e-3                #   checked stable; a longer one is split into sub-intervals
     precision = "double"           # real type of the C
     name = "arm_cg_o2"             # symbol prefix and folder (default <robot>_<family>[_<variant>])
     out = "generated"              # parent folder, relative to this file (default ./generated)
@@ -33,8 +35,8 @@ from pathlib import Path
 from ..core.target import Discretization, Target
 
 KEYS = ("robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design", "params",
-        "dt", "method", "hold", "substeps", "precision", "name", "out")
-DISCRETIZATION_KEYS = ("dt", "method", "hold", "substeps")
+        "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision", "name", "out")
+DISCRETIZATION_KEYS = ("dt", "dt_min", "dt_max", "method", "hold", "substeps")
 DEFAULT_OUT = "generated"
 DEFAULT_FAMILY = "reduced_order"
 

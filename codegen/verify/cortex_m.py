@@ -5,8 +5,8 @@ Bytes only: this module knows CPUs, boards and files, nothing of any particular 
 
     from codegen import embedded
     cortex_m.missing_packages()                       # Debian packages still to install
-    rec = cortex_m.verify("generated/ur5_reduced_order_float", "m4f", Y, U)
-    rec["instructions_per_step"], rec["rel_diff_host"], rec["stack_peak_bytes"]
+    rec = cortex_m.verify("generated/ur5_reduced_order_float", "m4f", Y, U, H=H)   # H: elapsed times
+    rec["instructions_per_step"], rec["instructions_per_step_dt"], rec["rel_diff_host"], rec["stack_peak_bytes"]
 
 The firmware (``firmware.c``, ``startup.c``, ``mps2.ld``) is built, and its QEMU command line
 made, by ``c_harness/cortex_m/Makefile`` (flags and boards live there only: ``make info``); it
@@ -165,7 +165,7 @@ def linked_double_routines(elf):
                    if DOUBLE_ROUTINES.match(line.split()[-1])})
 
 
-def run(fw, Y, U, precision, timeout=120):
+def run(fw, Y, U, precision, timeout=120, H=None):
     """Run a firmware on QEMU over the inputs of a run and read back its estimates.
 
     Parameters
@@ -178,18 +178,24 @@ def run(fw, Y, U, precision, timeout=120):
         Precision of the target (the width of the values exchanged).
     timeout : float
         Seconds of wall time before the emulator is given up (EmbeddedError).
+    H : array_like (N,), optional
+        Elapsed time of each sample (s): the firmware replays the run a second time with
+        ``<prefix>_step_dt`` (a jittered loop).
 
     Returns
     -------
     dict
         ``est`` (N, nest) float64 estimates, ``steps``, ``ticks``, ``max_ticks``, ``calib_ticks``,
-        ``calib_insns``, ``stack`` and ``stack_size`` (bytes), as printed by the firmware.
-        Raises EmbeddedError if it exits non-zero or stops early.
+        ``calib_insns``, ``stack`` and ``stack_size`` (bytes), as printed by the firmware; with
+        ``H`` also ``est_dt`` (N, nest), ``steps_dt``, ``ticks_dt``, ``max_ticks_dt`` and
+        ``stack_dt`` (the peak over both passes) of the step_dt pass. Raises EmbeddedError if it exits non-zero or stops early.
     """
     size = 4 if precision == "float" else 8
     rows = np.hstack([np.asarray(Y, float), np.asarray(U, float).reshape(len(Y), -1)])
     with tempfile.TemporaryDirectory(prefix="obs-qemu-") as work:
         rows.astype(f"<f{size}").tofile(Path(work) / "obs_in.bin")
+        if H is not None:
+            np.asarray(H, float).reshape(len(rows)).astype(f"<f{size}").tofile(Path(work) / "obs_dt.bin")
         try:
             proc = subprocess.run(fw["qemu"], cwd=work, capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -200,15 +206,27 @@ def run(fw, Y, U, precision, timeout=120):
                             + "\n".join(proc.stdout.splitlines()[-3:] + [proc.stderr.strip()]),
                             proc.returncode, proc.stderr)
     rec = {k: int(v) for k, v in re.findall(r"(\w+)=(\d+)", done.group(1))}
-    est = re.findall(r"^e((?: [0-9a-f]+)*)$", proc.stdout, re.M)   # bit patterns, big-endian hex
-    bits = bytes.fromhex("".join(est).replace(" ", ""))
-    rec["est"] = np.frombuffer(bits, f">f{size}").astype(float).reshape(len(est), -1)
-    if rec["steps"] != len(rows) or len(est) != len(rows):
+    rec["est"] = _estimates(proc.stdout, "e", size)
+    if rec["steps"] != len(rows) or len(rec["est"]) != len(rows):
         raise EmbeddedError(f"{fw['elf']}: {rec['steps']} of {len(rows)} steps ran")
+    if H is not None:
+        done = re.search(r"^done_dt (.*)$", proc.stdout, re.M)
+        rec.update({f"{k}_dt": int(v) for k, v in re.findall(r"(\w+)=(\d+)", done.group(1) if done else "")})
+        rec["est_dt"] = _estimates(proc.stdout, "d", size)
+        if rec.get("steps_dt") != len(rows) or len(rec["est_dt"]) != len(rows):
+            raise EmbeddedError(f"{fw['elf']}: {rec.get('steps_dt')} of {len(rows)} step_dt calls ran")
     return rec
 
 
-def verify(target_dir, cpu, Y, U, host=None, double=None, work_dir=None):
+def _estimates(stdout, tag, size):
+    """The (N, nest) estimates of the firmware's lines ``<tag> <hex> ...`` (bit patterns of
+    ``size``-byte reals, big-endian hex) as float64."""
+    est = re.findall(rf"^{tag}((?: [0-9a-f]+)*)$", stdout, re.M)
+    bits = bytes.fromhex("".join(est).replace(" ", ""))
+    return np.frombuffer(bits, f">f{size}").astype(float).reshape(len(est), -1)
+
+
+def verify(target_dir, cpu, Y, U, host=None, double=None, work_dir=None, H=None):
     """Build, run and measure a target on an emulated Cortex-M; compare with the host build.
 
     Parameters
@@ -224,6 +242,8 @@ def verify(target_dir, cpu, Y, U, host=None, double=None, work_dir=None):
         Double-precision estimates over the same run: recorded as ``rel_diff_double``.
     work_dir : path, optional
         Where the firmware is built (default ``<repo>/build/embedded``).
+    H : array_like (N,), optional
+        Elapsed times (s) of a second, jittered pass through ``<prefix>_step_dt`` (``run``).
 
     Returns
     -------
@@ -236,7 +256,12 @@ def verify(target_dir, cpu, Y, U, host=None, double=None, work_dir=None):
         build with those members: None, and newlib_unavailable saying why, when they cannot be
         built here), double_routines (linked double-precision routines of a float firmware: must
         be none), rel_diff_double (when ``double`` is given), ok (bit-identical to the newlib host
-        build, within tolerance of the glibc one, stack not exhausted, no double routine).
+        build, within tolerance of the glibc one, stack not exhausted, no double routine); with
+        ``H``: instructions_per_step_dt (mean over the step_dt pass; intervals above dt_max cost
+        one step per sub-interval), instructions_per_step_dt_max, stack_peak_bytes_dt (both
+        passes), rel_diff_host_dt,
+        bit_identical_newlib_dt (against host builds stepped with the same elapsed times), part
+        of ok too.
     """
     meta = _meta(target_dir)
     name, native = _cpu(cpu)
@@ -247,7 +272,7 @@ def verify(target_dir, cpu, Y, U, host=None, double=None, work_dir=None):
         host = host_run(target_dir, Y, U)
     fw = firmware(target_dir, cpu, work_dir)
     flash, ram = memory(fw["elf"])
-    out = run(fw, Y, U, precision)
+    out = run(fw, Y, U, precision, H=H)
     per_tick = out["calib_insns"] / out["calib_ticks"]
     rec = {"cpu": name, "board": fw["board"], "cflags": fw["cflags"], "steps": out["steps"],
            "flash_bytes": flash, "static_ram_bytes": ram,
@@ -269,14 +294,27 @@ def verify(target_dir, cpu, Y, U, host=None, double=None, work_dir=None):
         rec["bit_identical_newlib"] = bool(np.array_equal(out["est"], newlib))
     if double is not None:
         rec["rel_diff_double"] = run_relative_error(out["est"], double)
+    ok_dt = True
+    if H is not None:
+        rec["instructions_per_step_dt"] = round(out["ticks_dt"] * per_tick / out["steps_dt"])
+        rec["instructions_per_step_dt_max"] = round(out["max_ticks_dt"] * per_tick)
+        rec["stack_peak_bytes_dt"] = out["stack_dt"]
+        rec["rel_diff_host_dt"] = run_relative_error(out["est_dt"], host_run(target_dir, Y, U, H=H))
+        rec["bit_identical_newlib_dt"] = None
+        if not reason:
+            newlib_dt = host_run(target_dir, Y, U, libm=newlib_libm.host_libm(fw), H=H)
+            rec["bit_identical_newlib_dt"] = bool(np.array_equal(out["est_dt"], newlib_dt))
+        ok_dt = (rec["bit_identical_newlib_dt"] is not False and rec["rel_diff_host_dt"] <= rec["tolerance"]
+                 and out["stack_dt"] < out["stack_size"])
     rec["ok"] = bool(rec["bit_identical_newlib"] is not False and rec["rel_diff_host"] <= rec["tolerance"]
-                     and out["stack"] < out["stack_size"] and not rec["double_routines"])
+                     and out["stack"] < out["stack_size"] and not rec["double_routines"] and ok_dt)
     return rec
 
 
-def host_run(target_dir, Y, U, libm=None):
+def host_run(target_dir, Y, U, libm=None, H=None):
     """Estimates of the host build of a target over a run, started as the firmware is (from
-    Y[0], default parameters, zero estimate).
+    Y[0], default parameters, zero estimate); with the elapsed times ``H`` (N,) (s), one
+    ``step(y, u, dt)`` (the C's step_dt) per sample, as the firmware's second pass.
 
     Parameters
     ----------
@@ -297,7 +335,9 @@ def host_run(target_dir, Y, U, libm=None):
         raise CompileError(f"{lib} still calls the system's {', '.join(leaked)} (not in {libm})")
     obs = load(target_dir, lib)
     obs.reset(Y[0])
-    return obs.run(Y, U)
+    if H is None:
+        return obs.run(Y, U)
+    return np.array([obs.step(y, u, h) for y, u, h in zip(Y, U, np.asarray(H, float))]).reshape(len(Y), obs.nest)
 
 
 def record(target_dir, rec):
@@ -345,21 +385,26 @@ def verify_target(spec, target, out, steps=300, work_dir=None):
     Returns
     -------
     list of (prefix, record)
+        Each record also holds the cost of ``<prefix>_step_dt`` over the same samples with
+        jittered elapsed times (``jittered_stamps``), see ``verify``.
     """
     from dataclasses import replace
 
     from . import run_inputs
     from ..pipeline.emit import emit
+    from .inputs import jittered_stamps
 
     def named(prec):   # an explicit name gets the precision suffix of the default names
         return target.name if target.name is None or prec == "double" else f"{target.name}_{prec}"
     folders = {cpu: emit(replace(target, precision=prec, name=named(prec)), out, spec=spec)
                for cpu, (_, prec) in CPUS.items()}
-    Y, U = run_inputs(spec, steps, target.discretization.dt)
+    dt = target.discretization.dt
+    Y, U = run_inputs(spec, steps, dt)
+    H = np.concatenate([[dt], np.diff(jittered_stamps(steps, dt))])   # 0.7-1.6 dt, every 100th 10 dt
     host = {cpu: host_run(folder, Y, U) for cpu, folder in folders.items()}
     rows = []
     for cpu, folder in folders.items():
-        rec = verify(folder, cpu, Y, U, host=host[cpu], double=host["m7"], work_dir=work_dir)
+        rec = verify(folder, cpu, Y, U, host=host[cpu], double=host["m7"], work_dir=work_dir, H=H)
         record(folder, rec)
         rows.append((folder.name, rec))
     return rows

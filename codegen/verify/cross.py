@@ -13,7 +13,7 @@ import numpy as np
 from ..pipeline.stages import compile_observer
 from ..reference import reference_observer
 from ..core.target import discretization as as_discretization
-from .inputs import random_inputs, run_inputs
+from .inputs import jittered_stamps, random_inputs, run_inputs
 from .measure import relative_error
 
 
@@ -22,8 +22,11 @@ def cross_check(spec, discretization=None, count=1000, seed=0, folder=None, **ov
 
     From each of ``count`` random (x, y, u) (``random_inputs``): two samples (the second with
     another random y, u, so a first-order hold integrates a real interval), comparing estimates
-    and states; the RHS at (x, y, u); and a run of ``count`` samples along the built-in
-    trajectory with noise (y = q, u = tau families) or on random inputs (the others).
+    and states, then a third after a random elapsed time (``step_dt``: uniform in [dt_min, dt_max],
+    one in five up to 4 dt_max, split into sub-intervals); the RHS at (x, y, u); and a run of
+    ``count`` samples along the built-in trajectory with noise (y = q, u = tau families) or on
+    random inputs (the others), at the designed rate and over jittered time stamps
+    (``jittered_stamps``: 0.7-1.6 dt, every 100th interval 10 dt).
 
     Parameters
     ----------
@@ -42,8 +45,8 @@ def cross_check(spec, discretization=None, count=1000, seed=0, folder=None, **ov
     Returns
     -------
     dict
-        "step_est", "step_state", "rhs", "run": worst relative error (``relative_error``,
-        NaN if anything is not finite); "samples": ``count``.
+        "step_est", "step_state", "step_dt_est", "step_dt_state", "rhs", "run", "run_t": worst
+        relative error (``relative_error``, NaN if anything is not finite); "samples": ``count``.
     """
 
     if folder is None:
@@ -59,18 +62,27 @@ def cross_check(spec, discretization=None, count=1000, seed=0, folder=None, **ov
     dt = disc.dt
     X, Y, U = random_inputs(spec, count, seed)
     _, Y2, U2 = random_inputs(spec, count, seed + 7)
-    errs = {"step_est": [], "step_state": [], "rhs": []}
-    for x, y, u, y2, u2 in zip(X, Y, U, Y2, U2):
+    _, Y3, U3 = random_inputs(spec, count, seed + 11)
+    lo, hi = disc.dt_range
+    rng = np.random.default_rng(seed + 13)
+    H = np.where(rng.uniform(size=count) < 0.8, rng.uniform(lo, hi, count), rng.uniform(hi, 4 * hi, count))
+    errs = {"step_est": [], "step_state": [], "step_dt_est": [], "step_dt_state": [], "rhs": []}
+    for x, y, u, y2, u2, y3, u3, h in zip(X, Y, U, Y2, U2, Y3, U3, H):
         for o in (obs, ref):
             o.reset(y)
             o.state = x
         for yk, uk in ((y, u), (y2, u2)):
             errs["step_est"].append(relative_error(obs.step(yk, uk), ref.step(yk, uk)))
             errs["step_state"].append(relative_error(obs.state, ref.state))
+        errs["step_dt_est"].append(relative_error(obs.step(y3, u3, h), ref.step(y3, u3, h)))
+        errs["step_dt_state"].append(relative_error(obs.state, ref.state))
         errs["rhs"].append(relative_error(obs.rhs(x, y, u), ref.rhs(x, y, u)))
     worst = {k: float(np.max(v)) for k, v in errs.items()}  # np.max keeps a NaN: it must fail
     Yn, Un = run_inputs(spec, count, dt, seed)
     obs.reset(Yn[0]), ref.reset(Yn[0])
     worst["run"] = relative_error(obs.run(Yn, Un), ref.run(Yn, Un))
+    t = jittered_stamps(count, dt, seed)
+    obs.reset(Yn[0]), ref.reset(Yn[0])
+    worst["run_t"] = relative_error(obs.run(Yn, Un, t), ref.run(Yn, Un, t))
     worst["samples"] = count
     return worst

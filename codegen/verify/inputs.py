@@ -132,3 +132,14 @@ def run_inputs(spec, count, dt, seed=0):
     if run.truth is None:
         return run.Y, run.U
     return run.Y + 1e-3 * rng.normal(size=run.Y.shape), run.U + 1e-2 * rng.normal(size=run.U.shape)
+
+
+def jittered_stamps(count, dt, seed=0, jitter=(0.7, 1.6), gap_every=100, gap=10.0):
+    """Time stamps (s) of a jittered log of ``count`` samples around the sample time ``dt`` (s):
+    intervals drawn uniformly in ``jitter`` x dt (a 1 kHz loop's 0.7-1.6 ms), and every
+    ``gap_every``-th one ``gap`` x dt long (a dropped sample, a late packet: split by the step);
+    t[0] = 0, drawn with ``seed``."""
+    rng = np.random.default_rng(seed)
+    h = dt * rng.uniform(jitter[0], jitter[1], size=max(count - 1, 0))
+    h[gap_every - 1::gap_every] = gap * dt
+    return np.concatenate([[0.0], np.cumsum(h)])[:count]

@@ -4,10 +4,12 @@
 
 For each target of ``SAMPLE``: the CSV harness (c_harness/run_csv.c) and the target built with
 ``-fsanitize=address,undefined -fno-sanitize-recover=all`` (the C compiler, gcc by default)
-run over ``edge_cases`` (NaN, +-Inf, 1e300, denormals, empty and malformed rows), each with the
-exit code and message run_csv documents; then a libFuzzer campaign (clang, ``$FUZZ_CC``) of
+run over ``edge_cases`` (NaN, +-Inf, 1e300, denormals, empty and malformed rows; time stamps that
+repeat, go back, are NaN or Inf, a dropped sample and a gap beyond the target's split limit: the
+elapsed time of step_dt), each with the exit code and message run_csv documents; then a libFuzzer campaign (clang, ``$FUZZ_CC``) of
 c_harness/fuzz_step.c, which asserts the documented status and an unchanged state on every
-failure of step, run, estimate, rhs, set_state and set_params. A sanitizer report, an
+failure of step, step_dt (dt 0, negative, NaN, Inf, huge), run, run_t, estimate, estimate_dt,
+rhs, set_state and set_params. A sanitizer report, an
 unexpected exit code or a fuzzer finding fails the run. Prints its figures (targets, inputs,
 fuzz runs) and ends with the line ``sanitize: N passed, M failed``.
 """
@@ -58,19 +60,23 @@ def edge_cases(ny, nu, nest, dt, precision="double"):
     parses doubles and hands the target its own real type, ``precision``."""
     header = ",".join(["t"] + [f"y{i}" for i in range(ny)] + [f"u{i}" for i in range(nu)])
 
-    def rows(n=8, y="0.1", u="0.5", at=None, where="y"):
+    def rows(n=8, y="0.1", u="0.5", at=None, where="y", t=None):
         out = []
         for k in range(n):
             ys, us = [y] * ny, [u] * nu
             if at is not None and k == at[0]:
                 (ys if where == "y" or nu == 0 else us)[0] = at[1]
-            out.append(",".join([repr(k * dt)] + ys + us))
+            out.append(",".join([repr(k * dt) if t is None else t[k]] + ys + us))
         return out
+
+    def stamps(**changes):      # k dt, with stamp k replaced by a text
+        return [changes.get(f"t{k}", repr(k * dt)) for k in range(8)]
 
     def csv(lines, end="\n"):
         return end.join([header] + lines) + end
     ok, res = (0,), r"ERR_NONFINITE_RESULT"
     bad_in = r"ERR_NONFINITE_INPUT"
+    bad_dt = r"step_dt returned 1: ERR_BAD_ARG"
     big = HUGE[precision]
     cases = [
         Case("plain", csv(rows()), ok),
@@ -96,6 +102,14 @@ def edge_cases(ny, nu, nest, dt, precision="double"):
         Case("a 200000-character row", csv(rows()[:2] + ["1" * 200000]), (1,), r"columns"),
         Case("NUL byte", csv(rows()[:2] + ["0.1\0" + rows()[2]]), (1,), r"columns|not a number"),
         Case("est0 with nan", csv(rows()), (3,), bad_in, est0=",".join(["nan"] + ["0"] * (nest - 1))),
+        Case("jittered stamps", csv(rows(t=[repr(dt * (k + 0.3 * (-1) ** k)) for k in range(8)])), ok),
+        Case("a dropped sample (10 dt)", csv(rows(t=stamps(t4=repr(13 * dt), t5=repr(14 * dt),
+                                                          t6=repr(15 * dt), t7=repr(16 * dt)))), ok),
+        Case("repeated stamp (dt = 0)", csv(rows(t=stamps(t3=repr(2 * dt)))), (3,), bad_dt),
+        Case("stamp going back (dt < 0)", csv(rows(t=stamps(t3=repr(-dt)))), (3,), bad_dt),
+        Case("nan stamp", csv(rows(t=stamps(t3="nan"))), (3,), bad_dt),
+        Case("inf stamp", csv(rows(t=stamps(t3="inf"))), (3,), bad_dt),
+        Case("a gap beyond split_max dt_max (1e300)", csv(rows(t=stamps(t3="1e300"))), (3,), bad_dt),
     ]
     if precision == "float":
         cases.append(Case("1e300 (Inf as a float)", csv(rows(at=(4, "1e300"))), (3,), bad_in))

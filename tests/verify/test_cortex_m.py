@@ -162,14 +162,25 @@ def test_float_c_against_double_reference_over_10s(name, method, spec_of):
 
 # ------------------------------------------------------------------ Cortex-M
 def test_firmware_runs_float_on_m4f_and_double_on_m7(arm, seed000, spec_of, tmp_path):
+    """Both CPUs, a pass through step() and one through step_dt() with jittered elapsed times
+    (0.7-1.6 dt; the 100th and 200th interval 10 dt: split into 5 kernel calls of 2 dt each)."""
     from codegen.verify import run_inputs
+    from codegen.verify.inputs import jittered_stamps
     Y, U = run_inputs(spec_of("seed000_2r"), 200, 1e-3)
-    recs = {cpu: cortex_m.verify(seed000[prec], cpu, Y, U, work_dir=tmp_path)
+    H = np.concatenate([[1e-3], np.diff(jittered_stamps(200, 1e-3))])
+    recs = {cpu: cortex_m.verify(seed000[prec], cpu, Y, U, work_dir=tmp_path, H=H)
             for cpu, (_, prec) in cortex_m.CPUS.items()}
     for cpu, rec in recs.items():
         assert rec["ok"] and rec["steps"] == 200
-        assert rec["rel_diff_host"] <= rec["tolerance"]
+        assert rec["rel_diff_host"] <= rec["tolerance"] and rec["rel_diff_host_dt"] <= rec["tolerance"]
         assert rec["bit_identical_newlib"] is (None if newlib_libm.unavailable() else True)
+        assert rec["bit_identical_newlib_dt"] is (None if newlib_libm.unavailable() else True)
+        # one kernel call per sample, five for the two gaps: the mean is 1 + 2 * 4 / 200 times a step's
+        per_step = rec["instructions_per_step"]
+        assert 1.0 < rec["instructions_per_step_dt"] / per_step < 1.04 + 0.03
+        # (the checks and copies of the wrapper are paid once per sample, not per kernel call)
+        assert 4 * per_step < rec["instructions_per_step_dt_max"] < 5.5 * per_step
+        assert rec["stack_peak_bytes"] <= rec["stack_peak_bytes_dt"] < rec["stack_size_bytes"]
         assert abs(rec["instructions_per_tick"] - 40.0) < 0.4     # -icount shift=0 at 25 MHz
         assert 100 < rec["instructions_per_step"] <= rec["instructions_per_step_max"] < 5000
         assert 0 < rec["stack_peak_bytes"] < rec["stack_size_bytes"]

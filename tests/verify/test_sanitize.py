@@ -43,6 +43,14 @@ def float_target(spec_of, tmp_path):
     return emit(spec.target(precision="float"), tmp_path / "t", spec=spec)
 
 
+# the roll-back on error of run() (followed by run_t's interval helper) and of run_t() (the last function
+# before rhs()): group 1 the end of the loop, group 2 the restore
+RUN_ROLLBACK = (r"(    if \(n_done\) \*n_done = k \+ 1;\n  \}\n)  if \(status != \w+_OK\) "
+                r"(\w+_restore\(s, &entry\);\n  return status;\n\}\n\n/\* b - a)")
+RUN_T_ROLLBACK = (r"(    if \(n_done\) \*n_done = k \+ 1;\n  \}\n)  if \(status != \w+_OK\) "
+                  r"(\w+_restore\(s, &entry\);\n  return status;\n\}\n\nint \w+_rhs)")
+
+
 def _put_back(folder, pattern, replacement):
     """Edit the target's wrapper C: ``pattern`` (a regex that must match) -> ``replacement``."""
     c = folder / f"{folder.name}.c"
@@ -52,12 +60,15 @@ def _put_back(folder, pattern, replacement):
 
 
 @pytest.mark.parametrize("fault, pattern, replacement", [
-    ("run() not rolled back (item 5)", r"if \(status != \w+_OK\) \{(\n    \w+_copy\(s->x, x0)", r"if (0) {\1"),
+    ("run() not rolled back (item 5)", RUN_ROLLBACK, r"\1  if (0) \2"),
+    ("run_t() not rolled back", RUN_T_ROLLBACK, r"\1  if (0) \2"),
+    ("step_dt() takes dt = 0", r"if \(!\(dt > 0\) \|\| ", "if ("),
     ("rhs() on NaN input (item 6)",
      r"  if \(!\w+_finite\(x, \w+_NX\).*\n +return \w+_ERR_NONFINITE_INPUT;\n", ""),
     ("step() writes the state before checking the result",
-     r"(  if \(\w+_k_step\(arg, res, s->iw, s->w, 0\)\))", r"  s->x[0] = s->x_next[0];\n\1"),
-], ids=["run-not-rolled-back", "rhs-nan", "step-writes-early"])
+     r"(  status = \w+_sample\(s, dt, y, u, s->x_next, s->est, s->w, s->iw, \w+\);)",
+     r"  s->x[0] = s->x_next[0];\n\1"),
+], ids=["run-not-rolled-back", "run-t-not-rolled-back", "step-dt-zero", "rhs-nan", "step-writes-early"])
 def test_fuzzer_finds_a_fault_put_back(target, tmp_path, fault, pattern, replacement):
     tool = _libfuzzer(tmp_path)
     _put_back(target, pattern, replacement)
@@ -91,7 +102,7 @@ def test_float_target_edge_cases_and_fuzzer(float_target, tmp_path):
     exe = sanitize.sanitized(float_target, "run_csv", compiler(), sanitize.SAN_FLAGS, tmp_path / "cache")
     assert [c.name for c in cases if sanitize.run_case(exe, c, tmp_path)] == []
     tool = _libfuzzer(tmp_path)
-    _put_back(float_target, r"if \(status != \w+_OK\) \{(\n    \w+_copy\(s->x, x0)", r"if (0) {\1")
+    _put_back(float_target, RUN_ROLLBACK, r"\1  if (0) \2")
     exe = sanitize.sanitized(float_target, "fuzz_step", tool, ["-fsanitize=fuzzer", *sanitize.SAN_FLAGS],
                              tmp_path / "cache")
     runs, _, finding, _ = sanitize.fuzz(exe, 200000, 120, tmp_path)
