@@ -86,7 +86,8 @@ def test_every_target_option_reaches_the_target(workdir):
     args = cli.parser().parse_args(
         ["build", *GRIPPER, "--elastic", "--J", "0.5,0.6,0.7", "--K", "2e4", "--family", "ciccarella_germani",
          "--variant", "O2", "--design", "eigenvalues=[-10,-20,-30,-40,-50,-60,-70,-80,-90,-100,-110,-120]",
-         "--param", "rcond_min=1e-9", "--dt", "5e-4", "--method", "euler", "--hold", "zoh", "--substeps", "2",
+         "--param", "rcond_min=1e-9", "--dt", "5e-4", "--dt-min", "1e-4", "--dt-max", "5e-3", "--method", "euler",
+         "--hold", "zoh", "--substeps", "2",
          "--precision", "double", "--name", "my_arm", "--out", "c", "--force", "--native", "-j", "1"])
     [(t, out)] = cli._targets(args)
     assert out == workdir / "c" and (args.force, args.native, args.jobs) == (True, True, 1)
@@ -95,7 +96,8 @@ def test_every_target_option_reaches_the_target(workdir):
                                 "locked_joints": {"finger_left": 0.01, "finger_right": 0.01}}
     assert (t.family, t.variant, t.params, t.name) == ("ciccarella_germani", "O2", {"rcond_min": 1e-9}, "my_arm")
     assert t.build == {"eigenvalues": [-10.0 * k for k in range(1, 13)]}
-    assert t.discretization.to_dict() == {"dt": 5e-4, "method": "euler", "hold": "zoh", "substeps": 2}
+    assert t.discretization.to_dict() == {"dt": 5e-4, "method": "euler", "hold": "zoh", "substeps": 2,
+                                          "dt_min": 1e-4, "dt_max": 5e-3}
     # a file's targets take the discretisation, precision and out of the command line
     Path("t.toml").write_text('[[target]]\nrobot = "ur5"\n[[target]]\nrobot = "panda"\n')
     args = cli.parser().parse_args(["generate", "-c", "t.toml", "--dt", "2e-3", "--hold", "zoh", "--out", "x"])
@@ -132,6 +134,8 @@ ERRORS = [
     (["build"], ["no targets", "-c FILE", "no targets.toml in"]),
     (["build", "ur5", "--method", "rk45"], ["invalid choice: 'rk45'", "choose from 'euler', 'rk4'"]),
     (["build", "ur5", "--dt", "fast"], ["argument --dt: invalid float value: 'fast'"]),
+    (["build", "ur5", "--dt-max", "5e-4"], ["dt_min <= dt <= dt_max must hold", "dt = 0.001, dt_max = 0.0005"]),
+    (["build", "ur5", "--dt-min", "-1"], ["dt_min must be a positive finite number of seconds, got -1"]),
     (["frobnicate"], ["invalid choice: 'frobnicate'", "list"]),
 ]
 

@@ -57,6 +57,8 @@ variant = "O2"
 design = { rcond_min = 1e-10 }
 params = { rcond_min = 1e-9 }
 dt = 5e-4
+dt_min = 1e-4
+dt_max = 5e-3
 method = "euler"
 hold = "zoh"
 substeps = 2
@@ -71,10 +73,12 @@ out = "c/out"
                                  "locked_joints": {"finger_left": 0.01, "finger_right": 0.02}}}
     assert (t.family, t.variant, t.build, t.params) == ("ciccarella_germani", "O2", {"rcond_min": 1e-10},
                                                        {"rcond_min": 1e-9})
-    assert t.discretization.to_dict() == {"dt": 5e-4, "method": "euler", "hold": "zoh", "substeps": 2}
+    assert t.discretization.to_dict() == {"dt": 5e-4, "method": "euler", "hold": "zoh", "substeps": 2,
+                                          "dt_min": 1e-4, "dt_max": 5e-3}
     assert (t.precision, t.name, t.prefix) == ("double", "arm_cg", "arm_cg")
     assert set(KEYS) == {"robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design",
-                         "params", "dt", "method", "hold", "substeps", "precision", "name", "out"}
+                         "params", "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision",
+                         "name", "out"}
 
 
 def test_defaults_variant_and_folder(tmp_path):

@@ -11,11 +11,12 @@ TOL = 1e-9
 @pytest.mark.slow
 @pytest.mark.parametrize("name", DEFAULT)
 def test_emitted_c_equals_reference(name, spec_of):
-    """>= 1000 random inputs per default target: single steps (estimate and next state), the RHS,
-    and a 1000-sample run; relative error <= 1e-9."""
+    """>= 1000 random inputs per default target: single steps (estimate and next state, at dt and
+    after a random elapsed time), the RHS, and 1000-sample runs at dt and over jittered time
+    stamps; relative error <= 1e-9."""
     r = cross_check(spec_of(name), count=1000)
     assert r["samples"] >= 1000
-    for key in ("step_est", "step_state", "rhs", "run"):
+    for key in ("step_est", "step_state", "step_dt_est", "step_dt_state", "rhs", "run", "run_t"):
         assert r[key] <= TOL, (key, r)
 
 
