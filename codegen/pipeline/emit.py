@@ -46,13 +46,13 @@ TEMPLATES = {"observer.h.in": "{prefix}.h", "observer.c.in": "{prefix}.c", "Make
 DT_TEXT = {
     "foh": ("First-order hold: dt is the time since the last sample.",
             "dt the time since the last sample",
-            "the interval before sample k,\n   t_k - t_k-1; for k = 0 since t_last, the stamp of "
-            "the state's last sample (right after init nothing\n   is integrated before it; a "
-            "state stepped since init by step() or step_dt() only has none: ERR_BAD_ARG)."),
+            ("the interval before sample k,\n   t_k - t_k-1; for k = 0 since t_last, the stamp of "
+             "the state's last sample (right after init nothing\n   is integrated before it; a "
+             "state stepped since init by step() or step_dt() only has none: ERR_BAD_ARG).")),
     "zoh": ("Zero-order hold: dt is the time to the next sample (the step advances over it).",
             "dt the time to the next sample (the zero-order hold advances over it)",
-            "the interval after sample k,\n   t_k+1 - t_k; after the last sample DT (the next "
-            "stamp is not known yet)."),
+            ("the interval after sample k,\n   t_k+1 - t_k; after the last sample DT (the next "
+             "stamp is not known yet).")),
 }
 
 STATUS = {"OK": 0, "ERR_BAD_ARG": 1, "ERR_NONFINITE_INPUT": 2, "ERR_NONFINITE_RESULT": 3,

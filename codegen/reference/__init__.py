@@ -36,6 +36,7 @@ Newton-Euler (dh.py) and elastic joints over any of them (elastic.py).
 from __future__ import annotations
 
 import importlib
+import itertools
 import pkgutil
 
 import numpy as np
@@ -200,7 +201,7 @@ class ReferenceObserver:
         for h in sorted({self.dt_range[1], self.dt, self.dt_range[0]}, reverse=True):
             try:
                 self._p = p
-                step = lambda x: self._advance(x, (y, u), y, u, h)[1]                 # noqa: E731
+                step = lambda x, h=h: self._advance(x, (y, u), y, u, h)[1]            # noqa: E731
                 Phi = _jacobian(step, x0)
                 J = 0.5 * (_jacobian(flow, x0) + _jacobian(flow, step(x0)))
             finally:
@@ -414,7 +415,7 @@ class ReferenceObserver:
                                              "without one since reset): reset it, or step it with dt")
                         H[0] = interval(self._stamp, t[0], self.dt)
             else:
-                H[:-1] = [interval(a, b, self.dt) for a, b in zip(t[:-1], t[1:])]
+                H[:-1] = [interval(a, b, self.dt) for a, b in itertools.pairwise(t)]
             bad = np.flatnonzero(~((H > 0) & (H <= self.dt_limit)))
             if len(bad):
                 raise ValueError(f"t: the interval of sample {int(bad[0])} is {H[bad[0]]:g} s, expected "

@@ -210,7 +210,7 @@ def run(fw, Y, U, precision, timeout=120, H=None):
     if rec["steps"] != len(rows) or len(rec["est"]) != len(rows):
         raise EmbeddedError(f"{fw['elf']}: {rec['steps']} of {len(rows)} steps ran")
     if H is not None:
-        done = re.search(r"^done_dt (.*)$", proc.stdout, re.M)
+        done = re.search(r"^done_dt (.*)$", proc.stdout, re.MULTILINE)
         rec.update({f"{k}_dt": int(v) for k, v in re.findall(r"(\w+)=(\d+)", done.group(1) if done else "")})
         rec["est_dt"] = _estimates(proc.stdout, "d", size)
         if rec.get("steps_dt") != len(rows) or len(rec["est_dt"]) != len(rows):
@@ -221,7 +221,7 @@ def run(fw, Y, U, precision, timeout=120, H=None):
 def _estimates(stdout, tag, size):
     """The (N, nest) estimates of the firmware's lines ``<tag> <hex> ...`` (bit patterns of
     ``size``-byte reals, big-endian hex) as float64."""
-    est = re.findall(rf"^{tag}((?: [0-9a-f]+)*)$", stdout, re.M)
+    est = re.findall(rf"^{tag}((?: [0-9a-f]+)*)$", stdout, re.MULTILINE)
     bits = bytes.fromhex("".join(est).replace(" ", ""))
     return np.frombuffer(bits, f">f{size}").astype(float).reshape(len(est), -1)
 
