@@ -32,7 +32,7 @@ positive-definiteness constraint into an unconstrained smooth least-squares prob
 
 ``excitation`` designs the trajectory to log: a Fourier series per joint (Swevers et al. 1997)
 within the position, velocity and acceleration limits, at rest at t = 0 and T, whose
-coefficients minimise the condition number of the stacked base regressor.
+coefficients minimise the condition number of the stacked base regressor (SLSQP, exact gradient).
 """
 from __future__ import annotations
 
@@ -60,6 +60,7 @@ FRICTION = ("viscous", "coulomb", "offset")
 WIDE = 4.0                      # the regressor's states at WIDE x cutoff before the filter
 FTOL = 1e-6                     # relative cost decrease at which the consistent solve stops
 MAX_NFEV = 2000
+STILL = 0.01                    # a joint slower than this x its velocity limit (RMS) does not move
 STRUCTURAL_TOL = 1e-8           # |R_kk| / |R_00| below this: a structurally dependent column
 
 
@@ -263,8 +264,15 @@ def _reorder(indep, K):
 
 
 def _tri(M):
-    """R of M = Q R (same singular values and right singular vectors, k x k)."""
-    return np.linalg.qr(M, mode="r") if M.shape[0] > M.shape[1] else M
+    """An upper triangular R with R^T R = M^T M (same singular values and right singular
+    vectors, k x k): the Cholesky factor of the Gram matrix (a tall M's columns are scaled, its
+    condition number small), QR where the Gram matrix is singular in double precision."""
+    if M.shape[0] <= M.shape[1]:
+        return M
+    try:
+        return np.linalg.cholesky(M.T @ M).T
+    except np.linalg.LinAlgError:
+        return np.linalg.qr(M, mode="r")
 
 
 def _std(M, G):
@@ -415,14 +423,15 @@ class _Arm:
         self.rowspace = Vt[:len(self.indep)].T              # (p, r): what a log can determine
         self.K_phys = s[self.indep][:, None] * self.K / s[self.dep][None, :]
 
-    def combination(self, k):
-        """Readable text of base parameter k in physical units: 'x_i + c x_j + ...'."""
+    def combination(self, k, terms=None):
+        """Readable text of base parameter ``k`` in physical units, 'x_i + c x_j + ...' (the
+        first ``terms`` terms and '...' if given)."""
         i = self.indep[k]
-        terms = [self.names[i]]
-        for c, j in sorted(zip(self.K_phys[k], self.dep), key=lambda cj: -abs(cj[0])):
+        out = [self.names[i]]
+        for c, j in sorted(zip(self.K_phys[k], self.dep), key=lambda cj: -abs(cj[0]) * self.scale[cj[1]]):
             if abs(c) * self.scale[j] > 1e-9 * self.scale[i]:
-                terms.append(f"{'-' if c < 0 else '+'} {abs(c):.6g} {self.names[j]}")
-        return " ".join(terms)
+                out.append(f"{'-' if c < 0 else '+'} {abs(c):.6g} {self.names[j]}")
+        return " ".join(out if terms is None or len(out) <= terms else out[:terms] + ["+ ..."])
 
     def friction_value(self, x):
         """(f_v, f_c, f_o) of a parameter vector ``x`` (13 n,)."""
@@ -433,6 +442,14 @@ class _Arm:
 # =============================================================================================
 # identification
 # =============================================================================================
+def read_log(path, joint_names):
+    """The Recording of the log CSV at ``path`` (``t, q_<joint>..., tau_<joint>...``,
+    codegen.core.recording) with increasing, possibly jittered, time stamps; ``joint_names``:
+    the robot's joints."""
+    from codegen.core.recording import read_csv
+    return read_csv(path, joint_names, rtol=math.inf)      # any increasing stamps
+
+
 def _log_arrays(recording, joint_names):
     """(t, q, tau) of a recording in the robot's joint order."""
     names = list(getattr(recording, "joint_names", []) or [])
@@ -518,9 +535,17 @@ class Identification:
             j = joints[arm.joint_names[i]]
             dyn = j.find("dynamics")
             if dyn is None:
+                last = list(j)[-1] if len(j) else None
                 dyn = ET.SubElement(j, "dynamics")
+                if last is not None:                       # indented like its siblings
+                    dyn.tail, last.tail = last.tail, (last.tail or "") + "  "
             dyn.set("damping", num(fv[i]))
             dyn.set("friction", num(fc[i]))
+        note = ET.Comment(f" <inertial> of {', '.join(arm.links)} and <dynamics> of {', '.join(arm.joint_names)} "
+                          f"identified by observer-codegen (codegen.evaluate.identify); Coulomb width and "
+                          f"offsets in {arm.name}_identified.friction.json ".replace("--", "- -"))
+        note.tail = root.text
+        root.insert(0, note)
         buf = io.BytesIO()
         ET.ElementTree(root).write(buf, encoding="utf-8", xml_declaration=True)
         return buf.getvalue().decode("utf-8") + "\n"
@@ -674,7 +699,7 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
         """(R, c): |diag(w) (A_fit x - tau_f)|^2 on the training samples = |R x~ - c|^2 + const
         (QR of the weighted, column-scaled regressor and its right-hand side)."""
         M = np.column_stack([(rows * w[None, :, None]).reshape(-1, p), (tau_f[train] * w).ravel()])
-        Rb = np.linalg.qr(M, mode="r")
+        Rb = _tri(M)
         return Rb[:p, :p], Rb[:p, p]
 
     def ols(R, c):
@@ -685,7 +710,7 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
 
     # round 0: weights from the torque scales; its residual is the first noise estimate
     R0, c0 = compress(1.0 / arm.torque_scale)
-    cond = float(np.linalg.cond(R0[:, arm.indep]))
+    cond = float(np.linalg.cond(_tri(R0[:, arm.indep])))
     sigma = np.maximum(_rms(tau[train] - A[train] @ ols(R0, c0)), 1e-9 * arm.torque_scale)
 
     # what the log determines: std of the base parameters from the log alone, scaled
@@ -793,25 +818,32 @@ def _start_theta(pi):
 
 
 def _refusal(arm, poor, std_beta, bound, d, train):
-    """The message of a log that leaves base parameters ``poor`` undetermined."""
-    joints = sorted({int(arm.owner[arm.indep[k]]) for k in poor})
-    motion = ", ".join(f"{arm.joint_names[j]} moves over {np.ptp(d.q[train, j]):.3g} rad at "
-                       f"{_rms(d.qd[train, j]):.3g} rad/s RMS" for j in joints)
-    worst = sorted(poor, key=lambda k: -std_beta[k])[:4]
-    which = "; ".join(f"{arm.combination(k)}: {std_beta[k]:.3g}" for k in worst)
+    """The message of a log that leaves base parameters ``poor`` undetermined: the joints that do
+    not move (RMS speed below STILL of the velocity limit), else those whose parameters lead the
+    undetermined combinations, with their motion, and what to do."""
     from models import names
+    speed = _rms(d.qd[train])
+    still = [j for j in range(arm.n) if speed[j] < STILL * arm.v_limit[j]]
+    joints = still or sorted({int(arm.owner[arm.indep[k]]) for k in poor})
+    motion = ", ".join(f"{arm.joint_names[j]} moves over {np.ptp(d.q[train, j]):.3g} rad at "
+                       f"{speed[j]:.3g} rad/s RMS" for j in joints)
+    worst = sorted(poor, key=lambda k: -std_beta[k])[:3]
+    which = "; ".join(f"{arm.combination(k, 3)}: {std_beta[k]:.3g}" for k in worst)
     src = (f"--robot {arm.name}" if arm.name in names() else
            f"--urdf {arm.path}" + "".join(f" --lock {k}={v:g}" for k, v in arm.locked.items()))
-    return (f"the log does not excite joint{'s' if len(joints) > 1 else ''} "
-            f"{', '.join(arm.joint_names[j] for j in joints)} enough: {len(poor)} of {len(arm.indep)} "
-            f"identifiable parameter combinations have a relative std above {bound:g} ({which}"
-            f"{'; ...' if len(poor) > len(worst) else ''}); {motion}. Record a log along an "
-            f"excitation trajectory (python -m codegen excite {src} --out traj.csv) and identify on it")
+    names_ = ", ".join(arm.joint_names[j] for j in joints)
+    what = (f"joint{'s' if len(joints) > 1 else ''} {names_} do{'es' if len(joints) == 1 else ''} not move"
+            if still else f"the motion of joint{'s' if len(joints) > 1 else ''} {names_} does not excite them enough")
+    return (f"recording: the log does not determine the model: {len(poor)} of {len(arm.indep)} identifiable "
+            f"parameter combinations have a relative std above {bound:g} ({which}"
+            f"{'; ...' if len(poor) > len(worst) else ''}); {what} ({motion}). Record a log along an "
+            f"excitation trajectory (python -m codegen excite {src} --out traj.csv) and identify on it"
+            + (", or lock a joint that cannot move (--lock JOINT=VALUE)" if still else ""))
 
 
 def _report(arm, d, t, t_split, train, test, tau, A, x, x_ols, before, sigma, std_post, std_data,
             std_beta, cond, cutoff, tf, prior, max_rel_std, rounds):
-    n, J = arm.n, arm.joint_names
+    J = arm.joint_names
     per = lambda v: {j: float(a) for j, a in zip(J, v)}  # noqa: E731
     fv, fc, fo = arm.friction_value(x)
     sv, sc, so = arm.friction_value(std_post)
@@ -958,65 +990,97 @@ class Excitation:
 
 
 class _Design:
-    """The excitation design problem: coefficients c (n, 2L) -> feasible trajectory -> log cond
-    of the stacked base regressor, and its exact gradient.
-
-    Forward: (a, b) = the projection of c on sum_l a_l = 0, sum_l l b_l = 0 (at rest at t = 0);
-    the shape on a fine grid of a period; per joint k = min(room/ptp q^, vmax/max|qd^|,
-    amax/max|qdd^|), a' = k a, b' = k b, q0 = centre - k (max q^ + min q^)/2; q, qd, qdd on the
-    coarse grid; W = diag(1/tau_s) Y(q, qd, qdd) S_b stacked; f = log sigma_1(W) - log sigma_r(W).
+    """The excitation design problem in y = (a (n, L), b (n, L), q0 (n)): minimise
+    f = log cond W = log sigma_1(W) - log sigma_r(W), W = diag(1/tau_s) Y(q, qd, qdd) S_b stacked
+    over a period's ``points`` instants, subject to linear constraints on a fine grid of the period
+    (position within [lower, upper], |qd| <= vmax, |qdd| <= amax) and at rest at t = 0
+    (sum_l a_l = 0, sum_l l b_l = 0).
 
     Gradient: d sigma_i = u_i^T dW v_i = sum_k w_ik^T d tau_k(x_i) with w_ik = u_ik / tau_s and
     x_i = S_b v_i, whose derivatives in q, qd, qdd are pinocchio's RNEA derivatives on a model
     with the (linear) parameters x_i (shifted by a consistent x0 and subtracted again, so that no
-    body's mass is near 0) plus the friction's; then back through the linear maps, the active
-    limit of each joint (its arg max on the fine grid) and the projection."""
+    body's mass is near 0) plus the friction's; then back through the series (linear in y)."""
 
-    def __init__(self, arm, f0, L, room, center, vmax, amax, points):
+    def __init__(self, arm, f0, L, lower, upper, vmax, amax, points):
         self.arm, self.L, self.n = arm, L, arm.n
-        self.room, self.center, self.vmax, self.amax = room, center, vmax, amax
+        self.lower, self.upper, self.vmax, self.amax = lower, upper, vmax, amax
         self.wl = 2 * math.pi * f0 * np.arange(1, L + 1)
-        grid = lambda g: (np.sin(np.outer(g, self.wl)), np.cos(np.outer(g, self.wl)))  # noqa: E731
-        self.fine = grid(np.linspace(0.0, 1.0 / f0, 40 * L + 1)[:-1])
-        self.coarse = grid(np.linspace(0.0, 1.0 / f0, points + 1)[:-1])
+        self.fine = self.grid(np.linspace(0.0, 1.0 / f0, 40 * L + 1)[:-1])
+        self.coarse = self.grid(np.linspace(0.0, 1.0 / f0, points + 1)[:-1])
         self.models = [arm.model.copy() for _ in range(3)]
         self.datas = [m.createData() for m in self.models]
 
-    def _project(self, c):
-        ell = np.arange(1, self.L + 1)
-        a = c[:, :self.L] - c[:, :self.L].mean(axis=1, keepdims=True)
-        b = c[:, self.L:] - np.outer(c[:, self.L:] @ ell / (ell @ ell), ell)
-        return a, b
+    def grid(self, t):
+        """(sin, cos) of the harmonics at times ``t``."""
+        return np.sin(np.outer(t, self.wl)), np.cos(np.outer(t, self.wl))
 
-    def _series(self, a, b, grid):
-        S, C = grid
+    def split(self, y):
+        """(a, b, q0) of the variables y."""
+        n, L = self.n, self.L
+        return y[:n * L].reshape(n, L), y[n * L:2 * n * L].reshape(n, L), y[2 * n * L:]
+
+    def states(self, y, grid=None):
+        """(q, qd, qdd) of y on ``grid`` (default the coarse one)."""
+        a, b, q0 = self.split(y)
+        S, C = grid or self.coarse
         wl = self.wl
-        return S @ (a / wl).T - C @ (b / wl).T, C @ a.T + S @ b.T, C @ (b * wl).T - S @ (a * wl).T
+        return (q0 + S @ (a / wl).T - C @ (b / wl).T, C @ a.T + S @ b.T,
+                C @ (b * wl).T - S @ (a * wl).T)
 
-    def realise(self, c):
-        """(a', b', q0) of coefficients ``c`` (n * 2L,): within the limits, at rest at t = 0."""
-        return self._realise(c)[:3]
+    def constraints(self):
+        """scipy LinearConstraints: limits on the fine grid, at rest at t = 0."""
+        from scipy.optimize import LinearConstraint
+        from scipy.sparse import lil_matrix
+        n, L, wl = self.n, self.L, self.wl
+        S, C = self.fine
+        F, nv = len(S), 2 * n * L + n
+        out = []
+        for ra, rb, rq, lo, hi in ((S / wl, -C / wl, 1.0, self.lower, self.upper),
+                                   (C, S, 0.0, -self.vmax, self.vmax),
+                                   (-S * wl, C * wl, 0.0, -self.amax, self.amax)):
+            A = np.zeros((n * F, nv))
+            for j in range(n):
+                r = slice(j * F, (j + 1) * F)
+                A[r, j * L:(j + 1) * L] = ra
+                A[r, n * L + j * L:n * L + (j + 1) * L] = rb
+                A[r, 2 * n * L + j] = rq
+            out.append(LinearConstraint(A, np.repeat(lo, F), np.repeat(hi, F)))
+        E = lil_matrix((2 * n, nv))
+        for j in range(n):
+            E[j, j * L:(j + 1) * L] = 1.0
+            E[n + j, n * L + j * L:n * L + (j + 1) * L] = np.arange(1, L + 1)
+        out.append(LinearConstraint(E.toarray(), 0.0, 0.0))
+        return out
 
-    def _realise(self, c):
-        a, b = self._project(np.asarray(c, float).reshape(self.n, 2 * self.L))
-        q, v, acc = self._series(a, b, self.fine)
-        ptp = np.maximum(np.ptp(q, axis=0), 1e-12)
-        vm = np.maximum(np.abs(v).max(axis=0), 1e-12)
-        am = np.maximum(np.abs(acc).max(axis=0), 1e-12)
-        ratios = np.stack([self.room / ptp, self.vmax / vm, self.amax / am])
-        which = np.argmin(ratios, axis=0)
-        k = ratios[which, np.arange(self.n)]
-        imax, imin = np.argmax(q, axis=0), np.argmin(q, axis=0)
-        mid = q.max(axis=0) + q.min(axis=0)
-        q0 = self.center - 0.5 * k * mid
-        aux = (a, b, k, which, imax, imin, mid, ptp, np.argmax(np.abs(v), axis=0),
-               np.argmax(np.abs(acc), axis=0), v, acc)
-        return a * k[:, None], b * k[:, None], q0, aux
+    def start(self, c):
+        """A feasible y from raw coefficients ``c`` (n, 2L): projected to rest at t = 0, each
+        joint scaled to the tightest of its limits (times 0.98) and centred in its range."""
+        n, L = self.n, self.L
+        ell = np.arange(1, L + 1)
+        a = c[:, :L] - c[:, :L].mean(axis=1, keepdims=True)
+        b = c[:, L:] - np.outer(c[:, L:] @ ell / (ell @ ell), ell)
+        y = np.concatenate([a.ravel(), b.ravel(), np.zeros(n)])
+        return self.fit(y, 0.98)
 
-    def states(self, a, b, q0, grid=None):
-        """(q, qd, qdd) of coefficients (a, b, q0) on ``grid`` (default the coarse one)."""
-        q, v, acc = self._series(a, b, grid or self.coarse)
-        return q + q0, v, acc
+    def fit(self, y, factor=1.0):
+        """y with each joint's series scaled so that its motion on a grid 10x finer than the
+        constraints' stays within ``factor`` x its limits, centred in its range."""
+        a, b, _ = self.split(y)
+        dense = self.grid(np.linspace(0.0, 2 * math.pi / self.wl[0], 400 * self.L, endpoint=False))
+        q, v, acc = self.states(np.concatenate([a.ravel(), b.ravel(), np.zeros(self.n)]), dense)
+        k = factor * np.minimum.reduce([(self.upper - self.lower) / np.maximum(np.ptp(q, axis=0), 1e-12),
+                                        self.vmax / np.maximum(np.abs(v).max(axis=0), 1e-12),
+                                        self.amax / np.maximum(np.abs(acc).max(axis=0), 1e-12)])
+        q0 = 0.5 * (self.lower + self.upper) - 0.5 * k * (q.max(axis=0) + q.min(axis=0))
+        return np.concatenate([(a * k[:, None]).ravel(), (b * k[:, None]).ravel(), q0])
+
+    def within(self, y):
+        """Whether y's motion, on a grid 10x finer than the constraints', is within the limits."""
+        dense = self.grid(np.linspace(0.0, 2 * math.pi / self.wl[0], 400 * self.L, endpoint=False))
+        q, v, acc = self.states(y, dense)
+        tol = 1e-9
+        return bool(np.all(q >= self.lower - tol) and np.all(q <= self.upper + tol) and
+                    np.all(np.abs(v) <= self.vmax * (1 + tol)) and np.all(np.abs(acc) <= self.amax * (1 + tol)))
 
     def matrix(self, q, v, acc):
         """The stacked, scaled base regressor W at those states."""
@@ -1024,93 +1088,72 @@ class _Design:
         Y = arm.regressor(q, v, acc) / arm.torque_scale[None, :, None] * arm.scale
         return Y.reshape(-1, arm.p)[:, arm.indep]
 
-    def value(self, c):
-        """log cond W of coefficients ``c``."""
-        sv = np.linalg.svd(self.matrix(*self.states(*self.realise(c))), compute_uv=False)
-        return math.log(sv[0] / sv[-1]) if sv[-1] > 0 else 1e3
+    @staticmethod
+    def _extremes(W):
+        """(sigma_1, sigma_r, v_1, v_r) of W from the eigenvalues of W^T W (ascending)."""
+        lam, V = np.linalg.eigh(W.T @ W)
+        return math.sqrt(max(lam[-1], 0.0)), math.sqrt(max(lam[0], 0.0)), V[:, -1], V[:, 0]
 
-    def value_and_grad(self, c):
-        """(log cond W, its gradient in ``c``)."""
-        pin, arm, n, L, wl = self.arm.pin, self.arm, self.n, self.L, self.wl
-        a2, b2, q0, (a, b, k, which, imax, imin, mid, ptp, iv, ia, vf, af) = self._realise(c)
-        q, v, acc = self.states(a2, b2, q0)
-        U, sv, Vt = np.linalg.svd(self.matrix(q, v, acc), full_matrices=False)
-        if not sv[-1] > 0:
-            return 1e3, np.zeros(len(c))
+    def value(self, y):
+        """log cond W of the variables ``y``."""
+        s1, sr, _, _ = self._extremes(self.matrix(*self.states(y)))
+        return math.log(s1 / sr) if sr > 0 else 1e3
+
+    def value_and_grad(self, y):
+        """(log cond W, its gradient in ``y``)."""
+        pin, arm, n, wl = self.arm.pin, self.arm, self.n, self.wl
+        q, v, acc = self.states(y)
+        W = self.matrix(q, v, acc)
+        s1, sr, v1, vr = self._extremes(W)
+        if not sr > 1e-12 * s1:
+            return 1e3, np.zeros(len(y))
         K = len(q)
         gq, gv, ga = np.zeros((K, n)), np.zeros((K, n)), np.zeros((K, n))
         xs = []
-        for col, sign in ((0, 1.0 / sv[0]), (-1, -1.0 / sv[-1])):
+        for vec, sig, sign in ((v1, s1, 1.0 / s1), (vr, sr, -1.0 / sr)):
             x = np.zeros(arm.p)
-            x[arm.indep] = arm.scale[arm.indep] * Vt[col]
-            xs.append((x, sign, U[:, col].reshape(K, n) / arm.torque_scale))
+            x[arm.indep] = arm.scale[arm.indep] * vec
+            xs.append((x, sign, (W @ vec / sig).reshape(K, n) / arm.torque_scale))   # u = W v / sigma
         # a consistent x0 that keeps every body's mass of x + x0 away from 0
-        lam = 2.0 + max(np.abs(x[0:10 * n:10]).max() for x, _, _ in xs) / self.arm.pi_urdf[0:10 * n:10].min()
-        x0 = lam * self.arm.pi_urdf
-        for m, x in zip(self.models, [x0] + [x0 + x[:10 * n] for x, _, _ in xs]):
+        masses = arm.pi_urdf[0:10 * n:10]
+        x0 = (2.0 + max(np.abs(x[0:10 * n:10]).max() for x, _, _ in xs) / masses.min()) * arm.pi_urdf
+        for m, xi in zip(self.models, [x0] + [x0 + x[:10 * n] for x, _, _ in xs]):
             for i in range(1, n + 1):
-                m.inertias[i] = pin.Inertia.FromDynamicParameters(x[10 * (i - 1):10 * i])
+                m.inertias[i] = pin.Inertia.FromDynamicParameters(xi[10 * (i - 1):10 * i])
         Q = arm.pin_configurations(q)
+        for k in range(K):
+            d0 = pin.computeRNEADerivatives(self.models[0], self.datas[0], Q[k], v[k], acc[k])
+            for j, (_, sign, w) in enumerate(xs, start=1):
+                d1 = pin.computeRNEADerivatives(self.models[j], self.datas[j], Q[k], v[k], acc[k])
+                wk = sign * w[k]
+                Ma = np.triu(d1[2] - d0[2])                # pinocchio fills M's upper triangle
+                gq[k] += wk @ (d1[0] - d0[0])
+                gv[k] += wk @ (d1[1] - d0[1])
+                ga[k] += wk @ (Ma + np.triu(Ma, 1).T)
         th = np.tanh(v / arm.width)
-        for kk in range(K):
-            d0 = pin.computeRNEADerivatives(self.models[0], self.datas[0], Q[kk], v[kk], acc[kk])
-            for j, (x, sign, w) in enumerate(xs, start=1):
-                d1 = pin.computeRNEADerivatives(self.models[j], self.datas[j], Q[kk], v[kk], acc[kk])
-                wk = sign * w[kk]
-                gq[kk] += wk @ (d1[0] - d0[0])
-                Ma = np.triu(d1[2] - d0[2])
-                gv[kk] += wk @ (d1[1] - d0[1])
-                ga[kk] += wk @ (Ma + np.triu(Ma, 1).T)
         for x, sign, w in xs:                               # friction: d/dqd
             fv, fc = x[10 * n:11 * n], x[11 * n:12 * n]
             gv += sign * w * (fv + fc * (1 - th ** 2) / arm.width)
-        # back through the coarse series
         S, C = self.coarse
-        g_q0 = gq.sum(axis=0)
-        g_a2 = (S.T @ gq).T / wl + (C.T @ gv).T - (S.T @ ga).T * wl
-        g_b2 = -(C.T @ gq).T / wl + (S.T @ gv).T + (C.T @ ga).T * wl
-        # a2 = k a, b2 = k b, q0 = centre - k mid / 2
-        g_a, g_b = k[:, None] * g_a2, k[:, None] * g_b2
-        g_k = (g_a2 * a).sum(axis=1) + (g_b2 * b).sum(axis=1) - 0.5 * mid * g_q0
-        Sf, Cf = self.fine
-        dq_da = lambda i: Sf[i] / wl  # noqa: E731  (q^ at fine instant i, per coefficient)
-        dq_db = lambda i: -Cf[i] / wl  # noqa: E731
-        for j in range(n):
-            g_mid = -0.5 * k[j] * g_q0[j]
-            g_a[j] += g_mid * (dq_da(imax[j]) + dq_da(imin[j]))
-            g_b[j] += g_mid * (dq_db(imax[j]) + dq_db(imin[j]))
-            if which[j] == 0:                               # k = room / ptp
-                f = -k[j] / ptp[j] * g_k[j]
-                g_a[j] += f * (dq_da(imax[j]) - dq_da(imin[j]))
-                g_b[j] += f * (dq_db(imax[j]) - dq_db(imin[j]))
-            elif which[j] == 1:                             # k = vmax / |qd^(i)|
-                i = iv[j]
-                f = -k[j] / abs(vf[i, j]) * np.sign(vf[i, j]) * g_k[j]
-                g_a[j] += f * Cf[i]
-                g_b[j] += f * Sf[i]
-            else:                                           # k = amax / |qdd^(i)|
-                i = ia[j]
-                f = -k[j] / abs(af[i, j]) * np.sign(af[i, j]) * g_k[j]
-                g_a[j] += f * (-Sf[i] * wl)
-                g_b[j] += f * (Cf[i] * wl)
-        ell = np.arange(1, L + 1)
-        g_ca = g_a - g_a.mean(axis=1, keepdims=True)
-        g_cb = g_b - np.outer(g_b @ ell / (ell @ ell), ell)
-        return math.log(sv[0] / sv[-1]), np.hstack([g_ca, g_cb]).ravel()
+        g_a = (S.T @ gq).T / wl + (C.T @ gv).T - (S.T @ ga).T * wl
+        g_b = -(C.T @ gq).T / wl + (S.T @ gv).T + (C.T @ ga).T * wl
+        return math.log(s1 / sr), np.concatenate([g_a.ravel(), g_b.ravel(), gq.sum(axis=0)])
 
 
 def excitation(robot, T=10.0, *, base_frequency=None, harmonics=5, margin=0.05, speed=0.8,
-               qdd_max=None, coulomb_width=None, points=None, starts=3, maxiter=60, seed=0,
+               qdd_max=None, coulomb_width=None, points=None, starts=2, maxiter=30, seed=0,
                progress=False):
     """An excitation trajectory for :func:`identify`: a Fourier series per joint within the
     limits, its coefficients chosen for a low condition number of the stacked base regressor.
 
-    Each joint's series is scaled to use its limits fully (the smallest of: the position range
-    less ``margin`` at both ends, ``speed`` x the velocity limit, ``qdd_max``) and centred in its
-    range, so every candidate is feasible; L-BFGS-B (finite-difference gradient) then minimises
-    log cond of the base regressor (columns in parameter scales, rows in joint torque scales, as
-    in the identification report) at ``points`` instants of a period, from ``starts`` random
-    coefficient sets.
+    From ``starts`` random coefficient sets, each joint scaled to its tightest limit and centred
+    in its range (feasible), SLSQP minimises log cond W, W the stacked base regressor at
+    ``points`` instants of a period (columns in parameter scales, rows in joint torque scales, as
+    in the identification report), with its exact gradient (:class:`_Design`), subject to the
+    limits at 40 L instants per period (linear in the coefficients) and rest at t = 0: positions
+    within the range less ``margin`` at both ends, |qd| <= ``speed`` x the velocity limit,
+    |qdd| <= ``qdd_max``. A final check on a 10x finer grid scales a joint back to its limits
+    should it exceed one between the grid's instants.
 
     Parameters
     ----------
@@ -1121,7 +1164,7 @@ def excitation(robot, T=10.0, *, base_frequency=None, harmonics=5, margin=0.05, 
     base_frequency : float, optional
         f0 (Hz); default the smallest f0 >= 0.1 Hz with T f0 whole.
     harmonics : int
-        L, the number of harmonics (top frequency L f0).
+        L >= 2, the number of harmonics (top frequency L f0).
     margin : float
         Fraction of each joint's range kept free at both ends.
     speed : float
@@ -1135,7 +1178,7 @@ def excitation(robot, T=10.0, *, base_frequency=None, harmonics=5, margin=0.05, 
     starts : int
         Random starting coefficient sets.
     maxiter : int
-        L-BFGS-B iterations per start.
+        SLSQP iterations per start (0: the scaled random start itself).
     seed : int
         Seeds the starting coefficients.
     progress : bool
@@ -1159,8 +1202,9 @@ def excitation(robot, T=10.0, *, base_frequency=None, harmonics=5, margin=0.05, 
             raise ValueError(f"T: {T:g} s is not a whole number of periods of base_frequency {f0:g} Hz "
                              "(the trajectory would not end at rest)")
     L = int(harmonics)
-    if L < 1:
-        raise ValueError(f"harmonics: expected a positive integer, got {harmonics!r}")
+    if L < 2:
+        raise ValueError(f"harmonics: expected an integer >= 2 (one harmonic cannot start and end at "
+                         f"rest), got {harmonics!r}")
     if not 0 <= margin < 0.5:
         raise ValueError(f"margin: expected a fraction in [0, 0.5), got {margin!r}")
     if not 0 < speed <= 1:
@@ -1171,21 +1215,28 @@ def excitation(robot, T=10.0, *, base_frequency=None, harmonics=5, margin=0.05, 
         raise ValueError(f"qdd_max: expected positive accelerations (rad/s^2), got {qdd_max!r}")
     lo, hi = arm.q_lower, arm.q_upper
     points = int(points or max(60, math.ceil(3 * len(arm.indep) / n)))
-    design = _Design(arm, f0, L, (hi - lo) * (1 - 2 * margin), 0.5 * (lo + hi), vmax, amax, points)
+    design = _Design(arm, f0, L, lo + margin * (hi - lo), hi - margin * (hi - lo), vmax, amax, points)
+    constraints = design.constraints()
     rng = np.random.default_rng(seed)
     bar = _progress(progress, f"excitation {arm.name}", total=int(starts) * int(maxiter))
     best = None
-    ell = np.tile(np.r_[np.arange(1, L + 1), np.arange(1, L + 1)], n)
+    ell = np.arange(1, L + 1)
     for _ in range(int(starts)):
-        res = minimize(design.value_and_grad, rng.normal(size=n * 2 * L) / ell, jac=True,
-                       method="L-BFGS-B", options={"maxiter": int(maxiter)},
-                       callback=lambda *_: bar.update(1))
-        if best is None or res.fun < best.fun:
-            best = res
-        bar.set_postfix_str(f"cond {math.exp(best.fun):.4g}")
+        y0 = design.start(rng.normal(size=(n, 2 * L)) / np.r_[ell, ell])
+        res = minimize(design.value_and_grad, y0, jac=True, method="SLSQP", constraints=constraints,
+                       options={"maxiter": int(maxiter)}, callback=lambda *_: bar.update(1)) \
+            if maxiter > 0 else None
+        y, f = (res.x, res.fun) if res is not None and np.all(np.isfinite(res.x)) else (y0, design.value(y0))
+        if best is None or f < best[1]:
+            best = (y, f)
+        bar.set_postfix_str(f"cond {math.exp(best[1]):.4g}")
     bar.close()
-    a, b, q0 = design.realise(best.x)
-    dense = np.linspace(0.0, 1.0 / f0, 400, endpoint=False)
-    grid = (np.sin(np.outer(dense, design.wl)), np.cos(np.outer(dense, design.wl)))
-    cond = float(np.linalg.cond(design.matrix(*design.states(a, b, q0, grid))))
+    y = best[0]
+    # the constraints hold on the fine grid; between its points the motion may exceed them by
+    # round-off or a sliver: scale each joint to its limits on a grid 10x finer if so
+    if not design.within(y):
+        y = design.fit(y)
+    a, b, q0 = design.split(y)
+    dense = design.grid(np.linspace(0.0, 1.0 / f0, 400, endpoint=False))
+    cond = float(np.linalg.cond(_tri(design.matrix(*design.states(y, dense)))))
     return Excitation(arm.joint_names, f0, a, b, q0, T, condition=float(cond))
