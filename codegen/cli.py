@@ -405,9 +405,10 @@ def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
     joint (codegen.evaluate.identify); writes the identified URDF, the friction side file and the
     report to --out. ``args``: the parsed namespace; returns 0."""
-    from .evaluate.identify import identify, read_log
+    from .core.recording import read_csv
+    from .evaluate.identify import identify
     robot = _robot_of(args)
-    ident = identify(read_log(args.log, robot.joint_names), robot, cutoff=args.cutoff,
+    ident = identify(read_csv(args.log, robot.joint_names), robot, cutoff=args.cutoff,
                      test_fraction=args.test_fraction, coulomb_width=args.coulomb_width, progress=True)
     ident.write(Path(args.out or work_dir() / "identify"))
     print(ident.text, end="")
@@ -545,7 +546,7 @@ def parser():
             x.add_argument("--test-fraction", type=float, default=idf.DEFAULT_TEST_FRACTION,
                            help=f"held-out tail of the log (default {idf.DEFAULT_TEST_FRACTION:g})")
             x.add_argument("--coulomb-width", type=float, help="w of tanh(qd/w) (rad/s; default the "
-                           f"model's coulomb_width, else {idf.DEFAULT_COULOMB_WIDTH:g})")
+                           "model's coulomb_width)")
             x.add_argument("--out", metavar="DIR", help="folder of the identified URDF and report (default build/identify)")
     return ap
 

@@ -49,8 +49,7 @@ import numpy as np
 
 from .smoothing import derivatives
 
-FRICTION_FORMAT = "observer-codegen friction 1"
-DEFAULT_COULOMB_WIDTH = 0.05    # rad/s (m/s for prismatic joints): tanh(v/w) is 0.96 at v = 2w
+DEFAULT_COULOMB_WIDTH = 0.05    # rad/s, for a robot model without coulomb_width (models' have one)
 DEFAULT_CUTOFF = 5.0            # Hz: 10x the top harmonic of the default excitation (0.5 Hz)
 DEFAULT_TEST_FRACTION = 0.2
 DEFAULT_PRIOR = 0.2             # relative std of the URDF's values (a manufacturer's URDF is 10-20 % off)
@@ -325,8 +324,11 @@ class _Arm:
         primary = np.concatenate([_link_inertial(links[k]) for k in self.links])
         self.attached = self.pi_urdf - primary
         self.primary_urdf = primary
-        self.friction_urdf = np.concatenate([np.asarray(self.model.damping, float),
-                                             np.asarray(self.model.friction, float), np.zeros(n)])
+        # the robot's friction (URDF <dynamics> and side file), pinocchio's <dynamics> otherwise
+        self.friction_urdf = np.concatenate([
+            np.asarray(getattr(robot, "viscous", self.model.damping), float),
+            np.asarray(getattr(robot, "coulomb", self.model.friction), float),
+            np.asarray(getattr(robot, "offset", np.zeros(n)), float)])
         self.x_urdf = np.concatenate([self.pi_urdf, self.friction_urdf])
         self.q_lower = np.asarray(robot.q_lower, float)
         self.q_upper = np.asarray(robot.q_upper, float)
@@ -335,8 +337,8 @@ class _Arm:
         self.v_limit = np.where(self.v_limit_known, vl, 1.0)
         width = coulomb_width if coulomb_width is not None else getattr(robot, "coulomb_width", None)
         self.width_source = ("given" if coulomb_width is not None else
-                             "the robot model's coulomb_width" if width is not None else
-                             f"default {DEFAULT_COULOMB_WIDTH} rad/s (the robot model has no coulomb_width)")
+                             "the robot model's coulomb_width, as its observers use it" if width is not None
+                             else f"default {DEFAULT_COULOMB_WIDTH} rad/s (the robot model has no coulomb_width)")
         self.width = float(width) if width is not None else DEFAULT_COULOMB_WIDTH
         if not (math.isfinite(self.width) and self.width > 0):
             raise ValueError(f"coulomb_width: expected a positive number (rad/s), got {width!r}")
@@ -442,14 +444,6 @@ class _Arm:
 # =============================================================================================
 # identification
 # =============================================================================================
-def read_log(path, joint_names):
-    """The Recording of the log CSV at ``path`` (``t, q_<joint>..., tau_<joint>...``,
-    codegen.core.recording) with increasing, possibly jittered, time stamps; ``joint_names``:
-    the robot's joints."""
-    from codegen.core.recording import read_csv
-    return read_csv(path, joint_names, rtol=math.inf)      # any increasing stamps
-
-
 def _log_arrays(recording, joint_names):
     """(t, q, tau) of a recording in the robot's joint order."""
     names = list(getattr(recording, "joint_names", []) or [])
@@ -551,8 +545,10 @@ class Identification:
         return buf.getvalue().decode("utf-8") + "\n"
 
     def friction_file(self):
-        """The side file of what URDF has no tag for (dict): ``{"format": FRICTION_FORMAT,
-        "coulomb_width": w, "offset": {joint: f_o}}``."""
+        """The side file of what URDF has no tag for (dict): ``{"format": "observer-codegen
+        friction 1", "coulomb_width": w, "offset": {joint: f_o}}`` (models.urdf reads it beside
+        the URDF)."""
+        from models.urdf import FRICTION_FORMAT
         _, _, fo = self.arm.friction_value(self.x)
         return {"format": FRICTION_FORMAT, "coulomb_width": self.arm.width,
                 "offset": {j: float(v) for j, v in zip(self.arm.joint_names, fo)}}
