@@ -24,8 +24,11 @@ friction, ``w`` the Coulomb smoothing width (rad/s).
    band of the regressor with gain 1, so the estimate's variance is that of unfiltered data;
 3. base parameters: the numerical rank of the regressor on random states of the robot (QR with
    column pivoting), i.e. which combinations of parameters any log can determine; then the
-   log's own covariance of those combinations. A log whose combinations have a relative std
-   above ``max_rel_std`` is refused, naming the joints (:class:`IdentificationError`);
+   log's own covariance of those combinations. A combination's relative std is its std times
+   the torque one unit of it makes on random states of the robot (RMS, in units of each joint's
+   RMS torque there, the largest over the joints): the torque uncertainty it leaves on the
+   working range. A log that leaves one above ``max_rel_std`` is refused, naming the joints
+   (:class:`IdentificationError`);
 4. a physically consistent estimate: each body's parameters as the URDF's fixed extras plus the
    primary link's pseudo-inertia ``J = U U^T`` in the log-Cholesky parametrisation of Rucker &
    Wensing ("Smooth parameterization of rigid-body inertia", RA-L 2022), friction ``f_v, f_c >= 0``,
@@ -60,7 +63,7 @@ DEFAULT_COULOMB_WIDTH = 0.05    # rad/s, for a robot model without coulomb_width
 DEFAULT_CUTOFF = 5.0            # Hz: 10x the top harmonic of the default excitation (0.5 Hz)
 DEFAULT_TEST_FRACTION = 0.2
 DEFAULT_PRIOR = 0.2             # relative std of the URDF's values (a manufacturer's URDF is 10-20 % off)
-DEFAULT_MAX_REL_STD = 0.05      # a base parameter's std in units of its scale
+DEFAULT_MAX_REL_STD = 0.05      # a base parameter's torque uncertainty / the joint's RMS torque
 INERTIAL = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 FRICTION = ("viscous", "coulomb", "offset")
 WIDE = 4.0                      # the Coulomb column's velocity at WIDE x cutoff before the filter
@@ -287,7 +290,7 @@ def _std(M, G):
     """(std of G z where z has information M^T M (M: rows x k), inf along unexcited directions;
     cond M)."""
     _, sv, Vt = np.linalg.svd(_tri(M))
-    ok = sv > 1e-11 * (sv[0] if sv.size else 1.0)
+    ok = sv > 1e-7 * (sv[0] if sv.size else 1.0)     # R may come from the Gram matrix: sqrt(eps)
     C = G @ Vt.T
     var = np.sum((C[:, ok] / sv[ok]) ** 2, axis=1)
     lost = np.any(np.abs(C[:, ~ok]) > 1e-8 * (1.0 + np.abs(C).max(axis=1, keepdims=True)), axis=1)
@@ -426,7 +429,12 @@ class _Arm:
         s[11 * n:12 * n] = ts
         s[12 * n:] = ts
         self.scale = s
-        W = (Y / ts[None, :, None] * s).reshape(-1, self.p)
+        Ws = Y / ts[None, :, None] * s
+        # what one unit of a scaled parameter does to the torque on these states, in units of
+        # each joint's torque scale (RMS, the largest over the joints): std x effect is the
+        # torque uncertainty a parameter leaves on the robot's working range
+        self.effect = np.sqrt(np.mean(Ws ** 2, axis=0)).max(axis=0)
+        W = Ws.reshape(-1, self.p)
         self.indep, self.dep, self.K = base_parameters(W)
         self.T = np.zeros((len(self.indep), self.p))       # beta~ = T x~ (scaled units), (2)
         self.T[np.arange(len(self.indep)), self.indep] = 1.0
@@ -654,7 +662,9 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
     prior : float
         Relative std of the URDF's values as a prior (in units of each parameter's scale).
     max_rel_std : float
-        Refuse the log when a base parameter's std from the log exceeds this (same units).
+        Refuse the log when a base parameter's relative std from the log (module docstring, 3:
+        the torque uncertainty it leaves on random states, in units of the joint's RMS torque)
+        exceeds this.
     progress : bool
         A tqdm bar on stderr over the solver iterations.
     out : path, optional
@@ -746,9 +756,10 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
     # what the log determines: std of the base parameters from the log alone, scaled
     R, c = compress(1.0 / sigma)
     std_beta, _ = _std(R @ arm.rowspace, arm.T @ arm.rowspace)
-    poor = np.nonzero(~(std_beta <= max_rel_std))[0]
+    rel = std_beta * arm.effect[arm.indep]
+    poor = np.nonzero(~(rel <= max_rel_std))[0]
     if len(poor):
-        raise IdentificationError(_refusal(arm, poor, std_beta, max_rel_std, d, train))
+        raise IdentificationError(_refusal(arm, poor, rel, max_rel_std, d, train))
 
     # physically consistent estimate, in scaled units x~ = x / s: each primary link's scaled
     # parameters in log-Cholesky coordinates (J~ = D^-1 J D^-1, D = sqrt(m) diag(l, l, l, 1) of
@@ -889,6 +900,8 @@ def _report(arm, t, t_split, train, test, x, residual, sigma, std_post, std_data
                         "pseudo_inertia_min_eigenvalue": float(np.linalg.eigvalsh(
                             pseudo_inertia(x[10 * i:10 * i + 10]))[0])}
     beta = (arm.T @ (x / arm.scale)) * arm.scale[arm.indep]
+    with np.errstate(invalid="ignore"):
+        rel_data = np.where(np.isfinite(std_data), std_data / arm.scale * arm.effect, np.inf)
     return {
         "robot": arm.name, "urdf": str(arm.path), "locked_joints": arm.locked, "joints": J,
         "model": "tau = Y(q, qd, qdd) pi + f_v qd + f_c tanh(qd / w) + f_o",
@@ -907,11 +920,13 @@ def _report(arm, t, t_split, train, test, x, residual, sigma, std_post, std_data
         "solver": rounds,
         "base_parameters": [{"combination": arm.combination(k), "value": float(beta[k]),
                              "std": float(std_beta[k] * arm.scale[arm.indep[k]]),
-                             "relative_std": float(std_beta[k])} for k in range(len(arm.indep))],
+                             "relative_std": float(std_beta[k] * arm.effect[arm.indep[k]])}
+                            for k in range(len(arm.indep))],
         "parameters": [{"name": arm.names[i], "joint": J[arm.owner[i]], "urdf": float(arm.x_urdf[i]),
                         "value": float(x[i]), "std": float(std_post[i]), "std_data": float(std_data[i]),
                         "scale": float(arm.scale[i]),
-                        "identifiable": bool(std_data[i] <= max_rel_std * arm.scale[i])} for i in range(arm.p)],
+                        "relative_std": float(rel_data[i]), "identifiable": bool(rel_data[i] <= max_rel_std)}
+                       for i in range(arm.p)],
         "friction": {j: {"viscous": float(fv[k]), "viscous_std": float(sv[k]), "coulomb": float(fc[k]),
                          "coulomb_std": float(sc[k]), "offset": float(fo[k]), "offset_std": float(so[k])}
                      for k, j in enumerate(J)},
@@ -947,8 +962,8 @@ def report_text(report):
     for link, b in report["links"].items():
         lines.append(f"  {link:<24}mass {b['mass']:.4g} kg ({b['mass_urdf']:.4g}), com "
                      f"[{', '.join(f'{v:.4g}' for v in b['com'])}] m ([{', '.join(f'{v:.4g}' for v in b['com_urdf'])}])")
-    lines += ["", f"identifiable combinations (relative std = std / scale of the leading parameter; "
-                  f"refused above {report['max_rel_std']:g}):"]
+    lines += ["", f"identifiable combinations (relative std: the torque uncertainty it leaves on random "
+                  f"states / the joint's RMS torque; refused above {report['max_rel_std']:g}):"]
     for b in report["base_parameters"]:
         lines.append(f"  {b['value']:>12.5g} +- {b['std']:<10.2g} ({b['relative_std']:.1e})  {b['combination']}")
     lines += ["", "parameters (value, std from log and prior, std from the log alone, URDF):"]
@@ -1104,13 +1119,22 @@ class _Design:
         q0 = 0.5 * (self.lower + self.upper) - 0.5 * k * (q.max(axis=0) + q.min(axis=0))
         return np.concatenate([(a * k[:, None]).ravel(), (b * k[:, None]).ravel(), q0])
 
-    def within(self, y):
-        """Whether y's motion, on a grid 10x finer than the constraints', is within the limits."""
+    def inside(self, y):
+        """y with each joint that exceeds a limit on a grid 10x finer than the constraints' scaled
+        down (about its mid-range) and shifted just enough to be within them; the others as
+        they are."""
+        a, b, q0 = (v.copy() for v in self.split(y))
         dense = self.grid(np.linspace(0.0, 2 * math.pi / self.wl[0], 400 * self.L, endpoint=False))
-        q, v, acc = self.states(y, dense)
-        tol = 1e-9
-        return bool(np.all(q >= self.lower - tol) and np.all(q <= self.upper + tol) and
-                    np.all(np.abs(v) <= self.vmax * (1 + tol)) and np.all(np.abs(acc) <= self.amax * (1 + tol)))
+        q, v, acc = self.states(np.concatenate([a.ravel(), b.ravel(), np.zeros(self.n)]), dense)
+        k = np.minimum.reduce([np.ones(self.n),
+                               (self.upper - self.lower) / np.maximum(np.ptp(q, axis=0), 1e-12),
+                               self.vmax / np.maximum(np.abs(v).max(axis=0), 1e-12),
+                               self.amax / np.maximum(np.abs(acc).max(axis=0), 1e-12)])
+        mid = 0.5 * (q.max(axis=0) + q.min(axis=0))
+        q0 = q0 + (1 - k) * mid                              # the mid-range kept
+        top, bottom = q0 + k * q.max(axis=0), q0 + k * q.min(axis=0)
+        q0 = q0 - np.maximum(top - self.upper, 0.0) + np.maximum(self.lower - bottom, 0.0)
+        return np.concatenate([(a * k[:, None]).ravel(), (b * k[:, None]).ravel(), q0])
 
     def matrix(self, q, v, acc):
         """The stacked, scaled base regressor W at those states."""
@@ -1263,9 +1287,8 @@ def excitation(robot, T=10.0, *, base_frequency=None, harmonics=5, margin=0.05, 
     bar.close()
     y = best[0]
     # the constraints hold on the fine grid; between its points the motion may exceed them by
-    # round-off or a sliver: scale each joint to its limits on a grid 10x finer if so
-    if not design.within(y):
-        y = design.fit(y)
+    # round-off or a sliver: scaled back within them on a grid 10x finer
+    y = design.inside(y)
     a, b, q0 = design.split(y)
     dense = design.grid(np.linspace(0.0, 1.0 / f0, 400, endpoint=False))
     cond = float(np.linalg.cond(_tri(design.matrix(*design.states(y, dense)))))

@@ -190,10 +190,6 @@ def test_excitation_within_limits_at_rest_and_better_conditioned(gripper, grippe
     assert np.all(q >= lo + margin - 1e-3) and np.all(q <= hi - margin + 1e-3)
     assert np.all(np.abs(qd) <= 0.8 * v * (1 + 1e-3))
     assert np.all(np.abs(qdd) <= 1.6 * v * (1 + 1e-3))
-    # every joint uses one of its limits fully
-    use = np.max([np.ptp(q, axis=0) / (hi - lo - 2 * margin), np.abs(qd).max(axis=0) / (0.8 * v),
-                  np.abs(qdd).max(axis=0) / (1.6 * v)], axis=0)
-    assert np.all(use > 0.98)
     # at rest at both ends, periodic
     np.testing.assert_allclose(qd[[0, -1]], 0, atol=1e-9)
     np.testing.assert_allclose(qdd[[0, -1]], 0, atol=1e-9)
