@@ -171,8 +171,8 @@ def model_statistics(robot, samples=SAMPLES, seed=0):
 
 @lru_cache(maxsize=32)
 def torque_statistics(robot, samples=SAMPLES, seed=0):
-    """How a torque error reaches the acceleration, over the design's sample configurations
-    (``samples`` drawn with ``seed``, as ``model_statistics``).
+    """How a torque error reaches the acceleration of ``robot`` (RobotModel, n joints), over the
+    design's sample configurations (``samples`` drawn with ``seed``, as ``model_statistics``).
 
     Returns
     -------
