@@ -114,8 +114,12 @@ class StabilityReport:
     stiff_mode: dict | None = None   # when unstable: rate (1/s), state, joint, cause, lock
 
     def as_dict(self):
-        """The report as a JSON-ready dict (``dataclasses.asdict``)."""
-        return asdict(self)
+        """The report as a JSON-ready dict (``dataclasses.asdict``; ``stiff_mode`` only when
+        there is one, so a stable target's metadata is what it was before the field existed)."""
+        d = asdict(self)
+        if d["stiff_mode"] is None:
+            del d["stiff_mode"]
+        return d
 
     def message(self, family, form="python"):
         """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius,
