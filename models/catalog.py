@@ -10,8 +10,8 @@
 | ur3, ur10        | Universal Robots UR3 and UR10 (6 DoF), example-robot-data   |
 | kinova           | Kinova JACO2 j2s6s200 (6 DoF; its two fingers and tips are  |
 |                  | fixed joints in the URDF: nothing to lock)                  |
-| xarm7            | UFACTORY xArm7 (7 DoF; the URDF has no gripper; joint       |
-|                  | damping 2..10 N m s/rad on light wrist links)               |
+| xarm7            | UFACTORY xArm7 (7 DoF; the URDF has no gripper; friction    |
+|                  | viscous 2..10 N m s/rad, Coulomb 1 N m, light wrist links)  |
 | z1               | Unitree Z1 (6 DoF), gripper joint jointGripper locked at 0  |
 | so100, so101     | SO-ARM100 / SO-101 (5 DoF), jaw joint gripper locked at 0   |
 | seed004_2r       | planar 2R of seed 004 from its DH table (rigid part)        |

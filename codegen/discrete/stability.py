@@ -247,8 +247,10 @@ def stiff_mode(spec, lin, p, dt):
     """The stiffest mode of the flow at the working points: the eigenvalue of (J(x) + J(x+))/2 of
     largest modulus, the state slot its eigenvector lives on most, that slot's joint, and why it
     is stiff, from the robot at that point's configuration y: for joint j with M^-1 (kg m^2)^-1 and
-    viscous friction F, the rate F_jj (M^-1)_jj when it explains the mode (>= half of it: "joint
-    damping on a small inertia"), else the small inertia 1 / (M^-1)_jj alone.
+    the friction's slope at rest d_j = viscous_j + coulomb_j / width (N m s/rad; the smooth
+    Coulomb sign tanh(v / width) is steepest there), the rate d_j (M^-1)_jj when it explains the
+    mode (>= half of it: "friction on a small inertia"), else the small inertia 1 / (M^-1)_jj
+    alone.
 
     Parameters
     ----------
@@ -283,9 +285,16 @@ def stiff_mode(spec, lin, p, dt):
     j = robot.joint_names.index(joint)
     y = lin.Y[i][:robot.n]
     minv = np.linalg.inv(np.asarray(robot.M(y), dtype=float))
-    inertia, damping = 1.0 / minv[j, j], float(np.asarray(robot.F)[j, j])
-    what = (f"joint damping {damping:.3g} N m s/rad on the small inertia of {joint} ({inertia:.2g} kg m^2 "
-            f"seen from it: rate F/I = {damping * minv[j, j]:.3g} 1/s)" if damping * minv[j, j] >= 0.5 * rate
+    inertia, viscous = 1.0 / minv[j, j], float(np.asarray(robot.F)[j, j])
+    # the friction's slope at rest: viscous + Coulomb / width (its tanh's steepest point)
+    coulomb = float(np.asarray(getattr(robot, "coulomb", np.zeros(robot.n)), dtype=float)[j])
+    width = float(getattr(robot, "coulomb_width", 1.0))
+    damping = viscous + coulomb / width
+    friction = (f"viscous friction {viscous:.3g} N m s/rad" if coulomb == 0 else
+                f"friction of slope {damping:.3g} N m s/rad at rest (viscous {viscous:.3g} + Coulomb "
+                f"{coulomb:.3g} N m / width {width:.3g} rad/s)")
+    what = (f"{friction} on the small inertia of {joint} ({inertia:.2g} kg m^2 seen from it: rate "
+            f"{damping * minv[j, j]:.3g} 1/s)" if damping * minv[j, j] >= 0.5 * rate
             else f"the small inertia of {joint} ({inertia:.2g} kg m^2 seen from it)")
     gripper = bool(GRIPPER.search(joint))
     out["cause"] = (f"the stiff mode (rate {rate:.3g} 1/s = {rate * dt:.3g} / dt) is {what}"

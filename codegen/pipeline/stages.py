@@ -12,10 +12,9 @@ stable sub-steps (``resolve_substeps``): the folder, its metadata and the C hold
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, replace
 from pathlib import Path
-
-import json
 
 from ..core.cache import work_dir
 from ..core.target import AUTO, Target

@@ -97,19 +97,25 @@ def test_auto_is_resolved_before_any_check():
 @pytest.mark.slow
 def test_an_unlocked_gripper_is_named_with_the_fix(tmp_path, capsys, monkeypatch):
     """z1 from its URDF without locking jointGripper, at one sub-step: the refusal names the
-    gripper joint, the damping on its small inertia, and the fixes runnable from the CLI
-    (--substeps, --lock jointGripper=0) or from Python (substeps=, locked_joints=); both fixes
-    work."""
+    gripper joint, the friction on its small inertia (viscous 1 + Coulomb 1 N m over the 0.2 rad/s
+    smooth sign), and the fixes runnable from the CLI (--substeps, --lock jointGripper=0) or from
+    Python (substeps=, locked_joints=). Both fixes build: "auto" with the fewest stable
+    sub-steps, and locking the gripper needs fewer (joint6's friction is next)."""
+    from codegen.core.target import Discretization
     urdf = example_robot_data_dir() / "z1_description" / "urdf" / "z1.urdf"
     monkeypatch.chdir(tmp_path)
     assert main(["build", "--urdf", str(urdf), "--substeps", "1"]) == 2
     err = capsys.readouterr().err
-    assert "jointGripper" in err and "joint damping 1 N m s/rad on the small inertia of jointGripper" in err
+    assert "on the small inertia of jointGripper" in err and "a gripper joint" in err
+    assert "Coulomb 1 N m / width 0.2 rad/s" in err
     assert "--substeps auto" in err and "--lock jointGripper=0" in err
     spec = observers.build("reduced_order", load_robot(urdf=urdf))
     with pytest.raises(UnstableDiscretization, match=r"locked_joints=\{'jointGripper': 0.0\}"):
         compile_observer(spec, substeps=1, out_dir=tmp_path)
-    assert main(["build", "--urdf", str(urdf), "--lock", "jointGripper=0", "--substeps", "1", "--name", "z1l"]) == 0
-    assert main(["build", "--urdf", str(urdf), "--name", "z1a"]) == 0          # auto: 2 sub-steps
-    meta = json.loads((tmp_path / "generated" / "z1a" / "z1a.json").read_text())
-    assert meta["discretization"]["substeps"] == 2
+    subs = {}
+    for name, lock in (("free", []), ("locked", ["--lock", "jointGripper=0"])):
+        assert main(["build", "--urdf", str(urdf), *lock, "--name", name]) == 0
+        subs[name] = json.loads((tmp_path / "generated" / name / f"{name}.json").read_text())[
+            "discretization"]["substeps"]
+    assert 1 < subs["locked"] < subs["free"]
+    assert not check(spec, Discretization(substeps=subs["free"] - 1)).stable
