@@ -74,6 +74,20 @@ def test_the_acceleration_error_of_a_torque_uncertainty():
     assert "torque uncertainty" in str(d)
 
 
+def test_a_dict_by_joint_name():
+    """A dict joint -> N m (an identification report's residual per joint) is the list in the
+    robot's joint order; a missing or unknown joint is refused naming it."""
+    names = ["a", "b", "c"]
+    assert check_torque_uncertainty({"c": 0.3, "a": 0.1, "b": 0.2}, 3, names).tolist() == [0.1, 0.2, 0.3]
+    for bad in ({"a": 0.1, "b": 0.2}, {"a": 0.1, "b": 0.2, "c": 0.3, "d": 0.0}):
+        with pytest.raises(ValueError, match="torque_uncertainty: a dict needs every joint"):
+            check_torque_uncertainty(bad, 3, names)
+    robot = load_robot("seed000_2r")
+    by_name = observers.build("reduced_order", robot, quantization=1e-4, torque_uncertainty={"q2": 0.05, "q1": 0.0})
+    by_list = observers.build("reduced_order", robot, quantization=1e-4, torque_uncertainty=[0.0, 0.05])
+    assert by_name.p_default == pytest.approx(by_list.p_default) and by_name.design["torque_uncertainty"] == [0.0, 0.05]
+
+
 @pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), [0.1, 0.2, 0.3], "x"])
 def test_bad_torque_uncertainty_is_refused(bad):
     with pytest.raises(ValueError, match="torque_uncertainty"):

@@ -84,22 +84,33 @@ def check_uncertainty(uncertainty):
     return float(uncertainty)
 
 
-def check_torque_uncertainty(torque_uncertainty, n):
+def check_torque_uncertainty(torque_uncertainty, n, joint_names=None):
     """Per-joint torque uncertainty (n,) in N m from ``torque_uncertainty``: a number (every
-    joint) or ``n`` numbers, each finite and >= 0 (e.g. an identification's RMS torque residual
-    per joint); ValueError naming it otherwise.
+    joint), ``n`` numbers, or a dict joint name -> number (e.g. an identification report's
+    held-out torque residual, ``report["residual_rms"]["after"]``), each finite and >= 0;
+    ValueError naming it otherwise.
 
     Parameters
     ----------
-    torque_uncertainty : float or sequence of float
+    torque_uncertainty : float, sequence of float or dict
         N m.
     n : int
         Number of joints.
+    joint_names : sequence of str, optional
+        The joints, in order (needed for a dict: every joint once, no other key).
 
     Returns
     -------
     (n,) float array
     """
+    if isinstance(torque_uncertainty, dict):
+        names = list(joint_names or [])
+        missing = [j for j in names if j not in torque_uncertainty]
+        extra = [k for k in torque_uncertainty if k not in names]
+        if not names or missing or extra:
+            raise ValueError(f"torque_uncertainty: a dict needs every joint ({', '.join(names)}) and no "
+                             f"other key; missing {missing}, unknown {extra}")
+        torque_uncertainty = [torque_uncertainty[j] for j in names]
     try:
         t = np.asarray(torque_uncertainty, dtype=float).reshape(-1)
     except (TypeError, ValueError):

@@ -225,7 +225,7 @@ def reduced_order_design(robot, dt, noise=None, quantization=None, uncertainty=0
     -------
     NoiseAwareDesign"""
     uncertainty = check_uncertainty(uncertainty)
-    tau_unc = check_torque_uncertainty(torque_uncertainty, robot.n)
+    tau_unc = check_torque_uncertainty(torque_uncertainty, robot.n, robot.joint_names)
     sigma = sensor_sigma(noise, quantization)
     guarantee = reduced_order_gain(robot, eta=eta, v_max=v_max)
     stats = model_statistics(robot)

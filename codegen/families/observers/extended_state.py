@@ -62,7 +62,7 @@ def design_omega(robot, dt, noise=None, quantization=None, uncertainty=0.0, v_ma
     (codegen.families.design.noise); the two add in quadrature."""
     stats = model_statistics(robot)
     sigma, unc = sensor_sigma(noise, quantization), check_uncertainty(uncertainty)
-    tau_unc = check_torque_uncertainty(torque_uncertainty, robot.n)
+    tau_unc = check_torque_uncertainty(torque_uncertainty, robot.n, robot.joint_names)
     v = v_max / 2
     e_dot_rel = unc * stats["minv_dg_rms"] * v / robot.n ** 0.5
     e_dot_tau = (v / robot.n ** 0.5 * torque_error_rms(tau_unc, torque_statistics(robot)["dminv_col_ms"])

@@ -44,7 +44,7 @@ def design_gains(robot, design, eta, v_max, noise, quantization, uncertainty, dt
         return guarantee.k0, KP_DEFAULT, {"design": design, "reduced_order": guarantee.as_dict()}
     stats = model_statistics(robot)
     sigma, unc = sensor_sigma(noise, quantization), check_uncertainty(uncertainty)
-    tau_unc = check_torque_uncertainty(torque_uncertainty, robot.n)
+    tau_unc = check_torque_uncertainty(torque_uncertainty, robot.n, robot.joint_names)
     tau_rms = float((tau_unc ** 2).sum() ** 0.5)
     rate = convergence_floor(v_max, t_conv)
     kd, kp, predicted = nicosia_tomei_noise_gains(dt, sigma, stats["g_rms"], unc, stats["trace_minv2"],

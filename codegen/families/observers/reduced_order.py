@@ -52,9 +52,10 @@ def build(robot, k0=None, eta=1.0, v_max=2.0, noise=None, quantization=None, unc
         encoder (codegen.families.design.noise).
     uncertainty : float
         Relative error of the model's masses and inertias (0.1 = 10 %).
-    torque_uncertainty : float or sequence of n floats
+    torque_uncertainty : float, sequence of n floats or dict joint -> float
         Torque error per joint (N m: an offset, unmodelled friction or payload; e.g. the torque
-        residual of an identification), a number for every joint or one per joint; its bias
+        residual of an identification, ``report["residual_rms"]["after"]`` of
+        codegen.evaluate.identify), a number for every joint or one per joint; its bias
         rms_q ||M^-1 diag(t)||_F / k0 enters the predicted error (codegen.families.design.noise).
     v_bound : float or sequence of n floats, optional
         Speed (rad/s) at which the model's velocity argument saturates; default twice the URDF
