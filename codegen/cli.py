@@ -34,6 +34,10 @@ class Parser(argparse.ArgumentParser):
 
 
 def _message(e):
+    """The one line a user error prints: a KeyError's key text, an unstable discretisation's fix in
+    command-line flags (--substeps, --dt, --lock), else the error's text."""
+    if getattr(e, "cli_message", None):
+        return e.cli_message
     return str(e.args[0]) if isinstance(e, KeyError) and e.args else str(e)
 
 
@@ -81,6 +85,19 @@ def _numbers(text, what):
         return None
     values = [_number(v, what) for v in text.split(",")]
     return values if len(values) > 1 else values[0]
+
+
+def _substeps(text):
+    """--substeps: a positive integer or "auto" (argparse type)."""
+    if text == "auto":
+        return text
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected a positive integer or "auto", got {text!r}')
+    return value
 
 
 def _value(text, what):
@@ -256,10 +273,12 @@ def cmd_embedded(args):
     from tqdm import tqdm
 
     from .pipeline.emit import with_params
+    from .pipeline.stages import resolve_substeps
     from .pipeline.targets_file import build_spec
     rows, targets = [], _targets(args)
     for target, out in tqdm(targets, desc="embedded", unit="target", file=sys.stderr, leave=False, disable=None):
         spec = with_params(build_spec(target), target.params)
+        target = resolve_substeps(target, spec)
         for prefix, rec in cortex_m.verify_target(spec, target, out, steps=args.steps):
             rows.append(rec)
             tqdm.write(f"{prefix:46s} {rec['cpu']:10s} {rec['flash_bytes'] / 1024:8.1f} {rec['static_ram_bytes']:7d} "
@@ -441,7 +460,8 @@ def _target_options(p, out_help):
     a("--dt", type=float, help="sample time in s (default 1e-3)")
     a("--method", choices=METHODS, help="integrator (default etdrk4: RK4 with the gain term integrated exactly)")
     a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discrete.discretize)")
-    a("--substeps", type=int, help="integrator sub-steps per sample (default 1)")
+    a("--substeps", type=_substeps, help='integrator sub-steps per sample, or "auto" (the default): the '
+      "fewest that make the discrete observer stable")
     a("--precision", choices=PRECISIONS, help="real type of the C (default double)")
     a("--name", help="symbol prefix and folder name (default <robot>_<family>[_<variant>])")
     a("--out", metavar="DIR", help=out_help)

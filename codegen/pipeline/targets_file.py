@@ -13,7 +13,8 @@ One ``[[target]]`` table per generated observer; the CLI's options are the same 
     variant = "O2"                 # of families that have variants (default: the family's)
     design = { eigenvalues = [] }  # keyword arguments of the family's build: design inputs, gains
     params = { rcond_min = 1e-9 }  # runtime parameters overriding the designed defaults
-    dt = 1e-3                      # discretisation: dt (s), method, hold, substeps
+    dt = 1e-3                      # discretisation: dt (s), method, hold, substeps (a number, or
+    substeps = "auto"              #   "auto", the default: the fewest that are stable)
     precision = "double"           # real type of the C
     name = "arm_cg_o2"             # symbol prefix and folder (default <robot>_<family>[_<variant>])
     out = "generated"              # parent folder, relative to this file (default ./generated)
@@ -30,7 +31,7 @@ import inspect
 import tomllib
 from pathlib import Path
 
-from ..core.target import Discretization, Target
+from ..core.target import AUTO, Discretization, Target
 
 KEYS = ("robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design", "params",
         "dt", "method", "hold", "substeps", "precision", "name", "out")
@@ -191,7 +192,8 @@ def make_target(entry, base=".", where=""):
         _fail(where, f"unknown design input{'s' * (len(bad) > 1)} {', '.join(bad)} of {family}; "
               f"valid: {', '.join(design_names) or '(none)'}")
     try:
-        disc = Discretization(**{k: entry[k] for k in DISCRETIZATION_KEYS if k in entry})
+        # unstated substeps: the fewest stable ones (resolved when the target is made)
+        disc = Discretization(**{"substeps": AUTO, **{k: entry[k] for k in DISCRETIZATION_KEYS if k in entry}})
         target = Target(robot=source, family=family, variant=variant, build=design,
                         params=_table(entry, "params", where), discretization=disc,
                         precision=entry.get("precision", "double"), name=entry.get("name"))

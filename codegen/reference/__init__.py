@@ -68,6 +68,9 @@ def reference_observer(spec, discretization=None, *, dt=None, method=None, subst
     if discretization is None and "target" in desc:
         discretization = desc["target"]["discretization"]
     disc = as_discretization(discretization, dt=dt, method=method, substeps=substeps, hold=hold)
+    if disc.substeps == "auto":
+        raise ValueError('substeps: "auto" is resolved when the target is made (the metadata JSON of a '
+                         "compiled target records the number); give the reference that number")
     return ReferenceObserver(desc, disc)
 
 
