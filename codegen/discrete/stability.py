@@ -36,6 +36,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..core.cache import cached_json
+from ..core.target import AUTO
 from .sampling import declared_slots, measurements
 from .discretize import step_jacobians
 
@@ -46,7 +47,6 @@ GROWTH = 4.0 ** 10     # a gain is searched up to this multiple of its value (x4
 BISECTIONS = 16        # relative precision 2^-16 of the bracket
 
 
-AUTO = "auto"          # substeps="auto": the fewest stable sub-steps (auto_substeps)
 # joints a user would rather lock than integrate: grippers, fingers, hands
 GRIPPER = re.compile(r"finger|gripper|grip|hand|jaw|claw", re.IGNORECASE)
 

@@ -479,11 +479,12 @@ def robot_by_name(name):
 
 
 def design_inputs(quantization=0.0, noise=0.0, uncertainty=0.0, torque_uncertainty=None):
-    """Keyword arguments of ``observers.build`` describing the sensor (rad), the relative
-    model uncertainty and the torque uncertainty (N m, a number or one per joint; None: not
-    stated) (the noise-aware design of codegen.families.design.noise). quantization and noise
-    both None: the sensor is not stated, the design assumes its default encoder; 0 and 0: a
-    noise-free sensor, the guarantee gains."""
+    """Keyword arguments of ``observers.build`` describing the sensor (``quantization`` step and
+    Gaussian ``noise`` std, rad), the relative model ``uncertainty`` and the
+    ``torque_uncertainty`` (N m, a number or one per joint; None: not stated) (the noise-aware
+    design of codegen.families.design.noise). quantization and noise both None: the sensor is not
+    stated, the design assumes its default encoder; 0 and 0: a noise-free sensor, the guarantee
+    gains."""
     sensor = ({} if quantization is None and noise is None else
               {"quantization": float(quantization or 0.0), "noise": float(noise or 0.0)})
     torque = {} if torque_uncertainty is None else {"torque_uncertainty": torque_uncertainty}

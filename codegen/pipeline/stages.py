@@ -19,7 +19,7 @@ from pathlib import Path
 from ..core.cache import work_dir
 from ..core.target import AUTO, Target
 from .compile import compile_library
-from .emit import check_folder, emit, with_params
+from .emit import check_folder, emit, resolve_substeps, with_params
 from .load import load
 from .targets_file import build_spec
 
@@ -75,27 +75,6 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), che
     emit(target, out_dir, spec=spec, force=True, check=check)
     report("compile")
     return Made(target, spec, folder, compile_library(folder, native=native, extra_flags=cflags))
-
-
-def resolve_substeps(target, spec):
-    """``target`` with substeps "auto" replaced by the fewest stable ones for ``spec`` (its
-    parameters applied) (codegen.discrete.stability.auto_substeps: from 1 up, UnstableDiscretization
-    naming the cause and the fix when none up to 64 is); any other target unchanged.
-
-    Parameters
-    ----------
-    target : codegen.core.target.Target
-    spec : codegen.core.spec.ObserverSpec
-        The spec ``target`` describes, with the target's parameters applied.
-
-    Returns
-    -------
-    codegen.core.target.Target
-    """
-    if target.discretization.substeps != AUTO:
-        return target
-    from ..discrete.stability import auto_substeps
-    return replace(target, discretization=auto_substeps(spec, target.discretization))
 
 
 def _as_recorded(folder, target):
