@@ -1,5 +1,5 @@
 """observer-codegen (python -m codegen): list | generate | build | check | simulate | compare |
-sweep | bench | sanitize | cortex_m.
+sweep | bench | sanitize | cortex_m | excite | identify.
 
 `generate`, `build`, `check` and `embedded` take the same targets: catalog robots or a URDF with
 options, a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the
@@ -34,6 +34,10 @@ class Parser(argparse.ArgumentParser):
 
 
 def _message(e):
+    """The one line a user error prints: a KeyError's key text, an unstable discretisation's fix in
+    command-line flags (--substeps, --dt, --lock), else the error's text."""
+    if getattr(e, "cli_message", None):
+        return e.cli_message
     return str(e.args[0]) if isinstance(e, KeyError) and e.args else str(e)
 
 
@@ -81,6 +85,19 @@ def _numbers(text, what):
         return None
     values = [_number(v, what) for v in text.split(",")]
     return values if len(values) > 1 else values[0]
+
+
+def _substeps(text):
+    """--substeps: a positive integer or "auto" (argparse type)."""
+    if text == "auto":
+        return text
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected a positive integer or "auto", got {text!r}')
+    return value
 
 
 def _value(text, what):
@@ -257,10 +274,12 @@ def cmd_embedded(args):
     from tqdm import tqdm
 
     from .pipeline.emit import with_params
+    from .pipeline.stages import resolve_substeps
     from .pipeline.targets_file import build_spec
     rows, targets = [], _targets(args)
     for target, out in tqdm(targets, desc="embedded", unit="target", file=sys.stderr, leave=False, disable=None):
         spec = with_params(build_spec(target), target.params)
+        target = resolve_substeps(target, spec)
         for prefix, rec in cortex_m.verify_target(spec, target, out, steps=args.steps):
             rows.append(rec)
             tqdm.write(f"{prefix:46s} {rec['cpu']:10s} {rec['flash_bytes'] / 1024:8.1f} {rec['static_ram_bytes']:7d} "
@@ -381,9 +400,45 @@ def cmd_sanitize(args):
     return sanitize.run(args.runs, args.seconds)
 
 
+def _robot_of(args):
+    """The robot of ``--robot NAME`` or ``--urdf PATH [--lock JOINT=VALUE ...]`` (as `build`)."""
+    from models import from_source
+    from .pipeline.targets_file import robot_source
+    return from_source(robot_source(args.robot, urdf=args.urdf, lock=_pairs(args.lock, "--lock", _number)))
+
+
+def cmd_excite(args):
+    """`excite`: an excitation trajectory for `identify` (codegen.evaluate.identify.excitation),
+    written as a CSV (t, q_, qd_, qdd_ per joint). ``args``: the parsed namespace; returns 0."""
+    from .evaluate.identify import excitation
+    robot = _robot_of(args)
+    traj = excitation(robot, args.T, base_frequency=args.f0, harmonics=args.harmonics, seed=args.seed,
+                      progress=True)
+    path = traj.write_csv(args.out, dt=args.dt)
+    q = traj.sample(args.dt)[1]
+    print(f"{robot.name}: {traj.T:g} s, f0 = {traj.f0:g} Hz, {traj.a.shape[1]} harmonics, condition number "
+          f"{traj.condition:.4g}; starts and ends at rest at q = [{', '.join(f'{v:.4g}' for v in q[0])}] "
+          f"(move there first; check it for collisions)\nwrote {path}")
+    return 0
+
+
+def cmd_identify(args):
+    """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
+    joint (codegen.evaluate.identify); writes the identified URDF, the friction side file and the
+    report to --out. ``args``: the parsed namespace; returns 0."""
+    from .core.recording import read_csv
+    from .evaluate.identify import identify
+    robot = _robot_of(args)
+    ident = identify(read_csv(args.log, robot.joint_names), robot, cutoff=args.cutoff,
+                     test_fraction=args.test_fraction, coulomb_width=args.coulomb_width, progress=True)
+    ident.write(Path(args.out or work_dir() / "identify"))
+    print(ident.text, end="")
+    return 0
+
+
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
             "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
-            "sanitize": cmd_sanitize, "embedded": cmd_embedded}
+            "sanitize": cmd_sanitize, "embedded": cmd_embedded, "excite": cmd_excite, "identify": cmd_identify}
 
 
 # ------------------------------------------------------------------------------------ parser
@@ -411,7 +466,8 @@ def _target_options(p, out_help):
       "one is split into sub-intervals of at most this")
     a("--method", choices=METHODS, help="integrator (default etdrk4: RK4 with the gain term integrated exactly)")
     a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discrete.discretize)")
-    a("--substeps", type=int, help="integrator sub-steps per sample (default 1)")
+    a("--substeps", type=_substeps, help='integrator sub-steps per sample, or "auto" (the default): the '
+      "fewest that make the discrete observer stable")
     a("--precision", choices=PRECISIONS, help="real type of the C (default double)")
     a("--name", help="symbol prefix and folder name (default <robot>_<family>[_<variant>])")
     a("--out", metavar="DIR", help=out_help)
@@ -494,6 +550,30 @@ def parser():
                         "edge-case CSVs, and a libFuzzer campaign of their step")
     sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
     sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
+    from .evaluate import identify as idf
+    for name, text in (("excite", "an excitation trajectory (CSV) to log for `identify`"),
+                       ("identify", "inertial parameters and friction from a log of q and tau")):
+        x = sub.add_parser(name, parents=[debug], help=text)
+        if name == "identify":
+            x.add_argument("log", help="CSV with t, q_<joint>, tau_<joint> (jittered stamps allowed)")
+        x.add_argument("--robot", help="catalog robot (ur5, panda)")
+        x.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
+        x.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+        if name == "excite":
+            x.add_argument("--T", type=float, default=10.0, help="duration (s, default 10), whole periods")
+            x.add_argument("--f0", type=float, help="base frequency (Hz; default the smallest >= 0.1 with T f0 whole)")
+            x.add_argument("--harmonics", type=int, default=5, help="harmonics per joint (default 5)")
+            x.add_argument("--dt", type=float, default=1e-3, help="sample step of the CSV (s, default 1e-3)")
+            x.add_argument("--seed", type=int, default=0, help="seed of the optimiser's starts")
+            x.add_argument("--out", metavar="CSV", default="traj.csv", help="the trajectory (default traj.csv)")
+        else:
+            x.add_argument("--cutoff", type=float, default=idf.DEFAULT_CUTOFF,
+                           help=f"zero-phase low-pass (Hz, default {idf.DEFAULT_CUTOFF:g})")
+            x.add_argument("--test-fraction", type=float, default=idf.DEFAULT_TEST_FRACTION,
+                           help=f"held-out tail of the log (default {idf.DEFAULT_TEST_FRACTION:g})")
+            x.add_argument("--coulomb-width", type=float, help="w of tanh(qd/w) (rad/s; default the "
+                           "model's coulomb_width)")
+            x.add_argument("--out", metavar="DIR", help="folder of the identified URDF and report (default build/identify)")
     return ap
 
 

@@ -7,8 +7,19 @@
 | seed003_2r_abs   | 2-link arm of seed 003, absolute angles (Table II)          |
 | ur5              | Universal Robots UR5, example-robot-data URDF (6 DoF)       |
 | panda            | Franka Panda, fingers locked at 0 (7 DoF), example-robot-data |
+| ur3, ur10        | Universal Robots UR3 and UR10 (6 DoF), example-robot-data   |
+| kinova           | Kinova JACO2 j2s6s200 (6 DoF; its two fingers and tips are  |
+|                  | fixed joints in the URDF: nothing to lock)                  |
+| xarm7            | UFACTORY xArm7 (7 DoF; the URDF has no gripper; friction    |
+|                  | viscous 2..10 N m s/rad, Coulomb 1 N m, light wrist links)  |
+| z1               | Unitree Z1 (6 DoF), gripper joint jointGripper locked at 0  |
+| so100, so101     | SO-ARM100 / SO-101 (5 DoF), jaw joint gripper locked at 0   |
 | seed004_2r       | planar 2R of seed 004 from its DH table (rigid part)        |
 | seed004_3r       | spatial 3R elbow of seed 004 from its DH table (rigid part) |
+
+The URDF arms are the ones example-robot-data ships (``models.urdf.example_robot_data_dir()``);
+a gripper joint is locked (the observers estimate the arm, and a gripper's tiny inertia makes the
+model stiff: codegen.discrete.stability names it when it does).
 
 Elastic-joint robots (SPEC §6): ``load_elastic(name)`` wraps a catalog robot with the motor
 inertias J and stiffness K of ``ELASTIC`` (or given ones); e.g. ``load_elastic("seed004_2r")``.
@@ -21,7 +32,15 @@ _URDFS = {
     "ur5": ("ur_description/urdf/ur5_robot.urdf", {}),
     "panda": ("panda_description/urdf/panda.urdf",
               {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}),
+    "ur3": ("ur_description/urdf/ur3_robot.urdf", {}),
+    "ur10": ("ur_description/urdf/ur10_robot.urdf", {}),
+    "kinova": ("kinova_description/robots/kinova.urdf", {}),
+    "xarm7": ("xarm_description/urdf/xarm7.urdf", {}),
+    "z1": ("z1_description/urdf/z1.urdf", {"jointGripper": 0.0}),
+    "so100": ("so_arm_description/urdf/so100.urdf", {"gripper": 0.0}),
+    "so101": ("so_arm_description/urdf/so101.urdf", {"gripper": 0.0}),
 }
+ARMS = ("ur3", "ur10", "kinova", "xarm7", "z1", "so100", "so101")   # the arms added with ur5 and panda
 _CLOSED = {
     "seed000_2r": closed_form.seed000_2r,
     "seed002_2r": closed_form.seed002_2r,

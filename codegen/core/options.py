@@ -8,7 +8,8 @@ both; the metadata JSON records them (``to_dict``) and the reference reads them 
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+import math
+from dataclasses import MISSING, asdict, dataclass, fields
 
 
 def _tuple(value, kind):
@@ -24,14 +25,39 @@ class Options:
         return {"kind": type(self).__name__, **asdict(self)}
 
 
+def _bounds(value):
+    """``value`` as a tuple of positive finite floats (rad/s), or ValueError naming v_bound."""
+    out = _tuple(value, float)
+    if not all(math.isfinite(v) and v > 0 for v in out):
+        raise ValueError(f"v_bound must be positive finite speeds (rad/s), got {list(out)}")
+    return out
+
+
+@dataclass(frozen=True)
+class VelocityBoundOptions(Options):
+    """A velocity observer that evaluates its model at the estimate saturated per joint,
+    FD(y, sat(v), tau) with sat(v)_j = min(max(v_j, -b_j), b_j), b = ``v_bound`` (rad/s; one per
+    joint): the right-hand side grows at most linearly in the state, so a large model error
+    cannot drive the Coriolis term (quadratic in v) into a finite escape
+    (codegen.families.observers._bound). Empty: no saturation (a target generated before it)."""
+
+    v_bound: tuple = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "v_bound", _bounds(self.v_bound))
+
+
 @dataclass(frozen=True)
 class HybridOptions(Options):
-    """Hybrid reduced-order observer (SPEC §1.3): the logic state r lives in [1, r_max]."""
+    """Hybrid reduced-order observer (SPEC §1.3): the logic state r lives in [1, r_max]; the
+    model is evaluated at the estimate saturated to ``v_bound`` as in VelocityBoundOptions."""
 
     r_max: int
+    v_bound: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "r_max", int(self.r_max))
+        object.__setattr__(self, "v_bound", _bounds(self.v_bound))
 
 
 @dataclass(frozen=True)
@@ -71,21 +97,23 @@ class VariantOptions(Options):
     variant: str
 
 
-KINDS = {cls.__name__: cls for cls in (Options, HybridOptions, QuadratureOptions,
+KINDS = {cls.__name__: cls for cls in (Options, VelocityBoundOptions, HybridOptions, QuadratureOptions,
                                        NonMinimalOptions, VariantOptions)}
 
 
 def options_from_dict(d):
     """The typed options recorded by ``Options.to_dict``: the dict ``d`` (None: plain ``Options``)
-    holds "kind" (a name in ``KINDS``, default "Options") and exactly that class's fields
-    (ValueError on an unknown kind or other fields)."""
+    holds "kind" (a name in ``KINDS``, default "Options") and that class's fields, those with a
+    default optional (a target recorded before the field existed); ValueError on an unknown kind,
+    an unknown field or a missing required one."""
     d = dict(d or {"kind": "Options"})
     kind = d.pop("kind", "Options")
     if kind not in KINDS:
         raise ValueError(f"unknown options kind {kind!r}; known: {sorted(KINDS)}")
     cls = KINDS[kind]
     names = {f.name for f in fields(cls)}
-    if set(d) != names:
+    required = {f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING}
+    if not required <= set(d) <= names:
         raise ValueError(f"{kind}: expected fields {sorted(names)}, got {sorted(d)}")
     return cls(**d)
 

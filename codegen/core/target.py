@@ -13,6 +13,7 @@ import re
 from dataclasses import asdict, dataclass, field, replace
 
 METHODS = ("euler", "rk4", "etdrk4")
+AUTO = "auto"          # substeps: the fewest that make the discrete observer stable
 HOLDS = ("zoh", "foh")
 PRECISIONS = ("double", "float")
 # C type of each precision (the typedef <prefix>_real of the generated header)
@@ -60,9 +61,11 @@ def _seconds(name, value):
     return x
 
 
-def _positive_int(name, value):
+def _substeps(value):
+    if value == AUTO:
+        return value
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        raise ValueError(f'substeps must be a positive integer or "auto", got {value!r}')
     return value
 
 
@@ -84,8 +87,12 @@ class Discretization:
         How the measurement behaves between samples: "zoh" holds y and u over [t_k, t_k+1];
         "foh" brings the state from t_k-1 to t_k with y linear in between and u_k-1 held,
         then forms the estimate (causal, no k0 dt sampling bias; see codegen.discrete.discretize).
-    substeps : int
-        Equal sub-steps of ``method`` per sample (>= 1).
+    substeps : int or "auto"
+        Equal sub-steps of ``method`` per sample (>= 1); "auto": a request for the fewest that make
+        the discretised observer stable (codegen.discrete.stability.auto_substeps), resolved into a
+        number when the target is made (codegen.pipeline.stages.make): what a generated folder
+        and its metadata record is always the number. ``DEFAULT_DISCRETIZATION`` has 1; the
+        targets file, the CLI and ``compile_observer`` ask "auto" unless substeps are given.
     dt_min, dt_max : float or None
         The declared range of the elapsed time between samples (s), dt_min <= dt <= dt_max: the
         step takes the elapsed time as an input (``<prefix>_step_dt``), the discrete stability
@@ -109,7 +116,7 @@ class Discretization:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.hold not in HOLDS:
             raise ValueError(f"hold must be one of {HOLDS}, got {self.hold!r}")
-        _positive_int("substeps", self.substeps)
+        _substeps(self.substeps)
         for name in ("dt_min", "dt_max"):
             value = getattr(self, name)
             if value is not None:

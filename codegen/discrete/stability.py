@@ -28,16 +28,24 @@ range stable, and the accuracy of the step at dt, max_i ||dPhi/dx - expm(dt (J(x
     report = check(spec, disc)               # StabilityReport; cached on disk
     require_stable(spec, disc)               # the report, or UnstableDiscretization (a ValueError)
     auto_substeps(spec, disc)                # the smallest stable substeps
+
+When unstable, the report also names the stiff mode (the flow Jacobian's eigenvalue of largest
+modulus at the worst working point), the joint it lives on and its cause (joint damping on a small
+inertia, or the small inertia alone: an unlocked gripper, a light wrist), and the refusal gives the
+fix in the words of where the user is: Python arguments (``substeps="auto"``, ``dt=``,
+``locked_joints=``) or command-line flags (``--substeps auto``, ``--dt``, ``--lock``).
 """
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from scipy.linalg import expm
 
 from ..core.cache import cached_json
+from ..core.target import AUTO
 from .sampling import declared_slots, measurements
 from .discretize import step_jacobians
 
@@ -48,9 +56,26 @@ GROWTH = 4.0 ** 10     # a gain is searched up to this multiple of its value (x4
 BISECTIONS = 16        # relative precision 2^-16 of the bracket
 
 
+# joints a user would rather lock than integrate: grippers, fingers, hands
+GRIPPER = re.compile(r"finger|gripper|grip|hand|jaw|claw", re.IGNORECASE)
+
+
 class UnstableDiscretization(ValueError):
     """The discretised observer is unstable for its gains, dt and method; the message names
-    the gain, dt and the fix."""
+    the gain, dt, the cause and the fix as Python arguments; ``cli_message`` (or None) the same
+    with the command line's flags (what ``python -m codegen`` prints).
+
+    Parameters
+    ----------
+    message : str
+        The refusal, with the fixes as Python arguments.
+    cli_message : str, optional
+        The refusal, with the fixes as command-line flags.
+    """
+
+    def __init__(self, message, cli_message=None):
+        super().__init__(message)
+        self.cli_message = cli_message
 
 
 @dataclass
@@ -104,14 +129,24 @@ class StabilityReport:
     points: int = 0
     checked: bool = True
     evaluable: bool = True     # False: the step is not finite at the working points (not judged)
+    stiff_mode: dict | None = None   # when unstable: rate (1/s), state, joint, cause, lock
 
     def as_dict(self):
-        """The report as a JSON-ready dict (``dataclasses.asdict``)."""
-        return asdict(self)
+        """The report as a JSON-ready dict (``dataclasses.asdict``; ``stiff_mode`` only when
+        there is one, so a stable target's metadata is what it was before the field existed)."""
+        d = asdict(self)
+        if d["stiff_mode"] is None:
+            del d["stiff_mode"]
+        return d
 
-    def message(self, family):
-        """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius
-        and the fixes."""
+    def message(self, family, form="python"):
+        """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius,
+        the cause (the stiff mode's joint and why it is stiff) and the fixes, as Python arguments
+        (``form`` "python": ``substeps="auto"``, ``dt=``, ``locked_joints=``) or command-line flags
+        ("cli": ``--substeps auto``, ``--dt``, ``--lock``)."""
+        if form not in ("python", "cli"):
+            raise ValueError(f"form must be 'python' or 'cli', got {form!r}")
+        cli = form == "cli"
         where = f"at dt = {self.dt:g} with {self.method} ({self.hold} hold, {self.substeps} substep(s))"
         if self.dt_min is not None and self.dt_max is not None and self.dt_min < self.dt_max:
             where += f", elapsed time in [{self.dt_min:g}, {self.dt_max:g}]"
@@ -122,16 +157,28 @@ class StabilityReport:
                f"{self.flow_radius:.4g})")
         if self.negative:
             why = f"{', '.join(self.negative)} must be >= 0; {why}"
+        stiff = self.stiff_mode or {}
+        if stiff.get("cause") and not self.negative:
+            why = f"{why}; {stiff['cause']}"
         fixes = [f"stable for 0 <= {g} <= {v['max_stable']:.6g}" if v["limit_found"] else
                  f"stable for every {g} >= 0 tested (up to {v['max_stable']:.3g})"
                  for g, v in self.gains.items() if v["max_stable"]]
         if self.substeps_needed:
-            fixes.append(f"or use substeps >= {self.substeps_needed * self.substeps}")
+            m = self.substeps_needed * self.substeps
+            fixes.append(f"or use --substeps {m} (or more)" if cli else f"or use substeps >= {m}")
         if self.dt_limit:
-            fixes.append(f"or dt_max <= {self.dt_limit:.3g} (longer intervals are split)"
-                         if self.dt_limit >= self.dt else f"or dt <= {self.dt_limit:.3g}")
+            limit = f"{self.dt_limit:.3g}"
+            if self.dt_limit >= self.dt:
+                fixes.append(f"or --dt-max {limit} (or less; longer intervals are split)" if cli else
+                             f"or dt_max <= {limit} (longer intervals are split)")
+            else:
+                fixes.append(f"or --dt {limit} (or less)" if cli else f"or dt <= {limit}")
         if not self.negative:                 # sub-steps cannot make a negative gain stable
-            fixes.append('or substeps="auto" to choose them')
+            fixes.append("or --substeps auto to choose them" if cli else 'or substeps="auto" to choose them')
+        if stiff.get("lock") and not self.negative:
+            j = stiff["lock"]
+            fixes.append(f"or lock {j}: --lock {j}=0" if cli else
+                         f"or lock {j}: load_robot(urdf=..., locked_joints={{{j!r}: 0.0}})")
         return f"{gains} {where}: {why}; " + ", ".join(fixes)
 
 
@@ -241,6 +288,74 @@ class _Linearisation:
         return bool(np.all(self.radii(p, dts)[2] <= 1 + TOL))
 
 
+def _joint_of(spec, state):
+    """The robot joint a state slot belongs to (its name ends with ``_<joint>``), or None."""
+    name = spec.x_names[state]
+    joints = sorted(getattr(spec.robot, "joint_names", []), key=len, reverse=True)
+    return next((j for j in joints if name.endswith("_" + j)), None)
+
+
+def stiff_mode(spec, lin, p, dt):
+    """The stiffest mode of the flow at the working points: the eigenvalue of (J(x) + J(x+))/2 of
+    largest modulus, the state slot its eigenvector lives on most, that slot's joint, and why it
+    is stiff, from the robot at that point's configuration y: for joint j with M^-1 (kg m^2)^-1 and
+    the friction's slope at rest d_j = viscous_j + coulomb_j / width (N m s/rad; the smooth
+    Coulomb sign tanh(v / width) is steepest there), the rate d_j (M^-1)_jj when it explains the
+    mode (>= half of it: "friction on a small inertia"), else the small inertia 1 / (M^-1)_jj
+    alone.
+
+    Parameters
+    ----------
+    spec : ObserverSpec
+    lin : _Linearisation
+        The working points.
+    p : (np,) array
+        Parameters.
+    dt : float
+        Sample time (s).
+
+    Returns
+    -------
+    dict or None
+        rate (|eigenvalue|, 1/s), rate_dt (rate dt), state (slot name), joint (or None), cause
+        (text), lock (the joint, when it looks like a gripper or finger: locking it is the fix;
+        else None); None when the flow is not finite there.
+    """
+    _, J = lin.at(p, [dt])
+    if J is None:
+        return None
+    J = J[0]
+    w, V = np.linalg.eig(J)                                  # (S, nx), (S, nx, nx)
+    i, k = np.unravel_index(np.argmax(np.abs(w)), w.shape)
+    rate = float(abs(w[i, k]))
+    state = int(np.argmax(np.abs(V[i, :, k])))
+    joint = _joint_of(spec, state)
+    out = {"rate": rate, "rate_dt": rate * dt, "state": spec.x_names[state], "joint": joint,
+           "cause": None, "lock": None}
+    robot = spec.robot
+    if joint is None or not hasattr(robot, "M"):
+        return out
+    j = robot.joint_names.index(joint)
+    y = lin.Y[i][:robot.n]
+    minv = np.linalg.inv(np.asarray(robot.M(y), dtype=float))
+    inertia, viscous = 1.0 / minv[j, j], float(np.asarray(robot.F)[j, j])
+    # the friction's slope at rest: viscous + Coulomb / width (its tanh's steepest point)
+    coulomb = float(np.asarray(getattr(robot, "coulomb", np.zeros(robot.n)), dtype=float)[j])
+    width = float(getattr(robot, "coulomb_width", 1.0))
+    damping = viscous + coulomb / width
+    friction = (f"viscous friction {viscous:.3g} N m s/rad" if coulomb == 0 else
+                f"friction of slope {damping:.3g} N m s/rad at rest (viscous {viscous:.3g} + Coulomb "
+                f"{coulomb:.3g} N m / width {width:.3g} rad/s)")
+    what = (f"{friction} on the small inertia of {joint} ({inertia:.2g} kg m^2 seen from it: rate "
+            f"{damping * minv[j, j]:.3g} 1/s)" if damping * minv[j, j] >= 0.5 * rate
+            else f"the small inertia of {joint} ({inertia:.2g} kg m^2 seen from it)")
+    gripper = bool(GRIPPER.search(joint))
+    out["cause"] = (f"the stiff mode (rate {rate:.3g} 1/s = {rate * dt:.3g} / dt) is {what}"
+                    + (", a gripper joint" if gripper else ""))
+    out["lock"] = joint if gripper else None
+    return out
+
+
 def _distance(a, b):
     """||a - b||_2, inf when not finite."""
     d = a - b
@@ -307,6 +422,8 @@ def _compute(spec, disc, p, gains, bounds=True):
         limit = _largest(lambda h: lin.stable(p, [h]), 0.0, failing, 0)[0]
         report["dt_limit"] = limit if limit > 0 else None
         report["substeps_needed"] = math.ceil(hi / limit) if limit > 0 else None
+    if not stable and evaluable:
+        report["stiff_mode"] = stiff_mode(spec, lin, p, dts[worst])
     return report
 
 
@@ -338,6 +455,10 @@ def check(spec, disc, p=None, cache=True, bounds=True):
     StabilityReport
     """
     p = np.asarray(spec.p_default if p is None else p, dtype=float).reshape(spec.np)
+    if disc.substeps == AUTO:
+        raise ValueError(f'{spec.family}: substeps="auto" is a request, resolved into a number by '
+                         "auto_substeps (codegen.pipeline.stages.make and compile_observer do); "
+                         "check a number of substeps")
     if spec.nx == 0 or spec.ny == 0:
         # a stateless law has nothing to diverge; a plant (no measurement) is no observer: its
         # step is the simulation's business (codegen.evaluate.sim), not checked here
@@ -364,8 +485,14 @@ def require_stable(spec, disc, p=None):
     UnstableDiscretization (its message) when unstable."""
     report = check(spec, disc, p)
     if not report.stable:
-        raise UnstableDiscretization(f"{spec.family}: " + report.message(spec.family))
+        raise _refusal(spec, report)
     return report
+
+
+def _refusal(spec, report, prefix=""):
+    """UnstableDiscretization of ``report`` for ``spec``, in Python's words and the CLI's."""
+    return UnstableDiscretization(f"{spec.family}: {prefix}" + report.message(spec.family),
+                                  f"{spec.family}: {prefix}" + report.message(spec.family, form="cli"))
 
 
 def auto_substeps(spec, disc, p=None, limit=64):
@@ -375,7 +502,7 @@ def auto_substeps(spec, disc, p=None, limit=64):
     ----------
     spec : ObserverSpec
     disc : codegen.core.target.Discretization
-        The requested one (dt, method, hold, substeps).
+        The requested one (dt, method, hold, substeps; substeps "auto" starts from 1).
     p : (np,) array or None
         Parameters; None: the spec's defaults.
     limit : int
@@ -387,19 +514,20 @@ def auto_substeps(spec, disc, p=None, limit=64):
         Raises UnstableDiscretization when none is, or when a gain is negative.
     """
     from dataclasses import replace
+    if disc.substeps == AUTO:
+        disc = replace(disc, substeps=1)
     report = check(spec, disc, p)
     if report.stable:
         return disc
     if report.negative or not report.substeps_needed:
-        raise UnstableDiscretization(f"{spec.family}: " + report.message(spec.family))
+        raise _refusal(spec, report)
     m = report.substeps_needed * disc.substeps
     while m <= limit:
         candidate = replace(disc, substeps=m)
         if check(spec, candidate, p).stable:
             return candidate
         m += 1
-    raise UnstableDiscretization(f"{spec.family}: no substeps <= {limit} is stable; "
-                                 + report.message(spec.family))
+    raise _refusal(spec, report, f"no substeps <= {limit} is stable; ")
 
 
 def stable_defaults(spec, disc, margin=0.9):

@@ -28,7 +28,7 @@ from ..core.version import __version__
 from ..discrete.discretize import discretize, estimate
 from ..core.spec import ObserverSpec, real_number
 from ..discrete.stability import require_stable
-from ..core.target import REAL_TYPES, SPLIT_MAX, STAMP_ULPS, sanitize
+from ..core.target import AUTO, REAL_TYPES, SPLIT_MAX, STAMP_ULPS, sanitize
 
 HOLD_TEXT = {
     "zoh": "zero-order hold: y and u are held over [t_k, t_k+1];\n * step() returns the estimate at t_k, then advances the state to t_k+1.",
@@ -190,6 +190,7 @@ def emit(target, out_dir, spec=None, force=True, check=True):
         spec = build_spec(target)
     if target.params:
         spec = with_params(spec, target.params)
+    target = resolve_substeps(target, spec)        # substeps "auto": the fewest stable ones
     stability = (require_stable(spec, target.discretization).as_dict() if check  # before writing
                  else {"checked": False, "gains": {}, "reason": "emit(check=False)"})
     prefix = target.prefix
@@ -234,6 +235,27 @@ def emit(target, out_dir, spec=None, force=True, check=True):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def resolve_substeps(target, spec):
+    """``target`` with substeps "auto" replaced by the fewest stable ones for ``spec`` (its
+    parameters applied) (codegen.discrete.stability.auto_substeps: from 1 up, UnstableDiscretization
+    naming the cause and the fix when none up to 64 is); any other target unchanged.
+
+    Parameters
+    ----------
+    target : codegen.core.target.Target
+    spec : codegen.core.spec.ObserverSpec
+        The spec ``target`` describes, with the target's parameters applied.
+
+    Returns
+    -------
+    codegen.core.target.Target
+    """
+    if target.discretization.substeps != AUTO:
+        return target
+    from ..discrete.stability import auto_substeps
+    return dataclasses.replace(target, discretization=auto_substeps(spec, target.discretization))
 
 
 class FolderTaken(ValueError):

@@ -5,16 +5,21 @@ all run ``make``; ``STAGES`` names its steps in order (``report`` hears each as 
 
     made = make(target, out_dir)                  # Made(target, spec, folder, lib)
     obs = compile_observer(spec, dt=1e-3)         # make, then load: a CompiledObserver
+
+A target whose substeps are "auto" (the default of the targets file, the CLI and
+``compile_observer`` when no substeps are given) is resolved after the design into the fewest
+stable sub-steps (``resolve_substeps``): the folder, its metadata and the C hold that number.
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..core.cache import work_dir
-from ..core.target import Target
+from ..core.target import AUTO, Target
 from .compile import compile_library
-from .emit import check_folder, emit, with_params
+from .emit import check_folder, emit, resolve_substeps, with_params
 from .load import load
 from .targets_file import build_spec
 
@@ -62,13 +67,29 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), che
     """
     folder = Path(out_dir) / target.prefix
     if not force:
-        check_folder(folder, target)
+        check_folder(folder, _as_recorded(folder, target))
     report("design")
     spec = with_params(spec if spec is not None else build_spec(target), target.params)
+    target = resolve_substeps(target, spec)
     report("emit")
     emit(target, out_dir, spec=spec, force=True, check=check)
     report("compile")
     return Made(target, spec, folder, compile_library(folder, native=native, extra_flags=cflags))
+
+
+def _as_recorded(folder, target):
+    """``target`` as a folder generated from it records it: substeps "auto" compares as the number
+    the folder holds (what it was resolved into), everything else as it is."""
+    if target.discretization.substeps != AUTO:
+        return target
+    try:
+        recorded = json.loads((Path(folder) / f"{Path(folder).name}.json").read_text())
+        substeps = recorded["target"]["discretization"]["substeps"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return target
+    if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
+        return target
+    return target.with_discretization(None, substeps=substeps)
 
 
 def compile_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,
@@ -81,10 +102,12 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     spec : codegen.core.spec.ObserverSpec or codegen.core.target.Target
         What to build (a Target is built into its spec first).
     discretization : codegen.core.target.Discretization or dict, optional
-        How to step it; default ``codegen.core.target.DEFAULT_DISCRETIZATION`` (or the Target's own).
-        ``dt``, ``dt_min``, ``dt_max`` (s), ``method``, ``substeps`` and ``hold`` override single
-        fields; ``substeps="auto"``: the fewest substeps that make the discrete observer stable
-        over the elapsed times [dt_min, dt_max].
+        How to step it; default ``codegen.core.target.DEFAULT_DISCRETIZATION`` with substeps
+        "auto" (or the Target's own). ``dt``, ``dt_min``, ``dt_max`` (s), ``method``, ``substeps``
+        and ``hold`` override single fields; ``substeps="auto"`` (the default when neither
+        ``discretization`` nor ``substeps`` is given): the fewest substeps that make the discrete
+        observer stable over the elapsed times [dt_min, dt_max] (``resolve_substeps``); a number:
+        exactly that many, refused when unstable.
     out_dir : path, optional
         Where the generated folder goes (default build/targets in the working folder).
     prefix : str, optional
@@ -113,11 +136,9 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         (a ValueError) when the discretised observer is unstable for its parameters, naming the
         gain, dt and the fix.
     """
-    from ..discrete.stability import auto_substeps
-
-    auto = substeps == "auto"
-    over = dict(dt=dt, method=method, substeps=None if auto else substeps, hold=hold, dt_min=dt_min,
-                dt_max=dt_max)
+    if substeps is None and discretization is None and not isinstance(spec, Target):
+        substeps = AUTO
+    over = dict(dt=dt, method=method, substeps=substeps, hold=hold, dt_min=dt_min, dt_max=dt_max)
     if isinstance(spec, Target):
         changes = {k: v for k, v in (("name", prefix), ("precision", precision)) if v is not None}
         changes.update({} if inline == "auto" else {"inline": inline})
@@ -126,9 +147,6 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     else:
         target = spec.target(discretization, name=prefix, inline=inline, precision=precision or "double",
                              **over)
-    if auto:
-        checked = with_params(spec, target.params) if target.params else spec
-        target = replace(target, discretization=auto_substeps(checked, target.discretization))
     made = make(target, out_dir or (work_dir() / "targets"), spec=spec, native=native, cflags=cflags,
                 check=check)
     obs = load(made.folder, made.lib)

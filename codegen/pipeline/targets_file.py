@@ -13,9 +13,10 @@ One ``[[target]]`` table per generated observer; the CLI's options are the same 
     variant = "O2"                 # of families that have variants (default: the family's)
     design = { eigenvalues = [] }  # keyword arguments of the family's build: design inputs, gains
     params = { rcond_min = 1e-9 }  # runtime parameters overriding the designed defaults
-    dt = 1e-3                      # discretisation: dt (s), method, hold, substeps, and the range
-    # dt_min = 2.5e-4              #   of the elapsed time between samples (default [dt/4, 2 dt]):
-    # dt_max = 2e-3                #   checked stable; a longer one is split into sub-intervals
+    dt = 1e-3                      # discretisation: dt (s), method, hold, substeps (a number, or
+    substeps = "auto"              #   "auto", the default: the fewest that are stable), and the
+    # dt_min = 2.5e-4              #   range of the elapsed time between samples (default [dt/4,
+    # dt_max = 2e-3                #   2 dt]): checked stable; a longer one is split into sub-intervals
     precision = "double"           # real type of the C
     name = "arm_cg_o2"             # symbol prefix and folder (default <robot>_<family>[_<variant>])
     out = "generated"              # parent folder, relative to this file (default ./generated)
@@ -32,7 +33,7 @@ import inspect
 import tomllib
 from pathlib import Path
 
-from ..core.target import Discretization, Target
+from ..core.target import AUTO, Discretization, Target
 
 KEYS = ("robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design", "params",
         "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision", "name", "out")
@@ -193,7 +194,8 @@ def make_target(entry, base=".", where=""):
         _fail(where, f"unknown design input{'s' * (len(bad) > 1)} {', '.join(bad)} of {family}; "
               f"valid: {', '.join(design_names) or '(none)'}")
     try:
-        disc = Discretization(**{k: entry[k] for k in DISCRETIZATION_KEYS if k in entry})
+        # unstated substeps: the fewest stable ones (resolved when the target is made)
+        disc = Discretization(**{"substeps": AUTO, **{k: entry[k] for k in DISCRETIZATION_KEYS if k in entry}})
         target = Target(robot=source, family=family, variant=variant, build=design,
                         params=_table(entry, "params", where), discretization=disc,
                         precision=entry.get("precision", "double"), name=entry.get("name"))

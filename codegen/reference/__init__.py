@@ -81,6 +81,9 @@ def reference_observer(spec, discretization=None, *, dt=None, method=None, subst
         discretization = desc["target"]["discretization"]
     disc = as_discretization(discretization, dt=dt, method=method, substeps=substeps, hold=hold,
                              dt_min=dt_min, dt_max=dt_max)
+    if disc.substeps == "auto":
+        raise ValueError('substeps: "auto" is resolved when the target is made (the metadata JSON of a '
+                         "compiled target records the number); give the reference that number")
     return ReferenceObserver(desc, disc)
 
 

@@ -6,6 +6,6 @@ C-vs-reference cross-check (DESIGN §3). The CLI and the tests call it from here
 """
 from .cross import cross_check
 from .inputs import random_inputs, run_inputs
-from .measure import relative_error
+from .measure import relative_error, saturated_samples, saturation_mask
 
-__all__ = ["cross_check", "random_inputs", "relative_error", "run_inputs"]
+__all__ = ["cross_check", "random_inputs", "relative_error", "run_inputs", "saturated_samples", "saturation_mask"]

@@ -52,14 +52,14 @@ def test_damped_urdf_default_design_and_discretisation_are_stable(damped, tmp_pa
 
 
 def test_damped_urdf_with_rk4_is_refused_with_the_fix(damped, tmp_path):
-    """The guarantee gain with plain RK4 at 1 kHz: one error naming the gain, dt and the fix;
-    substeps="auto" picks the fix and the run stays finite. The default range lets the elapsed
-    time reach dt_max = 2 ms: (k0 + lambda) dt_max ~ 6.6 needs ceil(6.6 / 2.785) = 3 substeps
-    (2 at dt = 1 ms alone)."""
+    """The guarantee gain with plain RK4 at 1 kHz and one sub-step: one error naming the gain, dt
+    and the fix; substeps="auto" (also the default when no substeps are given) picks the fix and
+    the run stays finite. The default range lets the elapsed time reach dt_max = 2 ms:
+    (k0 + lambda) dt_max ~ 6.6 needs ceil(6.6 / 2.785) = 3 substeps (2 at dt = 1 ms alone)."""
     from codegen.verify.trajectory import demo_trajectory
     spec = observers.build("reduced_order", damped, design="guarantee")
     with pytest.raises(UnstableDiscretization) as err:
-        compile_observer(spec, method="rk4", out_dir=tmp_path)
+        compile_observer(spec, method="rk4", substeps=1, out_dir=tmp_path)
     msg = str(err.value)
     assert f"k0 = {spec.p_default[0]:.6g} at dt = 0.001 with rk4" in msg
     assert "spectral radius" in msg and "stable for 0 <= k0 <=" in msg and "substeps >= 3" in msg
@@ -82,7 +82,7 @@ def test_unstable_gains_are_refused(k0, method, tmp_path):
     robot = load_robot("seed000_2r")
     spec = observers.build("reduced_order", robot, k0=k0)
     with pytest.raises(UnstableDiscretization, match=rf"k0 = {k0:g} at dt = 0.001 with {method}"):
-        compile_observer(spec, method=method, out_dir=tmp_path)
+        compile_observer(spec, method=method, substeps=1, out_dir=tmp_path)
     if k0 > 0:          # RK4's limit (2784 at dt = 1 ms) at dt_max = 2 ms over the default range
         assert check(spec, RK4_AT_DT).gains["k0"]["max_stable"] == pytest.approx(2784, abs=2)
         assert check(spec, RK4).gains["k0"]["max_stable"] == pytest.approx(2784 / 2, abs=1)

@@ -151,3 +151,22 @@ def test_store_parts_are_whole_or_absent(tmp_path):
     store.start(plan.load(SMALL), {"code": "x"})
     assert not list(store.results.glob(".*"))
     assert (tmp_path / "sweep.json").is_file() and list(store.fingerprints()) != []
+
+
+def test_a_cell_measures_the_velocity_slots_by_name(tmp_path):
+    """An observer whose estimate holds more than q̇̂ (extended_state: tau_d_hat after it) is
+    measured on its qd_hat slots, and the cell's est0 sets only those (the torque-error estimate
+    starts at 0): the run converges as the velocity estimate does."""
+    import numpy as np
+
+    from codegen.evaluate.sweep import work
+    from codegen.families import observers
+    from codegen.pipeline.emit import emit
+    from models import load_robot
+    spec = observers.build("extended_state", load_robot("seed000_2r"), omega=40.0)
+    folder = emit(spec.target(), tmp_path, spec=spec)
+    rec = work.true_run("seed000_2r", "model", 0.5, 0.0, 0, 1e-3)
+    cell = {"kind": "observer", "family": "extended_state", "est0": 0.5, "p": {}}
+    row = work.run_cell(cell, rec, work.payload(folder), t_ss=0.25, level=1e-2)
+    assert not row["note"] and not row["diverged"]
+    assert row["max"] < 1e-2 and row["t_conv"] < 0.25

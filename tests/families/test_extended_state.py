@@ -69,18 +69,41 @@ def test_design_rises_with_uncertainty():
 def test_a_constant_model_error_leaves_no_bias():
     """The seed-000 arm at rest at q = (1, 0.5) while the torque is 20 % below the static one:
     the reduced-order observer settles at a velocity bias e / k0, the extended-state observer at
-    0 (its d_hat takes the model error: d_hat = -FD(q, 0, 0.8 g) = 0.2 M^-1 g)."""
+    0 (its d_hat takes the model error: d_hat = -FD(q, 0, 0.8 g) = 0.2 M^-1 g), and its
+    torque-error output tau_d_hat = M(q) d_hat is the missing torque 0.2 g(q) (N m), in the C and
+    in the reference."""
     from codegen import compile_observer
+    from codegen.core.estimator import velocity_estimate
+    from codegen.reference import reference_observer
     robot = load_robot("seed000_2r")
     q = np.array([1.0, 0.5])
     g = np.asarray(robot.g(q)).ravel()
-    eso = compile_observer(observers.build("extended_state", robot, omega=40.0))
+    spec = observers.build("extended_state", robot, omega=40.0)
+    assert spec.est_names == ["qd_hat_q1", "qd_hat_q2", "tau_d_hat_q1", "tau_d_hat_q2"]
+    eso, ref = compile_observer(spec), reference_observer(spec)
     ro = compile_observer(observers.build("reduced_order", robot, k0=40.0))
-    for o in (eso, ro):
+    for o in (eso, ref, ro):
         o.reset(q)
         est = o.run(np.tile(q, (3000, 1)), np.tile(0.8 * g, (3000, 1)))
         o.last = est[-1]
-    assert np.abs(eso.last).max() < 1e-9
+    for o in (eso, ref):
+        assert np.abs(velocity_estimate(o.last, spec.est_names)).max() < 1e-9
+        assert o.last[2:] == pytest.approx(0.2 * g, rel=1e-6)
     assert np.abs(ro.last).max() > 1e-2
     M = np.asarray(robot.M(q))
     assert eso.state[4:] == pytest.approx(np.linalg.solve(M, 0.2 * g), rel=1e-6)
+
+
+def test_init_takes_the_torque_error_estimate():
+    """reset(y0, est0) with est0 = [v_hat(0); tau_d_hat(0)] starts d_hat at M(y0)^-1 tau_d_hat(0):
+    the first estimate returns both (C and reference alike)."""
+    from codegen import compile_observer
+    from codegen.reference import reference_observer
+    robot = load_robot("seed000_2r")
+    spec = observers.build("extended_state", robot, omega=40.0)
+    q = np.array([0.3, -0.7])
+    est0 = np.array([0.5, -0.25, 1.5, -2.0])
+    for o in (compile_observer(spec), reference_observer(spec)):
+        o.reset(q, est0=est0)
+        assert o.estimate(q, np.zeros(2)) == pytest.approx(est0, rel=1e-12)
+        assert o.state[4:] == pytest.approx(np.linalg.solve(np.asarray(robot.M(q)), est0[2:]), rel=1e-12)

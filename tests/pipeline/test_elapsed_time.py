@@ -102,7 +102,7 @@ def test_a_gap_ten_times_dt_is_integrated_stably(tmp_path):
     diverges."""
     robot = load_robot("seed000_2r")
     spec = observers.build("reduced_order", robot, k0=1000.0)
-    obs = compile_observer(spec, method="rk4", out_dir=tmp_path)
+    obs = compile_observer(spec, method="rk4", substeps=1, out_dir=tmp_path)
     ref = reference_observer(spec, method="rk4")
     y, u = np.array([0.3, -0.2]), np.asarray(robot.g([0.3, -0.2])).ravel()
     for o in (obs, ref):
@@ -174,11 +174,12 @@ def test_stamps_checked_before_the_c(compiled):
 
 def test_an_unstable_range_is_refused_with_the_fix(tmp_path):
     """RK4, k0 = 2000 at dt = 1 ms: stable at dt (k0 dt = 2 < 2.785) but not when an elapsed time
-    reaches 2 ms (4): refused naming the range, the smaller dt_max and the substeps that fix it;
-    each fix is then stable, and dt_max = dt is what the check certified at dt alone."""
+    reaches 2 ms (4): with one sub-step, refused naming the range, the smaller dt_max and the
+    substeps that fix it; each fix is then stable ("auto", the default, picks 2 sub-steps), and
+    dt_max = dt is what the check certified at dt alone."""
     spec = observers.build("reduced_order", load_robot("seed000_2r"), k0=2000.0)
     with pytest.raises(UnstableDiscretization) as err:
-        compile_observer(spec, method="rk4", out_dir=tmp_path)
+        compile_observer(spec, method="rk4", substeps=1, out_dir=tmp_path)
     msg = str(err.value)
     assert "k0 = 2000 at dt = 0.001 with rk4" in msg and "elapsed time in [0.00025, 0.002]" in msg
     assert "at elapsed time 0.002" in msg and "or use substeps >= 2" in msg and "or dt_max <= 0.00139" in msg
@@ -186,6 +187,7 @@ def test_an_unstable_range_is_refused_with_the_fix(tmp_path):
     assert not report.stable and report.worst_dt == 2e-3 and 1.39e-3 < report.dt_limit < 1.3927e-3
     assert check(spec, spec.target(method="rk4", dt_max=1.39e-3).discretization).stable
     assert check(spec, spec.target(method="rk4", substeps=2).discretization).stable
+    assert compile_observer(spec, method="rk4", out_dir=tmp_path).meta["discretization"]["substeps"] == 2
     obs = compile_observer(spec, method="rk4", dt_max=1e-3, out_dir=tmp_path)
     meta = obs.meta["discretization"]
     assert (meta["dt_min"], meta["dt_max"]) == (2.5e-4, 1e-3)

@@ -152,11 +152,16 @@ def test_round_trip_through_metadata(tmp_path):
     """File -> Target -> emit: the metadata records the Target exactly (catalog robot by name)
     and Target.from_dict gives it back; build_spec resolves the catalog source."""
     from models import load_robot
+    from codegen.pipeline.stages import resolve_substeps
     [(t, _)] = load_targets(write(tmp_path, '[[target]]\nrobot = "seed002_2r"\nfamily = "su_nonsmooth"\n'
                                   'design = { form = "xian" }\nparams = { xian = 1.0 }\ndt = 2e-3\n'))
     assert Target.from_dict(json.loads(json.dumps(t.to_dict()))) == t
     spec = build_spec(t)
     assert spec.robot is load_robot("seed002_2r")
+    # unstated substeps are "auto": the folder records the number they resolve into
+    assert t.discretization.substeps == "auto"
+    t = resolve_substeps(t, spec)
+    assert t.discretization.substeps == 1
     folder = emit(t, tmp_path / "gen", spec=spec)
     meta = json.loads((folder / f"{t.prefix}.json").read_text())
     assert meta["target"] == t.to_dict() and Target.from_dict(meta["target"]) == t
@@ -168,7 +173,7 @@ def test_round_trip_through_metadata(tmp_path):
 def test_folder_guard(tmp_path):
     """check_folder: absent or same target passes; another target or a foreign folder refuses
     naming the differences; emit(force=False) refuses before building, force=True replaces."""
-    t, _ = make_target({"robot": "seed002_2r", "family": "su_nonsmooth"})
+    t, _ = make_target({"robot": "seed002_2r", "family": "su_nonsmooth", "substeps": 1})
     check_folder(tmp_path / "gen" / t.prefix, t)
     folder = emit(t, tmp_path / "gen")
     check_folder(folder, t)

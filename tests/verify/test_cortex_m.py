@@ -202,12 +202,14 @@ def test_host_build_with_newlibs_math_is_the_m7_bit_for_bit(arm, tmp_path):
     differ in the last bits (newlib's sin and cos round some arguments differently: 3 % of them
     on this machine's glibc; whether a run meets one depends on the gains and on the glibc)."""
     from codegen.verify import run_inputs
+    from codegen.pipeline.stages import resolve_substeps
     from codegen.pipeline.targets_file import build_spec, make_target
     reason = newlib_libm.unavailable()
     if reason:
         pytest.skip(reason)
     target, _ = make_target({"robot": "seed000_2r", "family": "nicosia_tomei"})
     spec = build_spec(target)
+    target = resolve_substeps(target, spec)        # unstated substeps are "auto": here 1
     folder = emit(target, tmp_path / "gen", spec=spec)
     Y, U = run_inputs(spec, 300, target.discretization.dt)
     rec = cortex_m.verify(folder, "m7", Y, U, work_dir=tmp_path / "fw")

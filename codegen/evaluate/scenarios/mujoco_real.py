@@ -133,6 +133,117 @@ def experiment(robot_name, out=None, seed=0, T=T_TASK, T_excitation=T_EXCITATION
             "wall_s": time.perf_counter() - t0}
 
 
+def truth_recording(folder, name, joint_names):
+    """The log ``<folder>/<name>.csv`` (what the user has) with the true velocity of its rows
+    from ``<name>_truth.csv`` attached (for judging estimates only; no method sees it).
+
+    Parameters
+    ----------
+    folder : path-like
+    name : {"excitation", "task"}
+    joint_names : list of str
+        The robot's joints, in model order.
+
+    Returns
+    -------
+    codegen.core.recording.Recording
+    """
+    import numpy as np
+
+    from ...core.recording import read_columns, read_csv
+    rec = read_csv(Path(folder) / f"{name}.csv", joint_names)
+    header, data = read_columns(Path(folder) / f"{name}_truth.csv")
+    col = {h: data[:, i] for i, h in enumerate(header)}
+    logged = col["logged"] > 0.5
+    if not np.array_equal(col["t"][logged], rec.t):
+        raise ValueError(f"{folder}: {name}_truth.csv does not hold the rows of {name}.csv")
+    rec.qd = np.column_stack([col[f"qd_{j}"][logged] for j in joint_names])
+    return rec
+
+
+def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, families=None,
+            progress=True):
+    """What a user of the real arm does, judged against the plant's truth: identify the robot on
+    the excitation log, then run the observers on the task log twice, with the identified model
+    and with the URDF as shipped, against the baselines tuned on the truth.
+
+    The excitation is ``codegen.evaluate.identify.excitation`` (what `excite` writes; the plain
+    multi-sine leaves the wrist's parameters undetermined on this plant); the observers' design
+    states the encoder step and, with the identified model, the torque residual that
+    identification measured on its held-out tail (N m per joint).
+
+    Parameters
+    ----------
+    robot_name : {"ur5", "panda", "kinova"}
+    out : path-like
+        Folder of the logs (``experiment``'s files), ``identified/`` (the identified URDF, side
+        file and report) and ``compare_identified/``, ``compare_urdf/`` (tables and figures).
+    seed, T, T_excitation
+        As in ``runs``.
+    families : sequence of str, optional
+        Observer families (default ``codegen.evaluate.compare.DEFAULT_FAMILIES``).
+    progress : bool
+        Progress bars on stderr.
+
+    Returns
+    -------
+    dict
+        The summary: identification (friction found against the plant's, torque residual
+        against the sensor's noise), and per model the observers' and the best baseline's RMS
+        after t_ss, their ratio, the convergence time and whether every sample is finite.
+    """
+    import numpy as np
+
+    from models import load_robot
+
+    from ..compare import DEFAULT_FAMILIES, compare, design_inputs
+    from ..identify import excitation as identify_excitation
+    from ..identify import identify
+    out = Path(out)
+    robot = robot_model(robot_name)
+    ex = identify_excitation(robot, T=T_excitation, seed=seed, progress=progress)
+    summary = experiment(robot_name, out=out, seed=seed, T=T, T_excitation=T_excitation,
+                         excitation=lambda t: tuple(a[0] for a in ex.at(t)))
+    truth = json.loads((out / "perturbation.json").read_text())
+    joints = robot.joint_names
+    from dataclasses import replace
+    ident = identify(replace(truth_recording(out, "excitation", joints), qd=None), robot, progress=progress)
+    files = ident.write(out / "identified")
+    report = ident.report
+    found = {k: np.array([report["friction"][j][k] for j in joints]) for k in ("viscous", "coulomb")}
+    plant = {"viscous": np.array(truth["viscous"]), "coulomb": np.array(truth["coulomb"])}
+    noise = np.array(truth["sensors"]["torque_noise_std"] if truth["sensors"]["torque_noise_std"][0] is not None
+                     else summary["excitation"]["torque_error_std"])
+    residual = np.array([report["residual_rms"]["after"][j] for j in joints])
+    summary["identification"] = {
+        "friction_error": {k: (np.abs(found[k] - plant[k]) / plant[k]).round(4).tolist() for k in found},
+        "residual_over_noise": (residual / noise).round(3).tolist(),
+        "condition_number": report["condition_number"], "files": {k: str(f) for k, f in files.items()}}
+    task = truth_recording(out, "task", joints)
+    step = float(truth["sensors"]["encoder_step"])
+    urdf = files["urdf"]
+    models = {"identified": (load_robot(urdf=urdf, locked_joints=robot.source.get("locked_joints") or None),
+                             design_inputs(quantization=step, torque_uncertainty=residual.tolist())),
+              "urdf": (robot, design_inputs(quantization=step))}
+    t_ss = float(task.t[0] + (task.t[-1] - task.t[0]) / 2)
+    for label, (model, design) in models.items():
+        cmp = compare(task, model, families=families or DEFAULT_FAMILIES, design=design, t_ss=t_ss,
+                      title=f"real {robot_name} ({label} model)", progress=progress)
+        folder = out / f"compare_{label}"
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "table.txt").write_text(cmp.table() + "\n" + cmp.verdict() + "\n")
+        cmp.figures(folder)
+        best = cmp.best_baseline()
+        summary[f"observers_{label}"] = {
+            e.name: {"rms": float(e.metrics["rms"]), "ratio": float(e.metrics["rms"] / best.metrics["rms"]),
+                     "t_conv": float(e.metrics.get("t_conv", np.inf)),
+                     "finite": bool(np.all(np.isfinite(e.est))), "note": e.note}
+            for e in cmp.entries if e.kind == "observer"}
+        summary[f"best_baseline_{label}"] = {"name": best.name, "rms": float(best.metrics["rms"])}
+        summary[f"verdict_{label}"] = cmp.verdict()
+    return summary
+
+
 def _scenario(robot_name):
     def run(reference=False, out=None, T=T_TASK):
         return experiment(robot_name, out=out, T=T)

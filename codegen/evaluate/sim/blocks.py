@@ -34,7 +34,8 @@ def block(spec, disc, *, reference=False, prefix=None, inline="auto", out_dir=No
         Observer, control law or plant.
     disc : codegen.core.target.Discretization
         How it is stepped (dt in s, method, hold, substeps); stated by every caller, never
-        the library default.
+        the library default. substeps "auto": the fewest stable ones
+        (codegen.discrete.stability.auto_substeps), for the C and the reference alike.
     reference : bool
         True: ``codegen.reference.reference_observer`` (numpy + pin), else emitted C.
     prefix : str, optional
@@ -51,6 +52,9 @@ def block(spec, disc, *, reference=False, prefix=None, inline="auto", out_dir=No
     from ...core.target import Discretization
     if not isinstance(disc, Discretization):
         raise TypeError(f"disc must be a codegen.core.target.Discretization, got {type(disc).__name__}")
+    if disc.substeps == "auto":
+        from ...discrete.stability import auto_substeps
+        disc = auto_substeps(spec, disc)
     if reference:
         from ...reference import reference_observer
         return reference_observer(spec, disc)

@@ -139,17 +139,20 @@ def run_cell(cell, rec, target, t_ss, level):
         The metrics (rms, max, t_conv, gain, lag, diverged), params run (dict) and a note.
     """
     from ..compare import tune
+    from ...core.estimator import full_estimate, velocity_estimate
     from ...pipeline.load import ObserverError
     Y, U, truth = rec.q, rec.tau, rec.qd
     note = ""
     if cell["kind"] == "observer":
         obs = observer(target)
-        est0 = None if cell["est0"] is None else truth[0] + cell["est0"]
+        # the velocity slots by name: an estimate may hold more (extended_state: tau_d_hat)
+        names, joints = obs.meta["names"]["est"], rec.joint_names
+        est0 = None if cell["est0"] is None else full_estimate(names, truth[0] + cell["est0"], joints)
         params = dict(cell["p"])
         p = [params.get(k, d) for k, d in zip(obs.meta["names"]["p"], obs.p_default)]
         try:
             obs.reset(Y[0], est0=est0, p=p)
-            est = obs.run(Y, U)
+            est = velocity_estimate(obs.run(Y, U), names, joints)
         except (ObserverError, FloatingPointError, ValueError) as e:
             est, note = np.full(truth.shape, np.nan), str(e)
     else:

@@ -15,10 +15,10 @@ from .elastic import (ciccarella_germani_gains, companion_gains, spong_fast_gain
 from .ii import IIAovDesign, IISpeedDesign, ii_aov_bounds, ii_speed_bounds
 from .noise import NoiseAwareDesign, nicosia_tomei_noise_gains, sensor_sigma, switched_gains
 from .reduced_order import (ReducedOrderDesign, model_statistics, reduced_order_design, reduced_order_gain,
-                            scheduled_gains)
+                            scheduled_gains, torque_statistics)
 
 __all__ = ["ConfigurationStats", "c0_batch", "ciccarella_germani_gains", "companion_gains",
            "spong_fast_gains", "spong_fl_gains", "tomei_K1", "IIAovDesign", "IISpeedDesign",
            "ii_aov_bounds", "ii_speed_bounds", "ReducedOrderDesign", "reduced_order_gain",
            "scheduled_gains", "NoiseAwareDesign", "nicosia_tomei_noise_gains", "sensor_sigma",
-           "model_statistics", "reduced_order_design", "switched_gains"]
+           "model_statistics", "reduced_order_design", "switched_gains", "torque_statistics"]

@@ -4,7 +4,15 @@ Sensor: Gaussian noise sigma and/or a quantisation step q (uniform error, std q/
 per joint, white at the sample rate: sigma_e^2 = sigma^2 + q^2 / 12. Default when the user
 gives nothing: a 2^16 counts/rev encoder, q = 2 pi / 65536 = 9.59e-5 rad [ASSUMPTION].
 Model: masses and inertias off by a relative ``uncertainty`` d, so the model's acceleration is
-off by e = d (qdd + M^-1 (C qd + g)) ~ d M(q)^-1 g(q) for slow motions [DERIVED].
+off by e = d (qdd + M^-1 (C qd + g)) ~ d M(q)^-1 g(q) for slow motions [DERIVED]; and a torque
+error dtau (an offset, unmodelled friction, a payload: ``torque_uncertainty`` t_j N m per joint,
+e.g. an identification's torque residual), e = M(q)^-1 dtau. Taken as independent errors of
+size t_j, the RMS norm over configurations is rms_q ||M^-1 diag(t)||_F = sqrt(sum_j t_j^2
+mean_q |M^-1 e_j|^2), added in quadrature to the relative term: e_rms^2 = (d rms|M^-1 g|)^2 +
+sum_j t_j^2 mean_q |M^-1 e_j|^2. The extended-state observer removes a constant e and sees its
+rate, d/dt M^-1 dtau = -M^-1 Mdot M^-1 dtau, Mdot = sum_k dM/dq_k qd_k, with RMS
+sqrt(sum_j t_j^2 (v^2/n) mean_q sum_k |M^-1 dM/dq_k M^-1 e_j|^2) over speeds of norm v in
+random directions (v = v_max/2, as for the relative term).
 
 Reduced-order observer (linearised error dynamics eps' = -k0 eps + e, estimate x2hat = z + k0 y):
 under the default discretisation (ETD-RK4, first-order hold) the scalar observer is exactly
@@ -20,7 +28,7 @@ and the noise also enters through the model: the acceleration FD(y, ...) moves w
 ~ -M^-1 dg/dq n (gravity stiffness; slow motions), white noise of PSD sigma_e^2 G^2 dt with
 G = rms_q ||M^-1 dg/dq||_F, which the error dynamics filter by 1/(s + k0):
 
-    E(k0)^2 = n s(k0)^2 + sigma_e^2 G^2 dt / (2 k0) + d^2 rms_q |M^-1 g|^2 / k0^2   (norm, RMS)
+    E(k0)^2 = n s(k0)^2 + sigma_e^2 G^2 dt / (2 k0) + e_rms^2 / k0^2   (norm, RMS; e_rms above)
 
 and the error from an initial eps0 decays like eps0 exp(-k0 t): below ``tol`` within ``t_conv``
 needs k0 >= ln(eps0 / tol) / t_conv (the convergence floor), eps0 = v_max: the estimate starts at 0
@@ -30,7 +38,7 @@ Nicosia-Tomei (kd, kp) (SPEC §2), per mode mu of M^-1: eps1'' + kd eps1' + kp m
 estimate x2hat = kp mu s / (s^2 + kd s + kp mu) y [DERIVED], so
 
     noise variance  sigma_e^2 dt (kp mu)^2 / (2 kd)   (white noise of PSD sigma_e^2 dt)
-    bias            kd / kp |M e| = kd / kp d |g|
+    bias            kd / kp |M e| = kd / kp sqrt((d |g|)^2 + |dtau|^2)
     slowest rate    kd/2 - sqrt(max(0, kd^2/4 - kp mu_min)),  mu_min = 1 / max lambda_max(M)
 """
 from __future__ import annotations
@@ -74,6 +82,53 @@ def check_uncertainty(uncertainty):
     if not (isinstance(uncertainty, (int, float)) and math.isfinite(uncertainty) and 0 <= uncertainty < 1):
         raise ValueError(f"uncertainty must be a relative error in [0, 1), got {uncertainty!r}")
     return float(uncertainty)
+
+
+def check_torque_uncertainty(torque_uncertainty, n, joint_names=None):
+    """Per-joint torque uncertainty (n,) in N m from ``torque_uncertainty``: a number (every
+    joint), ``n`` numbers, or a dict joint name -> number (e.g. an identification report's
+    held-out torque residual, ``report["residual_rms"]["after"]``), each finite and >= 0;
+    ValueError naming it otherwise.
+
+    Parameters
+    ----------
+    torque_uncertainty : float, sequence of float or dict
+        N m.
+    n : int
+        Number of joints.
+    joint_names : sequence of str, optional
+        The joints, in order (needed for a dict: every joint once, no other key).
+
+    Returns
+    -------
+    (n,) float array
+    """
+    if isinstance(torque_uncertainty, dict):
+        names = list(joint_names or [])
+        missing = [j for j in names if j not in torque_uncertainty]
+        extra = [k for k in torque_uncertainty if k not in names]
+        if not names or missing or extra:
+            raise ValueError(f"torque_uncertainty: a dict needs every joint ({', '.join(names)}) and no "
+                             f"other key; missing {missing}, unknown {extra}")
+        torque_uncertainty = [torque_uncertainty[j] for j in names]
+    try:
+        t = np.asarray(torque_uncertainty, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        t = np.array([np.nan])
+    if t.size == 1:
+        t = np.full(n, float(t[0]))
+    if t.size != n or not np.all(np.isfinite(t) & (t >= 0)):
+        raise ValueError(f"torque_uncertainty must be a torque >= 0 (N m) or {n} of them (one per joint), "
+                         f"got {torque_uncertainty!r}")
+    return t
+
+
+def torque_error_rms(torque_uncertainty, column_ms):
+    """RMS norm of a vector M^-1 dtau (or of its rate) when dtau has independent per-joint errors
+    of size ``torque_uncertainty`` (n,) N m: sqrt(sum_j dtau_j^2 column_ms_j), ``column_ms`` (n,)
+    the mean square norm of column j of the matrix applied to dtau (``torque_statistics``)."""
+    t = np.asarray(torque_uncertainty, dtype=float)
+    return float(math.sqrt(float(np.sum(t ** 2 * np.asarray(column_ms, dtype=float)))))
 
 
 def convergence_floor(eps0, t_conv, tol=TOL):
@@ -122,6 +177,8 @@ class NoiseAwareDesign:
     eta: float
     v_max: float
     guarantee: dict            # the (12) design report
+    torque_uncertainty: list = None    # per joint, N m (None: not stated)
+    e_rms_torque: float = 0.0  # rms_q ||M^-1 diag(torque_uncertainty)||_F (rad/s^2), inside e_rms
 
     def as_dict(self):
         """The fields as a JSON-ready dict (arrays as lists)."""
@@ -133,6 +190,8 @@ class NoiseAwareDesign:
             f"reduced-order gain for {self.robot}: k0 = {self.k0:.6g} ({self.choice}): {self.why}",
             f"  sensor std {self.sigma:.3g} rad (noise {self.noise}, quantization {self.quantization}),"
             f" model uncertainty {self.uncertainty:g}, dt {self.dt:g} s",
+            f"  model acceleration error {self.e_rms:.3g} rad/s^2 (of which torque uncertainty "
+            f"{self.e_rms_torque:.3g}: {self.torque_uncertainty or 0} N m)",
             f"  noise-aware optimum {self.k0_noise:.6g}, convergence floor {self.k0_floor:.6g}"
             f" (below 1e-2 within {self.t_conv:g} s from {self.v_max:g} rad/s),",
             f"  guarantee (12) {self.k0_guarantee:.6g}, Remark 3 {self.k0_remark3:.6g}",
@@ -193,7 +252,7 @@ def reduced_order_noise_gain(n, dt, sigma, e_rms, G, floor, guarantee):
     return k0, choice, why, k_noise, predicted
 
 
-def nicosia_tomei_noise_gains(dt, sigma, g_rms, uncertainty, trace_minv2, mu_min, rate):
+def nicosia_tomei_noise_gains(dt, sigma, g_rms, uncertainty, trace_minv2, mu_min, rate, torque_rms=0.0):
     """(kd, kp) minimising the predicted error of Nicosia-Tomei (module docstring) subject to
     the slowest error mode decaying at ``rate`` or faster.
 
@@ -203,19 +262,24 @@ def nicosia_tomei_noise_gains(dt, sigma, g_rms, uncertainty, trace_minv2, mu_min
     g_rms : rms_q |g(q)| (N m);  uncertainty : relative model error
     trace_minv2 : mean_q trace(M(q)^-2) (1/(kg m^2)^2);  mu_min : 1 / max_q lambda_max(M(q))
     rate : required slowest decay rate (1/s)
+    torque_rms : RMS norm of a torque error dtau (N m, e.g. sqrt(sum_j torque_uncertainty_j^2)):
+        the bias is kd / kp |dtau| (kp x1tilde enters as a torque), added in quadrature to the
+        relative model error's kd / kp uncertainty |g|
 
     Returns
     -------
     (kd, kp, predicted RMS error norm)."""
+    tau_err = math.hypot(uncertainty * g_rms, torque_rms)      # RMS norm of the torque error (N m)
+
     def error(kd, kp):
-        return math.sqrt(sigma ** 2 * dt * kp ** 2 * trace_minv2 / (2 * kd) + (kd / kp * uncertainty * g_rms) ** 2)
+        return math.sqrt(sigma ** 2 * dt * kp ** 2 * trace_minv2 / (2 * kd) + (kd / kp * tau_err) ** 2)
 
     def slowest(kd, kp):
         return kd / 2 - math.sqrt(max(0.0, kd ** 2 / 4 - kp * mu_min))
 
     kd0 = 2 * rate                       # critically damped slowest mode: the least noise at no model error
     kp0 = rate ** 2 / mu_min
-    if uncertainty == 0 or g_rms == 0:
+    if tau_err == 0:
         return kd0, kp0, error(kd0, kp0)
 
     def cost(v):
@@ -256,6 +320,42 @@ def gravity_statistics(M, g, dg, points):
             "mu_min": float(1 / lam[:, -1].max()), "mu_max": float(1 / lam[:, 0].min())}
 
 
+def bias_balance_gain(n, dt, sigma, e_rms):
+    """The gain k (1/s) at which the predicted model-error bias e_rms / k equals the predicted
+    measurement noise sqrt(n) s(k) of the reduced-order observer (``smoother_noise``): below it
+    the bias is the larger term, and lowering the gain costs more bias than it saves noise.
+    0 without model error, inf without sensor noise (the bias is then the only error).
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+    dt : float
+        Sample time, s.
+    sigma : float
+        Sensor std, rad.
+    e_rms : float
+        RMS norm of the model's acceleration error, rad/s^2 (relative and torque uncertainty).
+
+    Returns
+    -------
+    float
+    """
+    from scipy.optimize import brentq
+    if e_rms <= 0:
+        return 0.0
+    if sigma <= 0:
+        return math.inf
+
+    def f(lk):
+        k = math.exp(lk)
+        return math.log(e_rms / k) - math.log(math.sqrt(n) * smoother_noise(k, dt, sigma))
+    lo, hi = math.log(1e-9), math.log(1e12)
+    if f(hi) > 0:         # the noise saturates at sigma sqrt(2) / dt: the bias is larger at every gain
+        return math.inf
+    return math.exp(brentq(f, lo, hi, xtol=1e-12))
+
+
 def switched_gains(nd, n, t_settle=2.0):
     """The time-switched gain of the reduced_order_switched family from a noise-aware design.
 
@@ -263,9 +363,12 @@ def switched_gains(nd, n, t_settle=2.0):
     predicted error at that gain, then the gain switches (bumplessly) to the noise-aware optimum
     nd.k0_noise, kept at or above the gain that still brings an error of v_max below 1e-2 rad/s
     within ``t_settle`` (so a model error or a disturbance the design did not foresee still
-    settles in seconds) and at or below nd.k0 [DERIVED]:
+    settles in seconds), at or above the gain k0_bias where the predicted bias (model and torque
+    uncertainty, nd.e_rms / k) equals the predicted measurement noise sqrt(n) s(k) (the final
+    gain never sits where its bias is larger than the noise it saves; the optimum of E already
+    satisfies it, the bound makes the rule explicit) and at or below nd.k0 [DERIVED]:
 
-        k0_final = min(k0, max(k0_noise, ln(v_max / tol) / t_settle))
+        k0_final = min(k0, max(k0_noise, ln(v_max / tol) / t_settle, k0_bias))
         t_switch = max(t_conv, ln(v_max / E(k0)) / k0),   E the predicted RMS error
 
     Parameters
@@ -280,23 +383,26 @@ def switched_gains(nd, n, t_settle=2.0):
     Returns
     -------
     dict
-        k0, k0_final (1/s), t_switch (s), k0_settle (the floor of k0_final, 1/s), t_settle and
-        the predicted RMS error at k0 and at k0_final (rad/s); k0_final = k0 (no switch) without
-        sensor noise or when the optimum is the convergence-floor gain or above.
+        k0, k0_final (1/s), t_switch (s), k0_settle and k0_bias (the floors of k0_final, 1/s),
+        t_settle, the predicted RMS error and the predicted bias nd.e_rms / k at k0 and at
+        k0_final (rad/s); k0_final = k0 (no switch) without sensor noise or when the optimum is
+        the convergence-floor gain or above.
     """
     if not (isinstance(t_settle, (int, float)) and math.isfinite(t_settle) and t_settle > 0):
         raise ValueError(f"t_settle must be a positive time (s), got {t_settle!r}")
     k_settle = convergence_floor(nd.v_max, t_settle)
+    k_bias = bias_balance_gain(n, nd.dt, nd.sigma, nd.e_rms)
     k0 = nd.k0
-    k_final = min(k0, max(nd.k0_noise, k_settle)) if math.isfinite(nd.k0_noise) else k0
+    k_final = min(k0, max(nd.k0_noise, k_settle, k_bias)) if math.isfinite(nd.k0_noise) else k0
 
     def err(k):
         return reduced_order_error(k, nd.dt, n, nd.sigma, nd.e_rms, nd.G)
     e0 = err(k0)
     t_switch = max(nd.t_conv, math.log(nd.v_max / e0) / k0) if (k_final < k0 and e0 > 0) else 0.0
     return {"k0": float(k0), "k0_final": float(k_final), "t_switch": float(t_switch),
-            "k0_settle": float(k_settle), "t_settle": float(t_settle),
-            "predicted_error": {"k0": e0, "k0_final": err(k_final)}}
+            "k0_settle": float(k_settle), "k0_bias": float(k_bias), "t_settle": float(t_settle),
+            "predicted_error": {"k0": e0, "k0_final": err(k_final)},
+            "predicted_bias": {"k0": nd.e_rms / k0, "k0_final": nd.e_rms / k_final}}
 
 
 # ------------------------------------------------------------ extended-state observer (per joint)

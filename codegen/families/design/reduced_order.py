@@ -27,8 +27,8 @@ import numpy as np
 
 from ...core.cache import cached_json, key_digest
 from .configurations import ConfigurationStats, sample_points
-from .noise import (NoiseAwareDesign, check_uncertainty, convergence_floor, gravity_statistics,
-                    reduced_order_noise_gain, sensor_sigma)
+from .noise import (NoiseAwareDesign, check_torque_uncertainty, check_uncertainty, convergence_floor,
+                    gravity_statistics, reduced_order_noise_gain, sensor_sigma, torque_error_rms)
 
 VERSION = 2          # of these designs (part of the disk-cache key)
 SAMPLES = 512        # sampled configurations
@@ -169,8 +169,41 @@ def model_statistics(robot, samples=SAMPLES, seed=0):
     return gravity_statistics(robot.M, robot.g, dg, sample_points(robot, samples, seed))
 
 
+@lru_cache(maxsize=32)
+def torque_statistics(robot, samples=SAMPLES, seed=0):
+    """How a torque error reaches the acceleration of ``robot`` (RobotModel, n joints), over the
+    design's sample configurations (``samples`` drawn with ``seed``, as ``model_statistics``).
+
+    Returns
+    -------
+    dict
+        "minv_col_ms": (n,) list, mean_q |M(q)^-1 e_j|^2 (1/(kg m^2)^2): the acceleration error of
+        a unit torque error on joint j (codegen.families.design.noise: e = M^-1 dtau);
+        "dminv_col_ms": (n,) list, mean_q sum_k |M^-1 dM/dq_k M^-1 e_j|^2: its rate per unit
+        speed (d/dt M^-1 = -M^-1 Mdot M^-1, Mdot = sum_k dM/dq_k qd_k);
+        "minv_col_max": (n,) list, max_q |M(q)^-1 e_j| (the worst configuration of the samples).
+    """
+    n = robot.n
+    q = ca.SX.sym("q", n)
+    Mq = robot.mass_matrix(q)
+    dM = ca.Function("dM", [q], [ca.horzcat(*[ca.jacobian(Mq[:, j], q) for j in range(n)])])
+    points = sample_points(robot, samples, seed)
+    S = len(points)
+    Ms = np.asarray(robot.M.map(S)(points.T)).reshape(n, S, n).transpose(1, 0, 2)
+    # dM(q): column block j is d M[:, j] / dq, (n, n): entry (i, k) = dM_ij/dq_k
+    D = np.asarray(dM.map(S)(points.T)).reshape(n, S, n, n).transpose(1, 0, 2, 3)   # (S, i, j, k)
+    Minv = np.linalg.inv(Ms)
+    col_ms = np.mean(np.sum(Minv ** 2, axis=1), axis=0)
+    # A_k = M^-1 (dM/dq_k) M^-1: (S, k, i, j)
+    dMk = D.transpose(0, 3, 1, 2)
+    A = Minv[:, None] @ dMk @ Minv[:, None]
+    dcol_ms = np.mean(np.sum(A ** 2, axis=(1, 2)), axis=0)
+    return {"minv_col_ms": col_ms.tolist(), "dminv_col_ms": dcol_ms.tolist(),
+            "minv_col_max": np.sqrt(np.max(np.sum(Minv ** 2, axis=1), axis=0)).tolist()}
+
+
 def reduced_order_design(robot, dt, noise=None, quantization=None, uncertainty=0.0, eta=1.0, v_max=2.0,
-                         t_conv=0.2):
+                         t_conv=0.2, torque_uncertainty=0.0):
     """The default k0: the predicted-error minimiser for the sensor and model uncertainty,
     next to the guarantee (12) and Remark 3 (codegen.families.design.noise).
 
@@ -184,15 +217,20 @@ def reduced_order_design(robot, dt, noise=None, quantization=None, uncertainty=0
     eta, v_max : float, (12)'s error radius and speed bound (rad/s); v_max is also the initial
         error of the convergence floor (the estimate starts at 0, the robot at up to v_max)
     t_conv : float, time (s) to fall below 1e-2 rad/s from v_max
+    torque_uncertainty : float or (n,) floats, torque error per joint (N m; e.g. an identification's
+        torque residual): its acceleration error rms_q ||M^-1 diag(t)||_F adds in quadrature to
+        the relative one (codegen.families.design.noise)
 
     Returns
     -------
     NoiseAwareDesign"""
     uncertainty = check_uncertainty(uncertainty)
+    tau_unc = check_torque_uncertainty(torque_uncertainty, robot.n, robot.joint_names)
     sigma = sensor_sigma(noise, quantization)
     guarantee = reduced_order_gain(robot, eta=eta, v_max=v_max)
     stats = model_statistics(robot)
-    e_rms, G = uncertainty * stats["minv_g_rms"], stats["minv_dg_rms"]
+    e_tau = torque_error_rms(tau_unc, torque_statistics(robot)["minv_col_ms"]) if tau_unc.any() else 0.0
+    e_rms, G = math.hypot(uncertainty * stats["minv_g_rms"], e_tau), stats["minv_dg_rms"]
     floor = convergence_floor(v_max, t_conv)
     k0, choice, why, k_noise, predicted = reduced_order_noise_gain(robot.n, dt, sigma, e_rms, G, floor,
                                                                    guarantee.k0)
@@ -201,4 +239,5 @@ def reduced_order_design(robot, dt, noise=None, quantization=None, uncertainty=0
         k0_guarantee=guarantee.k0, k0_remark3=guarantee.k0_remark3,
         predicted_error=predicted, sigma=sigma, noise=noise, quantization=quantization,
         uncertainty=uncertainty, e_rms=e_rms, G=G, dt=float(dt), t_conv=float(t_conv), eta=float(eta),
-        v_max=float(v_max), guarantee=guarantee.as_dict())
+        v_max=float(v_max), guarantee=guarantee.as_dict(),
+        torque_uncertainty=tau_unc.tolist() if tau_unc.any() else None, e_rms_torque=float(e_tau))

@@ -2,7 +2,9 @@
 
 Flow (logic state r constant), as the fixed-gain family with k0 -> k_r   [S000 (6),(16)]:
 
-    x2hat = z + k_r y,      z' = FD(y, x2hat, tau) - k_r x2hat,      r' = 0
+    x2hat = z + k_r y,      z' = FD(y, sat(x2hat), tau) - k_r x2hat,      r' = 0
+
+(sat: the velocity bound of codegen.families.observers._bound, the published flow inside it)
 
 Jump map, applied before every step (the logic state lives in the observer state, so the
 generated C does the switching)                                           [DERIVED, SPEC §1.3, A0-3]:
@@ -23,6 +25,7 @@ import casadi as ca
 from ..design import reduced_order_design, scheduled_gains
 from ...core.options import HybridOptions, InputRanges
 from ...core.spec import ObserverSpec, split_flow
+from . import _bound
 from ._design import check_design, design_discretization, stable_report
 from .reduced_order import flow
 
@@ -63,7 +66,7 @@ def switch(r, speed, eta, vbar, delta, r_max):
 
 
 def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, quantization=None,
-          uncertainty=0.0, design="noise", dt=None, t_conv=0.2):
+          uncertainty=0.0, design="noise", dt=None, t_conv=0.2, torque_uncertainty=0.0, v_bound=None):
     """Hybrid reduced-order observer for ``robot``.
 
     Parameters
@@ -76,8 +79,12 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, 
         Down-jump tolerance layer (rad/s) [ASSUMPTION SPEC §1.3: 0.1].
     gains : sequence of r_max floats, optional
         k_1 .. k_{r_max}; given, they bypass the design (not the stability check).
-    noise, quantization, uncertainty, dt, t_conv
+    noise, quantization, uncertainty, dt, t_conv, torque_uncertainty
         As in ``reduced_order.build``.
+    v_bound : float or sequence of n floats, optional
+        Speed (rad/s) at which the model's velocity argument saturates; default twice the URDF
+        velocity limit, else twice r_max vbar, the top of the schedule
+        (codegen.families.observers._bound).
     design : {"noise", "guarantee"}
         "guarantee": the (16) table; "noise" (default): k_1 is the noise-aware reduced-order gain
         (with v_max = vbar) and the increments k_r - k_1 of (16) are kept.
@@ -92,7 +99,8 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, 
         gains = table
         report = {"k_r (16)": table.tolist(), "design": check_design(design)}
         if design == "noise":
-            nd = reduced_order_design(robot, disc.dt, noise, quantization, uncertainty, eta, vbar, t_conv)
+            nd = reduced_order_design(robot, disc.dt, noise, quantization, uncertainty, eta, vbar, t_conv,
+                                      torque_uncertainty)
             gains = nd.k0 + (table - table[0])         # the (16) increments on the noise-aware k_1
             report["k_1"] = nd.as_dict()
     gains = [float(g) for g in gains]
@@ -107,7 +115,8 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, 
     x = ca.vertcat(z, r)
 
     k_r = scheduled_gain(r, ca.vertsplit(k))
-    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k_r)                  # [S000 (6)] with k_r of (16)
+    bound = _bound.velocity_bound(robot, r_max * vbar, v_bound)
+    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k_r, bound)           # [S000 (6)] with k_r of (16)
     rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, ca.vertcat(zdot, 0))
     r_plus = switch(logic_index(r, r_max), ca.norm_2(x2hat), eta_s, vbar_s, delta_s, r_max)
     z_plus = z + (k_r - scheduled_gain(r_plus, ca.vertsplit(k))) * y  # [DERIVED] x2hat continuous
@@ -130,9 +139,9 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, 
         rate=ca.Function("rate", [x, p], [k_r]), rate_states=[f"z_{j}" for j in joints],
         retune=ca.Function("retune", [x, y, p, p_new], [ca.vertcat(z_retuned, r)]),
         gains={"k_r": tuple(gain_names(r_max))},
-        options=HybridOptions(r_max=r_max),
+        options=HybridOptions(r_max=r_max, v_bound=tuple(bound)),
         inputs=InputRanges(x_integer=(("r", 1, r_max),)),
         design={"eta": float(eta), "vbar": float(vbar), "r_max": r_max, "delta": float(delta),
-                "k_r": gains, **report},
+                "k_r": gains, **report, **_bound.report(robot, bound, r_max * vbar, v_bound is not None)},
     )
     return stable_report(spec, disc) if report else spec

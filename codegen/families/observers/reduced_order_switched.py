@@ -6,7 +6,7 @@ choose between converging fast (k0 large) and passing little encoder noise (the 
 grows like k0 sigma); the design (codegen.families.design.noise.switched_gains) converges with the floor
 gain and then runs at the noise-aware optimum:
 
-    x2hat = z + k y,   z' = FD(y, x2hat, tau) - k x2hat                  [S000 (6),(9)]
+    x2hat = z + k y,   z' = FD(y, sat(x2hat), tau) - k x2hat             [S000 (6),(9)]
     k     = k0 while s < t_switch + 1/2, else k0_final
     s'    = 1 while s < t_switch + 1/2, else 0                           (the clock)
 
@@ -14,6 +14,7 @@ Jump, applied at each sample: when t_switch <= s < t_switch + 1/2 (the clock has
 switch time and the switch has not happened), z+ = z + (k0 - k0_final) y (x2hat continuous,
 as at a hybrid jump, SPEC §1.3) and s+ = t_switch + 1 (marks the switch done).
 
+sat: the velocity bound of codegen.families.observers._bound (the published observer inside it).
 State x = [z (n); s], measurement y = q, input u = tau, parameters
 p = [k0, k0_final (1/s), t_switch (s)], estimate x2hat. The error dynamics are those of the
 fixed-gain observer with k0 then with k0_final: eps is continuous at the switch.
@@ -25,10 +26,10 @@ import math
 import casadi as ca
 
 from ..design import reduced_order_design, switched_gains
-from ...core.options import InputRanges
+from ...core.options import InputRanges, VelocityBoundOptions
 from ...core.spec import ObserverSpec, split_flow
 from ._design import design_discretization, stable_report
-from . import reduced_order
+from . import _bound, reduced_order
 from .reduced_order import flow
 
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
@@ -44,7 +45,8 @@ def active_gain(s, p):
 
 
 def build(robot, k0=None, k0_final=None, t_switch=None, eta=1.0, v_max=2.0, noise=None,
-          quantization=None, uncertainty=0.0, dt=None, t_conv=0.18, t_settle=2.0):
+          quantization=None, uncertainty=0.0, dt=None, t_conv=0.18, t_settle=2.0, torque_uncertainty=0.0,
+          v_bound=None):
     """Reduced-order observer with a time-switched gain for ``robot``.
 
     Parameters
@@ -55,8 +57,10 @@ def build(robot, k0=None, k0_final=None, t_switch=None, eta=1.0, v_max=2.0, nois
         bypass the design (not the stability check at compile time).
     t_switch : float, optional
         Time of the switch (s) after the first sample; given with the gains.
-    eta, v_max, noise, quantization, uncertainty, dt
-        As in ``reduced_order.build`` (the design of k0: codegen.families.design.noise).
+    eta, v_max, noise, quantization, uncertainty, dt, torque_uncertainty, v_bound
+        As in ``reduced_order.build`` (the design of k0: codegen.families.design.noise); the
+        torque uncertainty also raises k0_final to where its bias is no larger than the noise
+        (k0_bias of codegen.families.design.noise.switched_gains).
     t_conv : float
         Time (s) to fall below 1e-2 rad/s from v_max at the gain k0. [ASSUMPTION] 0.18 s: 10 %
         inside the 0.2 s asked of the default, for the Coriolis coupling the linear prediction
@@ -72,7 +76,8 @@ def build(robot, k0=None, k0_final=None, t_switch=None, eta=1.0, v_max=2.0, nois
     report = None
     if not any(given):
         disc = design_discretization(dt)
-        nd = reduced_order_design(robot, disc.dt, noise, quantization, uncertainty, eta, v_max, t_conv)
+        nd = reduced_order_design(robot, disc.dt, noise, quantization, uncertainty, eta, v_max, t_conv,
+                                  torque_uncertainty)
         report = {**switched_gains(nd, robot.n, t_settle), "k0_design": nd.as_dict()}
         k0, k0_final, t_switch = report["k0"], report["k0_final"], report["t_switch"]
     if not (isinstance(t_switch, (int, float)) and math.isfinite(t_switch) and t_switch >= 0):
@@ -80,21 +85,23 @@ def build(robot, k0=None, k0_final=None, t_switch=None, eta=1.0, v_max=2.0, nois
     if report is not None:
         # the check linearises at the initial clock (gain k0); after the switch the observer is
         # the fixed-gain one at k0_final: checked (and kept stable) as that family
-        final = stable_report(reduced_order.build(robot, k0=k0_final), disc)
+        final = stable_report(reduced_order.build(robot, k0=k0_final, v_max=v_max, v_bound=v_bound), disc)
         report["stability_after_switch"] = final.design["stability"]
         k0_final = float(final.p_default[0])
-    spec = _spec(robot, [float(k0), float(k0_final), float(t_switch)], report)
+    bound = _bound.velocity_bound(robot, v_max, v_bound)
+    spec = _spec(robot, [float(k0), float(k0_final), float(t_switch)], report, bound,
+                 _bound.report(robot, bound, v_max, v_bound is not None))
     return spec if report is None else stable_report(spec, disc)
 
 
-def _spec(robot, p_default, report):
+def _spec(robot, p_default, report, bound, bound_report):
     n = robot.n
     z, s, y, tau = ca.SX.sym("z", n), ca.SX.sym("s"), ca.SX.sym("y", n), ca.SX.sym("tau", n)
     y_cfg = ca.SX.sym("y_cfg", n)
     p, p_new = ca.SX.sym("p", 3), ca.SX.sym("p_new", 3)
     x = ca.vertcat(z, s)
     k = active_gain(s, p)
-    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k)                # [S000 (6),(9)] with the gain k
+    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k, bound)         # [S000 (6),(9)] with the gain k
     running = s < p[2] + 0.5
     rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, ca.vertcat(zdot, ca.if_else(running, 1, 0)))
     switching = ca.logic_and(s >= p[2], running)
@@ -122,6 +129,7 @@ def _spec(robot, p_default, report):
         # whole seconds of the clock, before and after the switch (a run crosses it); the
         # stability check keeps it where init puts it (0: the gain k0)
         inputs=InputRanges(x_integer=(("s", 0, t_hi),)),
-        design=report or {"k0": p_default[0], "k0_final": p_default[1], "t_switch": p_default[2],
-                          "given": True},
+        options=VelocityBoundOptions(v_bound=tuple(bound)),
+        design={**(report or {"k0": p_default[0], "k0_final": p_default[1], "t_switch": p_default[2],
+                              "given": True}), **bound_report},
     )

@@ -3,14 +3,24 @@
     x1tilde = y - x1hat,   x1hat' = x2hat + kd x1tilde
     x2hat'  = M(y)^{-1}[tau - C(y, x1hat') x1hat' - F x1hat' - g(y) + kp x1tilde]
 
-C evaluated at x1hat' (A0-6). x = [x1hat (n, rad); x2hat (n, rad/s)], y = q (n, rad),
+C evaluated at x1hat' (A0-6), saturated to the declared velocity bound (as reduced_order).
+x = [x1hat (n, rad); x2hat (n, rad/s)], y = q (n, rad),
 u = tau (n, N m), p = [kd (1/s), kp (N m/rad)], est = x2hat (n, rad/s).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ._family import bound
+from ._saturation import saturate, velocity_bound
+
 P_NAMES = ("kd", "kp")
+
+
+def configure(robot, options):
+    """This family with the declared velocity bound bound (``robot`` the reference robot,
+    ``options`` its VelocityBoundOptions or plain Options: no saturation)."""
+    return bound(__name__, v_bound=velocity_bound(robot, options))
 
 
 def output(robot, x, y, u, p):
@@ -36,22 +46,23 @@ def output(robot, x, y, u, p):
     return np.asarray(x[robot.n:], dtype=float)
 
 
-def rhs_split(robot, x, y_cfg, y, u, p):
+def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
     """[x1hat' (rad/s); x2hat' (rad/s^2)] (2n,) of SPEC §2, the K_P x1tilde term entering as a
-    torque, the model M, C, g, F at the configuration y_cfg (n,) rad and x1tilde = y - x1hat at the
-    measurement; robot, x, y, u, p as in ``output``."""
+    torque, the model M, C, g, F at the configuration y_cfg (n,) rad and at x1hat' saturated to
+    ``v_bound`` ((n,) rad/s or None), x1tilde = y - x1hat at the measurement; robot, x, y, u, p
+    as in ``output``."""
     n = robot.n
     x1hat, x2hat = x[:n], x[n:]
     kd, kp = p
     x1tilde = y - x1hat
     v = x2hat + kd * x1tilde
-    return np.concatenate([v, robot.forward_dynamics(y_cfg, v, u + kp * x1tilde)])
+    return np.concatenate([v, robot.forward_dynamics(y_cfg, saturate(v, v_bound), u + kp * x1tilde)])
 
 
-def rhs(robot, x, y, u, p):
+def rhs(robot, x, y, u, p, v_bound=None):
     """The flow of the observer: ``rhs_split`` with the model at y itself;
-    robot, x, y, u, p as in ``rhs_split``."""
-    return rhs_split(robot, x, y, y, u, p)
+    robot, x, y, u, p, v_bound as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p, v_bound)
 
 
 def rate(robot, x, p):

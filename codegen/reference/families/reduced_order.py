@@ -1,16 +1,36 @@
 """Reduced-order velocity observer, linear gain k(y) = k0 y (SPEC §1.1, seed 000).
 
     x2hat = z + k0 y                                                         [S000 (6),(9)]
-    z'    = M(y)^{-1} [tau - C(y, x2hat) x2hat - F x2hat - g(y)] - k0 x2hat  [S000 (6),(9)]
+    z'    = M(y)^{-1} [tau - C(y, v) v - F v - g(y)] - k0 x2hat,  v = sat(x2hat)   [S000 (6),(9)]
     z(0)  = x2hat(0) - k0 y(0)                            [CODE-KUKA controller_kuka.hpp]
 
+sat: the declared velocity bound (``_saturation``; none in a description without it).
 x = z (n, rad/s), y = q (n, rad), u = tau (n, N m), p = [k0 (1/s)], est = x2hat (n, rad/s).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ._family import bound
+from ._saturation import saturate, velocity_bound
+
 P_NAMES = ("k0",)
+
+
+def configure(robot, options):
+    """This family with the declared velocity bound (``options.v_bound``, rad/s) bound.
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    options : codegen.core.options.Options
+        VelocityBoundOptions (or plain Options: no saturation).
+
+    Returns
+    -------
+    family bound to ``v_bound`` ((n,) array or None)
+    """
+    return bound(__name__, v_bound=velocity_bound(robot, options))
 
 
 def output(robot, x, y, u, p):
@@ -36,18 +56,19 @@ def output(robot, x, y, u, p):
     return x + p[0] * y
 
 
-def rhs_split(robot, x, y_cfg, y, u, p):
-    """z' = forward_dynamics(y_cfg, x2hat, tau) - k0 x2hat  [S000 (6)] (n,), rad/s^2, the model at
-    the configuration y_cfg (n,) rad, x2hat = z + k0 y at the measurement (M^{-1} k0 M x2hat =
-    k0 x2hat, so the M dk/dy term leaves the solve); robot, x, y, u, p as in ``output``."""
+def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
+    """z' = forward_dynamics(y_cfg, sat(x2hat), tau) - k0 x2hat  [S000 (6)] (n,), rad/s^2, the model
+    at the configuration y_cfg (n,) rad and at x2hat = z + k0 y saturated to ``v_bound`` ((n,)
+    rad/s or None), x2hat at the measurement (M^{-1} k0 M x2hat = k0 x2hat, so the M dk/dy term
+    leaves the solve); robot, x, y, u, p as in ``output``."""
     x2hat = output(robot, x, y, u, p)
-    return robot.forward_dynamics(y_cfg, x2hat, u) - p[0] * x2hat
+    return robot.forward_dynamics(y_cfg, saturate(x2hat, v_bound), u) - p[0] * x2hat
 
 
-def rhs(robot, x, y, u, p):
+def rhs(robot, x, y, u, p, v_bound=None):
     """The flow z' of the observer: ``rhs_split`` with the model at y itself;
-    robot, x, y, u, p as in ``rhs_split``."""
-    return rhs_split(robot, x, y, y, u, p)
+    robot, x, y, u, p, v_bound as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p, v_bound)
 
 
 def rate(robot, x, p):

@@ -6,6 +6,7 @@ Jumps before each step [DERIVED, SPEC §1.3]: while ||x2hat|| >= r vbar - eta an
 r += 1; else while r >= 2 and ||x2hat|| <= (r-1) vbar - eta - delta, r -= 1; then
 z+ = z + (k_r - k_{r+}) y, so x2hat is continuous.
 
+The model at the estimate saturated to the declared velocity bound (HybridOptions.v_bound).
 x = [z (n, rad/s); r], y = q (n, rad), u = tau (n, N m), p = [k_1 .. k_{r_max} (1/s), eta,
 vbar, delta (rad/s)], est = x2hat (n, rad/s). r_max = len(p) - 3 (no fixed P_NAMES: the number
 of gains is a build choice).
@@ -15,6 +16,14 @@ from __future__ import annotations
 import numpy as np
 
 from . import reduced_order
+from ._family import bound
+from ._saturation import velocity_bound
+
+
+def configure(robot, options):
+    """This family with the declared velocity bound bound (HybridOptions.v_bound; ``robot`` the
+    reference robot, ``options`` its HybridOptions)."""
+    return bound(__name__, v_bound=velocity_bound(robot, options))
 
 
 def _split(p):
@@ -68,17 +77,18 @@ def output(robot, x, y, u, p):
     return reduced_order.output(robot, x[:-1], y, u, [gain(x, p)])
 
 
-def rhs_split(robot, x, y_cfg, y, u, p):
-    """[z'; r'] = [FD(y_cfg, x2hat, tau) - k_r x2hat; 0]  [S000 (6)] (n + 1,), the model at the
-    configuration y_cfg (n,) rad; robot, x, y, u, p as in ``output``."""
-    zdot = reduced_order.rhs_split(robot, x[:-1], y_cfg, y, u, [gain(x, p)])
+def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
+    """[z'; r'] = [FD(y_cfg, sat(x2hat), tau) - k_r x2hat; 0]  [S000 (6)] (n + 1,), the model at the
+    configuration y_cfg (n,) rad and at x2hat saturated to ``v_bound`` ((n,) rad/s or None);
+    robot, x, y, u, p as in ``output``."""
+    zdot = reduced_order.rhs_split(robot, x[:-1], y_cfg, y, u, [gain(x, p)], v_bound)
     return np.append(zdot, 0.0)
 
 
-def rhs(robot, x, y, u, p):
+def rhs(robot, x, y, u, p, v_bound=None):
     """The flow [z'; r'] of the observer: ``rhs_split`` with the model at y itself;
-    robot, x, y, u, p as in ``rhs_split``."""
-    return rhs_split(robot, x, y, y, u, p)
+    robot, x, y, u, p, v_bound as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p, v_bound)
 
 
 def jump(robot, x, y, p):

@@ -5,12 +5,22 @@
     z(0)  = x2hat(0) - k0 C phi(y(0))
     phi(y) = [y_l; sin y_l; cos y_l; sin 2y_l; cos 2y_l (l = 1..n); y_l cos y_m; y_l sin y_m (l != m)]
 
+The model at the estimate saturated to the declared velocity bound (as reduced_order).
 x = z (n, rad/s), y = q (n, rad), u = tau (n, N m), p = [k0 (1/s), C row-major (n x nb)],
 est = x2hat (n, rad/s). phi and its Jacobian are written out here (no symbolic code).
 """
 from __future__ import annotations
 
 import numpy as np
+
+from ._family import bound
+from ._saturation import saturate, velocity_bound
+
+
+def configure(robot, options):
+    """This family with the declared velocity bound bound (``robot`` the reference robot,
+    ``options`` its VelocityBoundOptions or plain Options: no saturation)."""
+    return bound(__name__, v_bound=velocity_bound(robot, options))
 
 
 def _pairs(n):
@@ -53,19 +63,19 @@ def output(robot, x, y, u, p):
     return np.asarray(x, dtype=float) + k0 * C @ phi(y)
 
 
-def rhs_split(robot, x, y_cfg, y, u, p):
-    """z' = forward_dynamics(y_cfg, x2hat, tau) - k0 C dphi/dy(y) x2hat  [S000 (6)] (n,), rad/s^2:
-    the model at the configuration y_cfg (n,) rad, the gain terms at the measurement y; robot, x,
-    y, u, p as in ``output``."""
+def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
+    """z' = forward_dynamics(y_cfg, sat(x2hat), tau) - k0 C dphi/dy(y) x2hat  [S000 (6)] (n,),
+    rad/s^2: the model at the configuration y_cfg (n,) rad and at x2hat saturated to ``v_bound``
+    ((n,) rad/s or None), the gain terms at the measurement y; robot, x, y, u, p as in ``output``."""
     k0, C = _gain(robot, p)
     x2hat = output(robot, x, y, u, p)
-    return robot.forward_dynamics(y_cfg, x2hat, u) - k0 * (C @ dphi(y)) @ x2hat
+    return robot.forward_dynamics(y_cfg, saturate(x2hat, v_bound), u) - k0 * (C @ dphi(y)) @ x2hat
 
 
-def rhs(robot, x, y, u, p):
+def rhs(robot, x, y, u, p, v_bound=None):
     """The flow z' of the observer: ``rhs_split`` with the model at y itself;
-    robot, x, y, u, p as in ``rhs_split``."""
-    return rhs_split(robot, x, y, y, u, p)
+    robot, x, y, u, p, v_bound as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p, v_bound)
 
 
 def init(robot, y0, est0, p):

@@ -6,6 +6,7 @@
     jump at a sample with t_switch <= s < t_switch + 1/2: z+ = z + (k0 - k0_final) y,
     s+ = t_switch + 1 (x2hat continuous)                                [DERIVED, as SPEC §1.3]
 
+The model at the estimate saturated to the declared velocity bound (as reduced_order).
 x = [z (n, rad/s); s (s)], y = q (n, rad), u = tau (n, N m), p = [k0, k0_final (1/s),
 t_switch (s)], est = x2hat (n, rad/s).
 """
@@ -14,8 +15,16 @@ from __future__ import annotations
 import numpy as np
 
 from . import reduced_order
+from ._family import bound
+from ._saturation import velocity_bound
 
 P_NAMES = ("k0", "k0_final", "t_switch")
+
+
+def configure(robot, options):
+    """This family with the declared velocity bound bound (as ``reduced_order.configure``;
+    ``robot`` the reference robot, ``options`` its VelocityBoundOptions or plain Options)."""
+    return bound(__name__, v_bound=velocity_bound(robot, options))
 
 
 def running(x, p):
@@ -52,17 +61,18 @@ def output(robot, x, y, u, p):
     return reduced_order.output(robot, x[:-1], y, u, [gain(x, p)])
 
 
-def rhs_split(robot, x, y_cfg, y, u, p):
-    """[z'; s'] = [FD(y_cfg, x2hat, tau) - k x2hat; 1 before the switch, else 0]  [S000 (6)]
-    (n + 1,), the model at the configuration y_cfg (n,) rad; robot, x, y, u, p as in ``output``."""
-    zdot = reduced_order.rhs_split(robot, x[:-1], y_cfg, y, u, [gain(x, p)])
+def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
+    """[z'; s'] = [FD(y_cfg, sat(x2hat), tau) - k x2hat; 1 before the switch, else 0]  [S000 (6)]
+    (n + 1,), the model at the configuration y_cfg (n,) rad and at x2hat saturated to ``v_bound``
+    ((n,) rad/s or None); robot, x, y, u, p as in ``output``."""
+    zdot = reduced_order.rhs_split(robot, x[:-1], y_cfg, y, u, [gain(x, p)], v_bound)
     return np.append(zdot, 1.0 if running(x, p) else 0.0)
 
 
-def rhs(robot, x, y, u, p):
+def rhs(robot, x, y, u, p, v_bound=None):
     """The flow [z'; s'] of the observer: ``rhs_split`` with the model at y itself; robot, x, y,
-    u, p as in ``rhs_split``."""
-    return rhs_split(robot, x, y, y, u, p)
+    u, p, v_bound as in ``rhs_split``."""
+    return rhs_split(robot, x, y, y, u, p, v_bound)
 
 
 def jump(robot, x, y, p):
