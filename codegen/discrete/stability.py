@@ -27,7 +27,7 @@ range stable, and the accuracy of the step at dt, max_i ||dPhi/dx - expm(dt (J(x
 
     report = check(spec, disc)               # StabilityReport; cached on disk
     require_stable(spec, disc)               # the report, or UnstableDiscretization (a ValueError)
-    auto_substeps(spec, disc)                # the smallest stable substeps
+    auto_substeps(spec, disc)                # the smallest stable substeps (and, by default, dt_max)
 
 When unstable, the report also names the stiff mode (the flow Jacobian's eigenvalue of largest
 modulus at the worst working point), the joint it lives on and its cause (joint damping on a small
@@ -45,11 +45,11 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..core.cache import cached_json
-from ..core.target import AUTO
+from ..core.target import AUTO, DT_MAX_FACTOR
 from .sampling import declared_slots, measurements
 from .discretize import step_jacobians
 
-VERSION = 5            # of this check (part of the cache key)
+VERSION = 6            # of this check (part of the cache key)
 POINTS = 8             # sampled configurations; each at rest and moving
 TOL = 1e-6             # relative slack on the spectral radius
 GROWTH = 4.0 ** 10     # a gain is searched up to this multiple of its value (x4 at a time)
@@ -423,7 +423,7 @@ def _compute(spec, disc, p, gains, bounds=True):
         report["dt_limit"] = limit if limit > 0 else None
         report["substeps_needed"] = math.ceil(hi / limit) if limit > 0 else None
     if not stable and evaluable:
-        report["stiff_mode"] = stiff_mode(spec, lin, p, dts[worst])
+        report["stiff_mode"] = stiff_mode(spec, lin, p, disc.dt)
     return report
 
 
@@ -498,11 +498,18 @@ def _refusal(spec, report, prefix=""):
 def auto_substeps(spec, disc, p=None, limit=64):
     """The discretisation with the smallest substeps (>= disc.substeps, <= limit) that is stable.
 
+    When the range of the elapsed time is the default one (``disc.dt_max`` not declared), the
+    substeps are the fewest stable over [dt_min, dt], and dt_max is declared as the largest sample
+    time up to the default 2 dt they are stable at (``widest_range``): the step at dt costs no
+    sub-step more for the jitter, and a longer elapsed time is split into sub-intervals (every
+    default target: 1 sub-step and dt_max = 2 dt; xarm7's stiff wrist: 19 sub-steps and a dt_max
+    near dt, where the whole default range would take 38). A declared dt_max is kept.
+
     Parameters
     ----------
     spec : ObserverSpec
     disc : codegen.core.target.Discretization
-        The requested one (dt, method, hold, substeps; substeps "auto" starts from 1).
+        The requested one (dt, method, hold, substeps, range; substeps "auto" starts from 1).
     p : (np,) array or None
         Parameters; None: the spec's defaults.
     limit : int
@@ -516,6 +523,18 @@ def auto_substeps(spec, disc, p=None, limit=64):
     from dataclasses import replace
     if disc.substeps == AUTO:
         disc = replace(disc, substeps=1)
+    if disc.dt_max is not None or check(spec, disc, p).stable:
+        return _fewest(spec, disc, p, limit)
+    at_dt = _fewest(spec, replace(disc, dt_max=disc.dt), p, limit)
+    whole = replace(at_dt, dt_max=None)
+    if check(spec, whole, p).stable:
+        return whole
+    return widest_range(spec, at_dt, p)
+
+
+def _fewest(spec, disc, p, limit):
+    """``disc`` with the fewest substeps (>= its own, <= ``limit``) stable over its range."""
+    from dataclasses import replace
     report = check(spec, disc, p)
     if report.stable:
         return disc
@@ -528,6 +547,40 @@ def auto_substeps(spec, disc, p=None, limit=64):
             return candidate
         m += 1
     raise _refusal(spec, report, f"no substeps <= {limit} is stable; ")
+
+
+def widest_range(spec, disc, p=None):
+    """``disc`` (stable with its range up to dt_max = dt) with dt_max declared as the largest sample
+    time in [dt, DT_MAX_FACTOR dt] at which its substeps are stable over [dt_min, dt_max]
+    (bisection to 2^-16, rounded down to three significant digits).
+
+    Parameters
+    ----------
+    spec : ObserverSpec
+    disc : codegen.core.target.Discretization
+        Stable over [dt_min, dt].
+    p : (np,) array or None
+        Parameters; None: the spec's defaults.
+
+    Returns
+    -------
+    codegen.core.target.Discretization
+    """
+    from dataclasses import replace
+    p = np.asarray(spec.p_default if p is None else p, dtype=float).reshape(spec.np)
+    lin = _Linearisation(spec, disc)
+    top = DT_MAX_FACTOR * disc.dt
+
+    def ok(h):
+        return lin.stable(p, sample_times(replace(disc, dt_max=h)))
+    lo, hi = disc.dt, top
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    scale = 10.0 ** (math.floor(math.log10(lo)) - 2)
+    h = max(disc.dt, float(f"{math.floor(lo / scale) * scale:.3g}"))
+    widest = replace(disc, dt_max=h)
+    return widest if check(spec, widest, p).stable else replace(disc, dt_max=disc.dt)
 
 
 def stable_defaults(spec, disc, margin=0.9):

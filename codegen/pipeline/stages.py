@@ -79,17 +79,24 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), che
 
 def _as_recorded(folder, target):
     """``target`` as a folder generated from it records it: substeps "auto" compares as the number
-    the folder holds (what it was resolved into), everything else as it is."""
+    the folder holds (what it was resolved into), and so does an undeclared dt_max (the auto
+    resolution may declare it), everything else as it is."""
     if target.discretization.substeps != AUTO:
         return target
     try:
         recorded = json.loads((Path(folder) / f"{Path(folder).name}.json").read_text())
         substeps = recorded["target"]["discretization"]["substeps"]
-    except (OSError, ValueError, KeyError, TypeError):
+        dt_max = recorded["target"]["discretization"].get("dt_max")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return target
     if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
         return target
-    return target.with_discretization(None, substeps=substeps)
+    if target.discretization.dt_max is not None or not isinstance(dt_max, (int, float)):
+        dt_max = None
+    try:
+        return target.with_discretization(None, substeps=substeps, dt_max=dt_max)
+    except ValueError:
+        return target
 
 
 def compile_observer(spec, discretization=None, *, dt=None, method=None, substeps=None, hold=None,

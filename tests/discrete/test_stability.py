@@ -55,7 +55,8 @@ def test_damped_urdf_with_rk4_is_refused_with_the_fix(damped, tmp_path):
     """The guarantee gain with plain RK4 at 1 kHz and one sub-step: one error naming the gain, dt
     and the fix; substeps="auto" (also the default when no substeps are given) picks the fix and
     the run stays finite. The default range lets the elapsed time reach dt_max = 2 ms:
-    (k0 + lambda) dt_max ~ 6.6 needs ceil(6.6 / 2.785) = 3 substeps (2 at dt = 1 ms alone)."""
+    (k0 + lambda) dt_max ~ 6.6 needs ceil(6.6 / 2.785) = 3 substeps (2 at dt = 1 ms alone), which
+    the refusal names; "auto" takes the 2 of dt and declares the dt_max they are stable at."""
     from codegen.verify.trajectory import demo_trajectory
     spec = observers.build("reduced_order", damped, design="guarantee")
     with pytest.raises(UnstableDiscretization) as err:
@@ -68,9 +69,12 @@ def test_damped_urdf_with_rk4_is_refused_with_the_fix(damped, tmp_path):
     top = report.gains["k0"]["max_stable"]
     assert report.gains["k0"]["limit_found"] and top < spec.p_default[0]
     assert check(spec, RK4, p=[0.999 * top]).stable and not check(spec, RK4, p=[1.001 * top]).stable
-    assert check(spec, RK4_AT_DT).substeps_needed == 2
+    assert check(spec, RK4_AT_DT).substeps_needed == 2 and report.substeps_needed == 3
+    # "auto" with the range not declared: the fewest sub-steps stable at dt (2), and dt_max declared
+    # as the largest sample time they are stable at (below 2 dt: 3 would be needed there)
     obs = compile_observer(spec, method="rk4", substeps="auto", out_dir=tmp_path)
-    assert obs.meta["discretization"]["substeps"] == report.substeps_needed == 3
+    assert obs.meta["discretization"]["substeps"] == 2 and 1e-3 < obs.meta["discretization"]["dt_max"] < 2e-3
+    assert check(spec, Discretization(method="rk4", substeps=2, dt_max=obs.meta["discretization"]["dt_max"])).stable
     t, Q, QD, TAU = demo_trajectory(damped, T=0.5)
     obs.reset(Q[0])
     assert np.all(np.isfinite(obs.run(Q, TAU)))

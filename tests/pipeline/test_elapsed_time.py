@@ -175,8 +175,8 @@ def test_stamps_checked_before_the_c(compiled):
 def test_an_unstable_range_is_refused_with_the_fix(tmp_path):
     """RK4, k0 = 2000 at dt = 1 ms: stable at dt (k0 dt = 2 < 2.785) but not when an elapsed time
     reaches 2 ms (4): with one sub-step, refused naming the range, the smaller dt_max and the
-    substeps that fix it; each fix is then stable ("auto", the default, picks 2 sub-steps), and
-    dt_max = dt is what the check certified at dt alone."""
+    substeps that fix it; each fix is then stable, "auto" (the default) keeps one sub-step and
+    declares the smaller dt_max, and dt_max = dt is what the check certified at dt alone."""
     spec = observers.build("reduced_order", load_robot("seed000_2r"), k0=2000.0)
     with pytest.raises(UnstableDiscretization) as err:
         compile_observer(spec, method="rk4", substeps=1, out_dir=tmp_path)
@@ -187,7 +187,11 @@ def test_an_unstable_range_is_refused_with_the_fix(tmp_path):
     assert not report.stable and report.worst_dt == 2e-3 and 1.39e-3 < report.dt_limit < 1.3927e-3
     assert check(spec, spec.target(method="rk4", dt_max=1.39e-3).discretization).stable
     assert check(spec, spec.target(method="rk4", substeps=2).discretization).stable
-    assert compile_observer(spec, method="rk4", out_dir=tmp_path).meta["discretization"]["substeps"] == 2
+    # substeps "auto" (the default) with the range not declared: the fewest sub-steps stable at dt
+    # (one), and dt_max declared as the largest sample time they are stable at; a longer one is split
+    auto = compile_observer(spec, method="rk4", out_dir=tmp_path).meta
+    assert auto["discretization"]["substeps"] == 1 and auto["discretization"]["dt_max"] == 1.39e-3
+    assert auto["target"]["discretization"]["dt_max"] == 1.39e-3 and auto["stability"]["stable"]
     obs = compile_observer(spec, method="rk4", dt_max=1e-3, out_dir=tmp_path)
     meta = obs.meta["discretization"]
     assert (meta["dt_min"], meta["dt_max"]) == (2.5e-4, 1e-3)
