@@ -72,12 +72,14 @@ def test_make_resolves_auto_and_recognises_its_folder(tmp_path):
 @pytest.mark.slow
 def test_a_number_is_taken_as_given(tmp_path):
     """compile_observer with substeps=1 (or a whole Discretization) is refused where "auto" (the
-    default) works; the refusal gives the fix in Python's words, its cli_message in flags."""
+    default) works; the refusal gives the fix in Python's words, its cli_message in flags. The fix
+    covers the default range of the elapsed time up to 2 dt: 3 sub-steps (2 at dt alone, which is
+    what "auto" takes, declaring the dt_max they are stable at)."""
     spec = observers.build("reduced_order", load_robot(urdf=DAMPED), design="guarantee")
     with pytest.raises(UnstableDiscretization) as err:
         compile_observer(spec, method="rk4", substeps=1, out_dir=tmp_path)
-    assert 'substeps="auto"' in str(err.value) and "substeps >= 2" in str(err.value)
-    assert "--substeps auto" in err.value.cli_message and "--substeps 2 (or more)" in err.value.cli_message
+    assert 'substeps="auto"' in str(err.value) and "substeps >= 3" in str(err.value)
+    assert "--substeps auto" in err.value.cli_message and "--substeps 3 (or more)" in err.value.cli_message
     with pytest.raises(UnstableDiscretization):
         compile_observer(spec, Discretization(method="rk4"), out_dir=tmp_path)
     assert compile_observer(spec, method="rk4", out_dir=tmp_path).meta["discretization"]["substeps"] == 2
