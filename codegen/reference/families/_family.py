@@ -11,7 +11,7 @@ import sys
 from functools import partial
 from types import SimpleNamespace
 
-CONTRACT = ("rhs", "rhs_split", "output", "init", "jump", "sizes")
+CONTRACT = ("rhs", "rhs_split", "output", "init", "jump", "sizes", "rate", "rate_states")
 
 
 def bound(module, **options):
