@@ -28,11 +28,20 @@ acceleration is trusted no further, because a very precise acceleration makes th
 forget its initial value slowly (the error's slowest pole tends to 0 with lam_hat); lam_floor is
 the smallest lam_hat at which an initial velocity error still decays as fast as without the model.
 
-omega (the design, ``design_kalman_model``): the smallest bandwidth at which an initial velocity
-error v_max (the estimate starts at 0 while the arm moves at up to v_max) falls below 1e-2 rad/s
-within t_conv: the least noise that still converges in time. Measured on the MuJoCo real-arm
-task logs (ur5, panda, kinova; README), the error is flat within 10 % for omega in 30-45 rad/s
-and grows fast below 25 (the filter lags the moves' jerk steps); t_conv = 0.5 s gives 32 rad/s.
+The bandwidths (``design_kalman_model``), each the smallest omega at which an initial velocity
+error v_max falls below 1e-2 rad/s within a time (``omega_floor``: the least noise that still
+converges in that time):
+
+    omega0 = omega_floor(v_max, t_conv)     start-up (the estimate starts at 0 while the arm may
+                                             move at up to v_max): t_conv = 0.2 s gives 81 rad/s
+    omega  = omega_floor(v_max, t_settle)   from t_switch = 1.5 t_conv on: t_settle = 0.5 s gives
+                                             32 rad/s
+
+Measured on the MuJoCo real-arm task logs (ur5, panda, kinova; README), the steady error is
+flat within 10 % for omega in 30-45 rad/s and grows fast below 25 (the filter lags the moves'
+jerk steps), hence t_settle = 0.5 s. The switch waits 1.5 t_conv [ASSUMPTION, measured]: at
+t_conv the start-up filter's estimates of a and j still carry its larger noise, and switching
+then put the ur5's error back above 1e-2 until 0.27 s; at 1.5 t_conv it stays below 7e-3.
 """
 from __future__ import annotations
 
@@ -206,8 +215,9 @@ def check_per_joint(name, value, n, positive=False):
 class KalmanModelDesign:
     """Why the kalman_model observer's gains are what they are (module docstring).
 
-    Attributes: omega (1/s, the bandwidth used), omega_floor (the convergence rule's), sigma
-    (encoder std, rad), dt (design sample time, s), v_max, t_conv, lam_floor, fit poles and
+    Attributes: omega (1/s, the steady bandwidth), omega0 (1/s, the start-up one, until
+    t_switch, s), omega_floor (the steady rule's), sigma
+    (encoder std, rad), dt (design sample time, s), v_max, t_conv, t_settle, lam_floor, fit poles and
     coefficients and their relative error, width (the velocity std below which the Coulomb
     friction's sign is uncertain, rad/s), predicted RMS error norms (rad/s, noise only:
     kinematic, and with the model at sampled configurations when torque noise is stated) and
@@ -215,12 +225,15 @@ class KalmanModelDesign:
     """
     robot: str
     omega: float
+    omega0: float
+    t_switch: float
     omega_floor: float
     choice: str
     sigma: float
     dt: float
     v_max: float
     t_conv: float
+    t_settle: float
     lam_floor: float
     poles: list
     coefficients: list
@@ -266,7 +279,7 @@ def predicted_model_error(robot, omega, sigma, dt, torque_noise, fit, samples=64
 
 
 def design_kalman_model(robot, dt, noise=None, quantization=None, torque_noise=None, v_max=2.0,
-                        t_conv=0.5, omega=None, poles=POLES):
+                        t_conv=0.2, t_settle=0.5, omega=None, poles=POLES):
     """The default gains of the kalman_model observer (module docstring).
 
     Parameters
@@ -282,9 +295,11 @@ def design_kalman_model(robot, dt, noise=None, quantization=None, torque_noise=N
     v_max : float
         Speed bound (rad/s): the initial velocity error of the convergence rule.
     t_conv : float
-        Time (s) to fall below 1e-2 rad/s from v_max.
+        Time (s) to fall below 1e-2 rad/s from v_max: the start-up bandwidth omega0.
+    t_settle : float
+        The same time for the steady bandwidth omega (after t_switch = 1.5 t_conv).
     omega : float, optional
-        A given bandwidth (1/s) instead of the rule.
+        A given steady bandwidth (1/s) instead of the rule.
     poles : int
         Partial fractions of the gain functions.
 
@@ -296,12 +311,13 @@ def design_kalman_model(robot, dt, noise=None, quantization=None, torque_noise=N
     if sigma <= 0:
         raise ValueError("noise and quantization: the encoder must have some noise or quantisation "
                          "(the Kalman gains divide by it)")
-    for name, v in (("v_max", v_max), ("t_conv", t_conv), ("dt", dt)):
+    for name, v in (("v_max", v_max), ("t_conv", t_conv), ("t_settle", t_settle), ("dt", dt)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be a positive number, got {v!r}")
-    w_floor = omega_floor(v_max, t_conv)
+    w_floor = omega_floor(v_max, t_settle)
+    omega0 = omega_floor(v_max, t_conv)
     if omega is None:
-        omega, choice = w_floor, "convergence rule: the smallest omega converging within t_conv"
+        omega, choice = w_floor, "convergence rule: the smallest omega converging within t_settle"
     else:
         if not (isinstance(omega, (int, float)) and math.isfinite(omega) and omega > 0):
             raise ValueError(f"omega must be a positive number (1/s), got {omega!r}")
@@ -316,8 +332,9 @@ def design_kalman_model(robot, dt, noise=None, quantization=None, torque_noise=N
         tn = check_torque_noise(torque_noise, robot.n)
         predicted["model"] = predicted_model_error(robot, omega, sigma, dt, tn, fit)
     return KalmanModelDesign(
-        robot=robot.name, omega=float(omega), omega_floor=float(w_floor), choice=choice, sigma=sigma,
-        dt=float(dt), v_max=float(v_max), t_conv=float(t_conv), lam_floor=float(floor),
+        robot=robot.name, omega=float(omega), omega0=float(max(omega0, omega)), t_switch=1.5 * float(t_conv),
+        omega_floor=float(w_floor), choice=choice, sigma=sigma,
+        dt=float(dt), v_max=float(v_max), t_conv=float(t_conv), t_settle=float(t_settle), lam_floor=float(floor),
         poles=[float(x) for x in fit[0]], coefficients=np.asarray(fit[1]).tolist(), fit_error=float(fit[2]),
         width=float(joint_std), predicted_error=predicted, predicted_joint_std=float(joint_std),
         torque_noise=None if tn is None else tn.tolist())

@@ -4,7 +4,9 @@ Kalman-Bucy filter (Kalman & Bucy, J. Basic Eng. 83, 1961) on the white-snap ("c
 kinematic model of target tracking, and the model-based acceleration pseudo-measurement of
 joint velocity estimation with joint torque sensing].
 
-Per joint, x = [q_hat, v_hat, a_hat, j_hat] (q_hat'''' white). With e = y - q_hat:
+Per joint, x = [q_hat, v_hat, a_hat, j_hat] (q_hat'''' white); one clock s (s' = 1, s(0) = 0)
+switches the bandwidth omega_s = omega0 (s < t_switch: start-up) or omega (after). With
+e = y - q_hat, omega standing for omega_s:
 
     kinematic variant (no model):
         x' = S x + [omega g1; omega^2 g2; omega^3 g3; omega^4 g4] e,
@@ -28,10 +30,11 @@ of C_hat; partial fractions fitted in codegen.families.design.kalman_model). A s
 torque in [-Fc, Fc]) and its estimate is the kinematic one; a moving joint's acceleration is
 taken from the model with the weight its torque noise allows.
 
-State x = [q_hat; v_hat; a_hat; j_hat] (4n), y = q, u = tau (measured), estimate v_hat.
-p = [omega] (kinematic) or [omega, sigma_q, width, sigma_tau_<j>, coulomb_<j>, offset_<j>,
-pole_k, cq<b>_k, ca<b>_k] (model): the stated noise levels and friction are runtime parameters
-next to the fitted gain functions.
+State x = [q_hat; v_hat; a_hat; j_hat; s] (4n + 1), y = q, u = tau (measured), estimate v_hat.
+p = [omega, omega0, t_switch] (kinematic) or those and [sigma_q, width, sigma_tau_<j>,
+coulomb_<j>, offset_<j>, pole_k, cq<b>_k, ca<b>_k] (model): the stated noise levels and friction
+are runtime parameters next to the fitted gain functions. The switch changes the gains only: the
+state, hence the estimate, stays continuous.
 """
 from __future__ import annotations
 
@@ -48,13 +51,13 @@ from ._design import design_discretization, stable_report
 
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed000_2r"},
-            {"robot": "seed000_2r", "torque_noise": [0.5, 0.2], "coulomb": [1.0, 0.5],
-             "torque_offset": [0.1, -0.1]}]
+            {"robot": "seed000_2r", "design": {"torque_noise": [0.5, 0.2], "coulomb": [1.0, 0.5],
+                                               "torque_offset": [0.1, -0.1]}}]
 VARIANTS = ("kinematic", "model")
 
 
 def _p_names(joints, K):
-    names = ["omega"]
+    names = ["omega", "omega0", "t_switch"]
     if K is None:
         return names
     names += ["sigma_q", "width"]
@@ -66,7 +69,7 @@ def _p_names(joints, K):
 
 
 def build(robot, variant=None, omega=None, noise=None, quantization=None, torque_noise=None, coulomb=None,
-          torque_offset=None, width=None, v_max=2.0, t_conv=0.5, dt=None, poles=POLES):
+          torque_offset=None, width=None, v_max=2.0, t_conv=0.2, t_settle=0.5, dt=None, poles=POLES):
     """kalman_model observer for ``robot`` (module docstring).
 
     Parameters
@@ -76,8 +79,8 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
         Default "model" when ``torque_noise`` is given, else "kinematic"; a given variant must
         agree with it.
     omega : float, optional
-        Bandwidth (1/s) of the kinematic filter; default the design's (codegen.families.design.
-        kalman_model: the smallest converging within t_conv).
+        Steady bandwidth (1/s) of the kinematic filter; default the design's (codegen.families.
+        design.kalman_model: the smallest converging within t_settle).
     noise, quantization : float, optional
         Encoder noise std and quantisation step (rad); both None: a 2^16 counts/rev encoder.
     torque_noise : float or (n,) sequence, optional
@@ -90,8 +93,8 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
     width : float, optional
         Velocity (rad/s) below which the Coulomb friction's sign is uncertain; default the
         design's predicted velocity std per joint.
-    v_max, t_conv : float
-        Speed bound (rad/s) and convergence time (s) of the bandwidth rule.
+    v_max, t_conv, t_settle : float
+        Speed bound (rad/s) and the convergence times (s) of the start-up and steady bandwidths.
     dt : float, optional
         Sample time of the design's noise predictions and stability check (s).
     poles : int
@@ -99,7 +102,7 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
     """
     disc = design_discretization(dt)
     design = design_kalman_model(robot, disc.dt, noise, quantization, torque_noise, v_max, t_conv,
-                                 omega, poles)
+                                 t_settle, omega, poles)
     n = robot.n
     implied = "kinematic" if torque_noise is None else "model"
     if variant is not None and variant not in VARIANTS:
@@ -115,7 +118,7 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
     joints = robot.joint_names
     K = None if variant == "kinematic" else len(design.poles)
     p_names = _p_names(joints, K)
-    p_default = [design.omega]
+    p_default = [design.omega, design.omega0, design.t_switch]
     if K is not None:
         if width is None:
             width = design.width
@@ -128,17 +131,18 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
         p_default += list(design.poles) + list(c[0].ravel()) + list(c[1].ravel())
 
     qh, vh, ah, jh = (ca.SX.sym(s, n) for s in ("q_hat", "v_hat", "a_hat", "j_hat"))
+    clock = ca.SX.sym("t_clock")
     y, y_cfg, tau = ca.SX.sym("y", n), ca.SX.sym("y_cfg", n), ca.SX.sym("tau", n)
     p = ca.SX.sym("p", len(p_names))
-    w = p[0]
+    w = ca.if_else(clock < p[2], p[1], p[0])
     g = normalised_gains()
-    x = ca.vertcat(qh, vh, ah, jh)
+    x = ca.vertcat(qh, vh, ah, jh, clock)
     e = y - qh
     blocks = [vh + w * g[0] * e, ah + w ** 2 * g[1] * e, jh + w ** 3 * g[2] * e, w ** 4 * g[3] * e]
     if K is not None:
-        sig_q, wid = p[1], p[2]
-        st, fc, off = p[3:3 + n], p[3 + n:3 + 2 * n], p[3 + 2 * n:3 + 3 * n]
-        base = 3 + 3 * n
+        sig_q, wid = p[3], p[4]
+        st, fc, off = p[5:5 + n], p[5 + n:5 + 2 * n], p[5 + 2 * n:5 + 3 * n]
+        base = 5 + 3 * n
         pk = p[base:base + K]
         cq = ca.reshape(p[base + K:base + 5 * K], K, 4).T          # (4, K): row b-1, column k
         ca_ = ca.reshape(p[base + 5 * K:base + 9 * K], K, 4).T
@@ -153,24 +157,27 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
             for b in range(4):
                 blocks[b] = blocks[b] + pk[k] * (w ** (b + 1) * cq[b, k] * r[:, 0]
                                                  + w ** (b - 1) * ca_[b, k] * r[:, 1])
-    xdot = ca.vertcat(*blocks)
+    xdot = ca.vertcat(*blocks, 1)
     rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, xdot)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
-    names = [f"{s}_{j}" for s in ("q_hat", "qd_hat", "qdd_hat", "jerk_hat") for j in joints]
+    names = [f"{s}_{j}" for s in ("q_hat", "qd_hat", "qdd_hat", "jerk_hat") for j in joints] + ["t_clock"]
     spec = ObserverSpec(
         family="kalman_model", robot=robot, variant=variant, options=VariantOptions(variant),
         x_names=names, y_names=[f"q_{j}" for j in joints], u_names=[f"tau_{j}" for j in joints],
         p_names=p_names, est_names=[f"qd_hat_{j}" for j in joints], p_default=p_default,
         rhs=rhs, rhs_split=rhs_split,
         output=ca.Function("output", [x, y, tau, p], [vh]),
-        init=ca.Function("init", [y0, est0, p], [ca.vertcat(y0, est0, ca.DM.zeros(2 * n))]),
-        # q_hat' = [v_hat + omega g1 y + ...] - omega g1 q_hat: the rate omega g1 on q_hat, exact
+        init=ca.Function("init", [y0, est0, p], [ca.vertcat(y0, est0, ca.DM.zeros(2 * n + 1))]),
+        # q_hat' = [v_hat + omega_s g1 y + ...] - omega_s g1 q_hat: the rate omega_s g1 on q_hat
+        # (at the step's start: exact within a phase; any rate splits the flow exactly)
         rate=ca.Function("rate", [x, p], [w * g[0]]), rate_states=[f"q_hat_{j}" for j in joints],
-        gains={"omega": ("omega",)},
+        gains={"omega0": ("omega0",), "omega": ("omega",)},
         design={**design.as_dict(), "variant": variant},
         # cross-check inputs: position errors ~0.01 rad about y (gains up to omega^4 ~ 1e6),
-        # speeds ~2 rad/s, accelerations ~10 rad/s^2, jerks ~100 rad/s^3
-        inputs=InputRanges(x_scale=(0.01,) * n + (2.0,) * n + (10.0,) * n + (100.0,) * n,
-                           x_about_y=tuple((f"q_hat_{j}", f"q_{j}") for j in joints)),
+        # speeds ~2 rad/s, accelerations ~10 rad/s^2, jerks ~100 rad/s^3; the clock on both sides
+        # of the switch
+        inputs=InputRanges(x_scale=(0.01,) * n + (2.0,) * n + (10.0,) * n + (100.0,) * n + (0.0,),
+                           x_about_y=tuple((f"q_hat_{j}", f"q_{j}") for j in joints),
+                           x_uniform=(("t_clock", 0.0, 2 * design.t_switch),)),
     )
     return stable_report(spec, disc)

@@ -1,7 +1,8 @@
 """Steady-state Kalman-Bucy velocity observer on a constant-jerk model with the model's
 acceleration as a friction-aware measurement (codegen.families.observers.kalman_model), numpy.
 
-x = [q_hat; v_hat; a_hat; j_hat] (4n), e = y - q_hat, block b = 1..4 of x' (derivative b - 1):
+x = [q_hat; v_hat; a_hat; j_hat; s] (4n + 1), s' = 1, omega = omega0 while s < t_switch, then
+omega; e = y - q_hat, block b = 1..4 of x' (derivative b - 1):
 
     x'_b = x_(b+1) + omega^b g_b e                    (x_5 = 0; g the Butterworth-4 coefficients
                                                         2.6131259, 3.4142136, 2.6131259, 1)
@@ -11,9 +12,9 @@ x = [q_hat; v_hat; a_hat; j_hat] (4n), e = y - q_hat, block b = 1..4 of x' (deri
     r_k   = M (D + p_k M M)^-1 [M e, z - M a_hat]       (= (C_hat + p_k)^-1 [e, e_a])
     x'_b += sum_k p_k (omega^b cq_bk r_k[:, 0] + omega^(b-2) ca_bk r_k[:, 1])
 
-y = q (n, rad), u = tau (n, N m), est = v_hat (n, rad/s). p as the spec's p_names: [omega] or
-[omega, sigma_q, width, sigma_tau (n), coulomb (n), offset (n), pole (K), cq (4K, b-major),
-ca (4K, b-major)]. The variant is the spec's declared option (VariantOptions).
+y = q (n, rad), u = tau (n, N m), est = v_hat (n, rad/s). p as the spec's p_names: [omega,
+omega0, t_switch] and, model variant, [sigma_q, width, sigma_tau (n), coulomb (n), offset (n),
+pole (K), cq (4K, b-major), ca (4K, b-major)]. The variant is the spec's declared option (VariantOptions).
 """
 from __future__ import annotations
 
@@ -55,32 +56,32 @@ def configure(robot, options):
 
 def _blocks(x, n):
     x = np.asarray(x, dtype=float)
-    return x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n:]
+    return x[:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n:4 * n], float(x[4 * n])
 
 
 def _poles(p, n):
-    """K of a model-variant parameter vector of length 3 + 3n + 9K."""
-    K, rem = divmod(len(p) - 3 - 3 * n, 9)
+    """K of a model-variant parameter vector of length 5 + 3n + 9K."""
+    K, rem = divmod(len(p) - 5 - 3 * n, 9)
     if rem or K < 1:
-        raise ValueError(f"p: {len(p)} parameters is not 3 + 3n + 9K for n = {n}")
+        raise ValueError(f"p: {len(p)} parameters is not 5 + 3n + 9K for n = {n}")
     return K
 
 
 def rhs_split(robot, x, y_cfg, y, u, p, variant):
-    """x' (4n,) of the module docstring with the model at ``y_cfg`` (n,) rad and the output
-    injection at ``y`` (n,) rad; x (4n,), u = tau (n,) N m, p as the spec's, variant as bound."""
+    """x' (4n + 1,) of the module docstring with the model at ``y_cfg`` (n,) rad and the output
+    injection at ``y`` (n,) rad; x (4n + 1,), u = tau (n,) N m, p as the spec's, variant as bound."""
     n = robot.n
-    qh, vh, ah, jh = _blocks(x, n)
+    qh, vh, ah, jh, _ = _blocks(x, n)
     p = np.asarray(p, dtype=float)
-    w = float(p[0])
+    w = _omega(x, p, n)
     g = butterworth4()
     e = np.asarray(y, float) - qh
     out = [vh + w * g[0] * e, ah + w ** 2 * g[1] * e, jh + w ** 3 * g[2] * e, w ** 4 * g[3] * e]
     if variant == "model":
         K = _poles(p, n)
-        sig_q, wid = p[1], p[2]
-        st, fc, off = p[3:3 + n], p[3 + n:3 + 2 * n], p[3 + 2 * n:3 + 3 * n]
-        base = 3 + 3 * n
+        sig_q, wid = p[3], p[4]
+        st, fc, off = p[5:5 + n], p[5 + n:5 + 2 * n], p[5 + 2 * n:5 + 3 * n]
+        base = 5 + 3 * n
         pk = p[base:base + K]
         cq = p[base + K:base + 5 * K].reshape(4, K)
         ca = p[base + 5 * K:base + 9 * K].reshape(4, K)
@@ -94,7 +95,12 @@ def rhs_split(robot, x, y_cfg, y, u, p, variant):
             r = M @ np.linalg.solve(D + pk[k] * M2, B)
             for b in range(4):
                 out[b] = out[b] + pk[k] * (w ** (b + 1) * cq[b, k] * r[:, 0] + w ** (b - 1) * ca[b, k] * r[:, 1])
-    return np.concatenate(out)
+    return np.concatenate(out + [[1.0]])
+
+
+def _omega(x, p, n):
+    """omega0 while the clock x[4n] < t_switch, else omega (p = [omega, omega0, t_switch, ...])."""
+    return float(p[1]) if float(x[4 * n]) < float(p[2]) else float(p[0])
 
 
 def rhs(robot, x, y, u, p, variant):
@@ -103,29 +109,29 @@ def rhs(robot, x, y, u, p, variant):
 
 
 def output(robot, x, y, u, p):
-    """v_hat (n,) rad/s; x (4n,), y (n,) rad, u (n,) N m and p are not otherwise used."""
+    """v_hat (n,) rad/s; x (4n + 1,), y (n,) rad, u (n,) N m and p are not otherwise used."""
     return _blocks(x, robot.n)[1].copy()
 
 
 def rate(robot, x, p):
-    """The gain rate omega g1 of q_hat' = [... + omega g1 y] - omega g1 q_hat (integrated
-    exactly by etdrk4); robot, x (unused) and p (p[0] = omega) as in ``rhs``."""
-    return float(p[0]) * butterworth4()[0]
+    """The gain rate omega_s g1 of q_hat' = [... + omega_s g1 y] - omega_s g1 q_hat (integrated
+    by etdrk4), omega_s the bandwidth at the clock x[4n]; robot, x and p as in ``rhs``."""
+    return _omega(x, p, robot.n) * butterworth4()[0]
 
 
 def rate_states(robot):
-    """0/1 per state (4n,) of ``robot``: the linear gain term acts on q_hat."""
+    """0/1 per state (4n + 1,) of ``robot``: the linear gain term acts on q_hat."""
     n = robot.n
-    return np.concatenate([np.ones(n), np.zeros(3 * n)])
+    return np.concatenate([np.ones(n), np.zeros(3 * n + 1)])
 
 
 def init(robot, y0, est0, p):
-    """x(0) = [y(0); est0; 0; 0] (4n,); y0 (n,) rad, est0 (n,) rad/s, p unused."""
+    """x(0) = [y(0); est0; 0; 0; 0] (4n + 1,): the clock at 0; y0 (n,) rad, est0 (n,) rad/s, p unused."""
     n = robot.n
-    return np.concatenate([np.asarray(y0, float), np.asarray(est0, float), np.zeros(2 * n)])
+    return np.concatenate([np.asarray(y0, float), np.asarray(est0, float), np.zeros(2 * n + 1)])
 
 
 def sizes(robot):
-    """{"nx": 4n, "ny": n, "nu": n, "nest": n}, n the joints of ``robot``."""
+    """{"nx": 4n + 1, "ny": n, "nu": n, "nest": n}, n the joints of ``robot``."""
     n = robot.n
-    return {"nx": 4 * n, "ny": n, "nu": n, "nest": n}
+    return {"nx": 4 * n + 1, "ny": n, "nu": n, "nest": n}
