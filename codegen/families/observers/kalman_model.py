@@ -4,24 +4,25 @@ Kalman-Bucy filter (Kalman & Bucy, J. Basic Eng. 83, 1961) on the white-snap ("c
 kinematic model of target tracking, and the model-based acceleration pseudo-measurement of
 joint velocity estimation with joint torque sensing].
 
-Per joint, x = [q_hat, v_hat, a_hat, j_hat] (q_hat'''' white); one clock s (s' = 1, s(0) = 0)
-switches the bandwidth omega_s = omega0 (s < t_switch: start-up) or omega (after). With
-e = y - q_hat, omega standing for omega_s:
+Per joint, x = [q_hat, v_hat, a_hat, j_hat] (q_hat'''' white); one clock c (c' = 1, c(0) = 0)
+switches the bandwidth omega_s = omega0 (c < t_switch: start-up, kinematic only) or omega
+(after: with the model). With e = y - q_hat, omega standing for omega_s:
 
     kinematic variant (no model):
         x' = S x + [omega g1; omega^2 g2; omega^3 g3; omega^4 g4] e,
         S the shift (q_hat' = v_hat, v_hat' = a_hat, a_hat' = j_hat, j_hat' = 0) and
         g = (2.6131, 3.4142, 2.6131, 1): the error poles omega e^(i pi (2k+5)/8) (Butterworth)
 
-    model variant (torque noise stated), in addition, with the model at y_cfg and the Coulomb
+    model variant (torque noise stated), from t_switch on, with the model at y_cfg and the Coulomb
     friction's sign uncertain near v_hat = 0 (s = erf(v_hat / (sqrt 2 width)): the mean of
     sign(v) for v ~ N(v_hat, width^2)):
         z     = tau - C(y, v_hat) v_hat - g(y) - F v_hat - b - Fc s           (b: torque offset)
         Sigma = diag(sigma_tau^2 + Fc^2 (1 - s^2))        (sensor noise + friction's variance)
         C_hat = M^-1 Sigma M^-1 / (sigma_q^2 omega^4)     (the a-measurement's normalised noise)
-        x'   += sum_k p_k [omega^b cq_bk; ...] R_k (M e) ... precisely, per pole p_k:
-                r_k = (C_hat + p_k I)^-1 [e, M^-1 z - a_hat] = M (Sigma/(sigma_q^2 omega^4) + p_k M^2)^-1 [M e, z - M a_hat]
-                block b of x' += p_k (omega^b cq_bk r_k,e + omega^(b-2) ca_bk r_k,a)
+        per pole p_k (k = 1..K):
+            r_k = (C_hat + p_k I)^-1 [e, M^-1 z - a_hat]
+                = M (Sigma / (sigma_q^2 omega^4) + p_k M^2)^-1 [M e, z - M a_hat]
+            block b of x' += p_k (omega^b cq_bk r_k,e + omega^(b-2) ca_bk r_k,a)
 
 i.e. the Kalman gains K_q,b = omega^b g_q,b(C_hat), K_a,b = omega^(b-2) g_a,b(C_hat) as matrix
 functions of the a-measurement's covariance (exact decoupling of the joints in the eigenvectors
@@ -30,7 +31,7 @@ of C_hat; partial fractions fitted in codegen.families.design.kalman_model). A s
 torque in [-Fc, Fc]) and its estimate is the kinematic one; a moving joint's acceleration is
 taken from the model with the weight its torque noise allows.
 
-State x = [q_hat; v_hat; a_hat; j_hat; s] (4n + 1), y = q, u = tau (measured), estimate v_hat.
+State x = [q_hat; v_hat; a_hat; j_hat; c] (4n + 1), y = q, u = tau (measured), estimate v_hat.
 p = [omega, omega0, t_switch] (kinematic) or those and [sigma_q, width, sigma_tau_<j>,
 coulomb_<j>, offset_<j>, pole_k, cq<b>_k, ca<b>_k] (model): the stated noise levels and friction
 are runtime parameters next to the fitted gain functions. The switch changes the gains only: the
@@ -149,14 +150,15 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
         M = robot.mass_matrix(y_cfg)
         s = ca.erf(vh / (math.sqrt(2.0) * wid))
         z = tau - robot.nle(y_cfg, vh) - ca.mtimes(ca.DM(robot.F), vh) - off - fc * s
-        Sigma = (st ** 2 + fc ** 2 * (1 - s ** 2)) / (sig_q ** 2 * w ** 4)
+        wm, on = p[0], ca.if_else(clock < p[2], 0, 1)        # the model: steady phase only
+        Sigma = (st ** 2 + fc ** 2 * (1 - s ** 2)) / (sig_q ** 2 * wm ** 4)
         M2 = ca.mtimes(M, M)
         rhs2 = ca.horzcat(ca.mtimes(M, e), z - ca.mtimes(M, ah))
         for k in range(K):
             r = ca.mtimes(M, ca.solve(ca.diag(Sigma) + pk[k] * M2, rhs2))
             for b in range(4):
-                blocks[b] = blocks[b] + pk[k] * (w ** (b + 1) * cq[b, k] * r[:, 0]
-                                                 + w ** (b - 1) * ca_[b, k] * r[:, 1])
+                blocks[b] = blocks[b] + on * pk[k] * (wm ** (b + 1) * cq[b, k] * r[:, 0]
+                                                      + wm ** (b - 1) * ca_[b, k] * r[:, 1])
     xdot = ca.vertcat(*blocks, 1)
     rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, xdot)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)

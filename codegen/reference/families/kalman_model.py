@@ -1,12 +1,13 @@
 """Steady-state Kalman-Bucy velocity observer on a constant-jerk model with the model's
 acceleration as a friction-aware measurement (codegen.families.observers.kalman_model), numpy.
 
-x = [q_hat; v_hat; a_hat; j_hat; s] (4n + 1), s' = 1, omega = omega0 while s < t_switch, then
+x = [q_hat; v_hat; a_hat; j_hat; c] (4n + 1), the clock c' = 1, omega = omega0 while c < t_switch, then
 omega; e = y - q_hat, block b = 1..4 of x' (derivative b - 1):
 
     x'_b = x_(b+1) + omega^b g_b e                    (x_5 = 0; g the Butterworth-4 coefficients
                                                         2.6131259, 3.4142136, 2.6131259, 1)
-  model variant, with s = erf(v_hat / (sqrt 2 width)), at the configuration y_cfg:
+  model variant, once c >= t_switch (omega the steady one), with s = erf(v_hat / (sqrt 2 width)),
+  at the configuration y_cfg:
     z     = tau - nle(y_cfg, v_hat) - F v_hat - b - Fc s
     D     = diag(sigma_tau^2 + Fc^2 (1 - s^2)) / (sigma_q^2 omega^4)
     r_k   = M (D + p_k M M)^-1 [M e, z - M a_hat]       (= (C_hat + p_k)^-1 [e, e_a])
@@ -77,7 +78,8 @@ def rhs_split(robot, x, y_cfg, y, u, p, variant):
     g = butterworth4()
     e = np.asarray(y, float) - qh
     out = [vh + w * g[0] * e, ah + w ** 2 * g[1] * e, jh + w ** 3 * g[2] * e, w ** 4 * g[3] * e]
-    if variant == "model":
+    if variant == "model" and float(x[4 * n]) >= float(p[2]):
+        w = float(p[0])
         K = _poles(p, n)
         sig_q, wid = p[3], p[4]
         st, fc, off = p[5:5 + n], p[5 + n:5 + 2 * n], p[5 + 2 * n:5 + 3 * n]
