@@ -69,8 +69,24 @@ def _poles(p, n):
 
 
 def rhs_split(robot, x, y_cfg, y, u, p, variant):
-    """x' (4n + 1,) of the module docstring with the model at ``y_cfg`` (n,) rad and the output
-    injection at ``y`` (n,) rad; x (4n + 1,), u = tau (n,) N m, p as the spec's, variant as bound."""
+    """x' (4n + 1,) of the module docstring.
+
+    Parameters
+    ----------
+    robot : reference robot (n joints): M, nle, F
+    x : (4n + 1,) array
+        [q_hat; v_hat; a_hat; j_hat; clock].
+    y_cfg : (n,) array
+        Configuration of the model (rad).
+    y : (n,) array
+        Measured q of the output injection (rad).
+    u : (n,) array
+        Measured tau (N m).
+    p : array
+        The spec's parameters (module docstring).
+    variant : {"kinematic", "model"}
+        As bound by ``configure``.
+    """
     n = robot.n
     qh, vh, ah, jh, _ = _blocks(x, n)
     p = np.asarray(p, dtype=float)
@@ -106,12 +122,27 @@ def _omega(x, p, n):
 
 
 def rhs(robot, x, y, u, p, variant):
-    """The flow: ``rhs_split`` with the model at y itself; arguments as there."""
+    """The flow: ``rhs_split`` with the model at y itself.
+
+    Parameters
+    ----------
+    robot, x, y, u, p, variant
+        As in ``rhs_split`` (y also the model's configuration).
+    """
     return rhs_split(robot, x, y, y, u, p, variant)
 
 
 def output(robot, x, y, u, p):
-    """v_hat (n,) rad/s; x (4n + 1,), y (n,) rad, u (n,) N m and p are not otherwise used."""
+    """v_hat (n,) rad/s.
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    x : (4n + 1,) array
+        The state.
+    y, u, p
+        Measurement (rad), torque (N m) and parameters: unused.
+    """
     return _blocks(x, robot.n)[1].copy()
 
 
@@ -128,7 +159,18 @@ def rate_states(robot):
 
 
 def init(robot, y0, est0, p):
-    """x(0) = [y(0); est0; 0; 0; 0] (4n + 1,): the clock at 0; y0 (n,) rad, est0 (n,) rad/s, p unused."""
+    """x(0) = [y(0); est0; 0; 0; 0] (4n + 1,): the clock at 0.
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    y0 : (n,) array
+        First measurement (rad).
+    est0 : (n,) array
+        Initial velocity estimate (rad/s).
+    p : array
+        Parameters (unused).
+    """
     n = robot.n
     return np.concatenate([np.asarray(y0, float), np.asarray(est0, float), np.zeros(2 * n + 1)])
 
