@@ -210,11 +210,12 @@ def test_beats_the_tuned_kalman_filter_on_a_real_ur5():
     """The MuJoCo real ur5 (codegen.evaluate.sim.real_plant: perturbed inertials, payload,
     friction, 2^16 encoder, jittered stamps, dropped rows, torque noise 1 % of its RMS), the
     first 8 s of the task (a move, a rest, the next move): the kinematic variant at its designed
-    gains is at most 0.85 x the RMS error (t >= 1 s) of the constant-acceleration Kalman filter
-    tuned on the truth (measured over the whole 20 s task: 0.78 x), and the model variant with
-    the plant's own model (its inertials, friction and offset; the ceiling of an identification)
-    at most 0.75 x (measured: 0.65 x). Started with qd_hat = 0 at the first move's fastest
-    instant (|qd| = 1.4 rad/s), each is below 1e-2 rad/s from 0.3 s on (the start-up bandwidth)."""
+    gains is at most 0.75 x the RMS error (t >= 1 s) of the constant-acceleration Kalman filter
+    tuned on the truth (measured 0.67 x; over the whole 20 s task, t >= 10 s, 0.78 x), and the
+    model variant with the plant's own model (its inertials, friction and offset; the ceiling of
+    an identification) at most 0.6 x (measured 0.52 x; whole task 0.65 x). Started with
+    qd_hat = 0 at the first move's fastest instant, each is below 1e-2 rad/s from 0.3 s on
+    (measured 0.17 s: the start-up bandwidth)."""
     import tempfile
     import xml.etree.ElementTree as ET
 
@@ -257,5 +258,5 @@ def test_beats_the_tuned_kalman_filter_on_a_real_ur5():
             obs.reset(Y[k0])
             err = np.linalg.norm(obs.run(Y[k0:], U[k0:], t=t[k0:]) - QD[k0:], axis=1)
             conv[name] = t[k0 + np.nonzero(err >= 1e-2)[0][-1] + 1] - t[k0]
-    assert ratio["kinematic"] <= 0.85 and ratio["model"] <= 0.75, ratio
+    assert ratio["kinematic"] <= 0.75 and ratio["model"] <= 0.6, ratio
     assert max(conv.values()) <= 0.3, conv
