@@ -88,9 +88,11 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
         Std of the measured torque's noise per joint (N m), e.g. the residual std of an
         identification; None: the kinematic variant (the model is not used).
     coulomb : (n,) sequence, optional
-        Coulomb friction per joint (N m), default 0 (model variant only).
+        Coulomb friction per joint (N m), default the robot's own (``robot.coulomb``: a URDF's
+        ``<dynamics friction>`` or an identified side file; 0 if it has none) (model variant only).
     torque_offset : (n,) sequence, optional
-        Offset of the measured torque per joint (N m), default 0 (model variant only).
+        Offset of the measured torque per joint (N m), default the robot's own
+        (``robot.offset``) (model variant only).
     width : float, optional
         Velocity (rad/s) below which the Coulomb friction's sign is uncertain; default the
         design's predicted velocity std per joint.
@@ -121,6 +123,12 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
     p_names = _p_names(joints, K)
     p_default = [design.omega, design.omega0, design.t_switch]
     if K is not None:
+        # the robot's own friction (an identified URDF carries it): z below takes the viscous part
+        # through F and the Coulomb part and offset through these parameters, never twice
+        if coulomb is None:
+            coulomb = [float(c) for c in getattr(robot, "coulomb", np.zeros(n))]
+        if torque_offset is None:
+            torque_offset = [float(o) for o in getattr(robot, "offset", np.zeros(n))]
         if width is None:
             width = design.width
         if not (isinstance(width, (int, float)) and math.isfinite(width) and width > 0):
