@@ -36,9 +36,10 @@ from ..design import ciccarella_germani_gains
 from ...core.options import VariantOptions
 from ...core.spec import ObserverSpec
 
-# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
-EXAMPLES = [{"robot": "seed004_2r", "elastic": True, "variant": "O1"},
-            {"robot": "seed004_2r", "elastic": True, "variant": "O2"}]
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py);
+# seed 004's sample time: the default gains need it
+EXAMPLES = [{"robot": "seed004_2r", "elastic": True, "variant": "O1", "dt": 1e-4},
+            {"robot": "seed004_2r", "elastic": True, "variant": "O2", "dt": 1e-4}]
 
 VARIANTS = ("O1", "O2", "O3", "O4")
 ROBOT = "elastic"   # needs an ElasticRobot (codegen.pipeline.targets_file checks it before building)

@@ -22,8 +22,9 @@ import numpy as np
 from ..design import tomei_K1
 from ...core.spec import ObserverSpec
 
-# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
-EXAMPLES = [{"robot": "seed004_2r", "elastic": True}]
+# where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py);
+# seed 004's sample time: the default gains need it
+EXAMPLES = [{"robot": "seed004_2r", "elastic": True, "dt": 1e-4}]
 
 ROBOT = "elastic"   # needs an ElasticRobot (codegen.pipeline.targets_file checks it before building)
 
