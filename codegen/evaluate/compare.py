@@ -32,10 +32,9 @@ from . import baselines, metrics, smoothing
 from ..core.estimator import velocity_slots
 from ..verify.measure import saturated_samples
 
-DEFAULT_FAMILIES = ("reduced_order_switched", "reduced_order", "extended_state", "nicosia_tomei")
+DEFAULT_FAMILIES = ("kalman_model", "reduced_order_switched", "reduced_order", "extended_state", "nicosia_tomei")
 SIGNAL = "robot's velocity signal"          # the row of the qdm_<joint> columns
 UNRANKED = "within the reference's uncertainty: cannot be ranked"
-MEDIAN_STEP = "stepped at the median step"  # the note of an observer run at dt over jittered stamps
 
 
 @dataclass
@@ -171,10 +170,7 @@ class Comparison:
         of the RMS norm); taking that error as u, the observer is better by at least
         (b - u) / (a + u), and it is said to win only when that bound exceeds 1.
         """
-        line = self._verdict()
-        if any(e.kind == "observer" and e.note.startswith(MEDIAN_STEP) for e in self.entries):
-            line += " (the observers ran at the median step, not at the log's stamps)"
-        return line
+        return self._verdict()
 
     def _verdict(self):
         obs, bl, u = self.best_observer(), self.best_baseline(), self.uncertainty
@@ -305,9 +301,9 @@ def run_observer(spec, Y, U, dt, reference=False, t=None):
     reference : bool
         The numpy reference instead of the compiled C.
     t : (N,) array, optional
-        The samples' time stamps (s). This is the one place the observers meet them: until the
-        observers' run takes the elapsed time (``CompiledObserver.run(Y, U, t=...)``), every
-        sample advances by ``dt`` and the note of a log with non-uniform stamps says so.
+        The samples' time stamps (s): each step covers the elapsed time since the last sample
+        (``run(Y, U, t=t)``; the C splits a gap beyond the declared dt_max); None: every sample
+        advances by ``dt``.
 
     Returns
     -------
@@ -320,18 +316,10 @@ def run_observer(spec, Y, U, dt, reference=False, t=None):
         # the fewest stable sub-steps (xarm7 at 1 kHz needs 6)
         obs = block(spec, discretization(None, dt=dt, substeps="auto"), reference=reference)
         obs.reset(Y[0])
-        # Stepped at dt, not at the stamps t: when CompiledObserver.run(Y, U, t=...) (the step
-        # over the elapsed time) is merged, this one line becomes `return obs.run(Y, U, t=t), ""`.
-        return obs.run(Y, U), _median_step_note(t, dt)
+        # each step over the log's own elapsed time (a gap beyond dt_max split inside the C)
+        return (obs.run(Y, U) if t is None else obs.run(Y, U, t=t)), ""
     except (ObserverError, FloatingPointError) as e:
         return np.full((len(Y), spec.nest), np.nan), str(e)
-
-
-def _median_step_note(t, dt):
-    """The note of an observer stepped at ``dt`` over stamps ``t`` that are not uniform at dt."""
-    if t is None or np.all(np.abs(np.diff(t) - dt) <= 1e-6 * dt):
-        return ""
-    return f"{MEDIAN_STEP} {1e3 * dt:.4g} ms, not at the stamps"
 
 
 def tune(name, Y, t, truth, t_ss, dt, grid=None, valid=None):

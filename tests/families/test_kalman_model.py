@@ -117,7 +117,7 @@ def test_noise_formula_matches_a_simulation():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("design", [{}, {"torque_noise": TORQUE_NOISE_2R, "coulomb": [1.0, 0.5],
+@pytest.mark.parametrize("design", [{}, {"torque_uncertainty": TORQUE_NOISE_2R, "coulomb": [1.0, 0.5],
                                           "torque_offset": [0.1, -0.1]}], ids=["kinematic", "model"])
 def test_c_equals_reference(design):
     """Both variants: compiled C against the numpy reference (steps, RHS, a run) within 1e-9."""
@@ -129,8 +129,8 @@ def test_c_equals_reference(design):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("torque_noise", [None, TORQUE_NOISE_2R], ids=["kinematic", "model"])
-def test_predicted_error_within_factor_of_measured(torque_noise):
+@pytest.mark.parametrize("torque_uncertainty", [None, TORQUE_NOISE_2R], ids=["kinematic", "model"])
+def test_predicted_error_within_factor_of_measured(torque_uncertainty):
     """On the seed-000 arm's own slow motion (codegen.verify.trajectory at 0.5 rad/s, 12 s: its
     snap, 0.3 x 0.5^4 rad/s^4, leaves a lag error ~ 2.6 omega x 0.3 (0.5 / omega)^4 ~ 1e-6 rad/s,
     far below the noise), encoder noise 3e-5 rad and torque noise of the stated std (model
@@ -140,18 +140,18 @@ def test_predicted_error_within_factor_of_measured(torque_noise):
     from codegen import compile_observer
     from codegen.verify.trajectory import demo_trajectory
     robot = load_robot("seed000_2r")
-    spec = observers.build("kalman_model", robot, noise=3e-5, torque_noise=torque_noise)
+    spec = observers.build("kalman_model", robot, noise=3e-5, torque_uncertainty=torque_uncertainty)
     t, Q, QD, TAU = demo_trajectory(robot, T=12.0, omega=0.5)
     rng = np.random.default_rng(1)
     Y = Q + 3e-5 * rng.normal(size=Q.shape)
-    U = TAU + (0 if torque_noise is None else np.asarray(torque_noise) * rng.normal(size=TAU.shape))
+    U = TAU + (0 if torque_uncertainty is None else np.asarray(torque_uncertainty) * rng.normal(size=TAU.shape))
     obs = compile_observer(spec)
     obs.reset(Y[0])
     E = obs.run(Y, U)
     measured = np.sqrt(np.mean(np.sum((E - QD)[t >= 2] ** 2, axis=1)))
-    predicted = spec.design["predicted_error"]["kinematic" if torque_noise is None else "model"]
+    predicted = spec.design["predicted_error"]["kinematic" if torque_uncertainty is None else "model"]
     assert 0.8 <= measured / predicted <= 1.25, (measured, predicted)
-    if torque_noise is not None:
+    if torque_uncertainty is not None:
         assert predicted < 0.8 * spec.design["predicted_error"]["kinematic"]
 
 
@@ -173,7 +173,7 @@ def test_a_stuck_joint_ignores_its_torque():
     Y, U = np.tile(q, (3000, 1)), np.tile(tau, (3000, 1))
     worst = {}
     for coulomb in (fc, None):
-        spec = observers.build("kalman_model", robot, torque_noise=[0.05, 0.05], coulomb=coulomb)
+        spec = observers.build("kalman_model", robot, torque_uncertainty=[0.05, 0.05], coulomb=coulomb)
         obs = compile_observer(spec)
         obs.reset(q)
         E = obs.run(Y, U)
@@ -186,14 +186,14 @@ def test_a_stuck_joint_ignores_its_torque():
 
 def test_bad_inputs_are_refused_naming_them():
     robot = load_robot("seed000_2r")
-    for kw, word in (({"torque_noise": [0.1, 0.2, 0.3]}, "torque_noise"),
-                     ({"torque_noise": [0.1, -1.0]}, "torque_noise"),
-                     ({"torque_noise": [0.1, 0.1], "coulomb": [1.0, -1.0]}, "coulomb"),
+    for kw, word in (({"torque_uncertainty": [0.1, 0.2, 0.3]}, "torque_uncertainty"),
+                     ({"torque_uncertainty": [0.1, -1.0]}, "torque_uncertainty"),
+                     ({"torque_uncertainty": [0.1, 0.1], "coulomb": [1.0, -1.0]}, "coulomb"),
                      ({"coulomb": [1.0, 1.0]}, "coulomb"),
                      ({"variant": "model"}, "variant"),
                      ({"variant": "other"}, "variant"),
                      ({"t_conv": 0.0}, "t_conv"),
-                     ({"torque_noise": [0.1, 0.1], "width": -1.0}, "width")):
+                     ({"torque_uncertainty": [0.1, 0.1], "width": -1.0}, "width")):
         with pytest.raises(ValueError, match=word):
             observers.build("kalman_model", robot, **kw)
 
@@ -246,7 +246,7 @@ def test_beats_the_tuned_kalman_filter_on_a_real_ur5():
             f.write(ET.tostring(root, encoding="unicode"))
         true_robot = load_robot(urdf=path)
         specs = {"kinematic": observers.build("kalman_model", robot),
-                 "model": observers.build("kalman_model", true_robot, torque_noise=list(run.torque_noise_std),
+                 "model": observers.build("kalman_model", true_robot, torque_uncertainty=list(run.torque_noise_std),
                                           coulomb=list(plant.frictionloss),
                                           torque_offset=list(plant.perturbation.torque_offset))}
         ratio, conv = {}, {}

@@ -188,14 +188,14 @@ def omega_floor(v_max, t_conv):
     return convergence_time(normalised_gains(), v_max) / t_conv
 
 
-def check_torque_noise(torque_noise, n):
-    """``torque_noise`` as an (n,) array of stds (N m, > 0; a scalar is used for every joint);
+def check_torque_uncertainty(torque_uncertainty, n):
+    """``torque_uncertainty`` as an (n,) array of stds (N m, > 0; a scalar is used for every joint);
     ValueError naming it otherwise."""
-    s = np.atleast_1d(np.asarray(torque_noise, dtype=float)).reshape(-1)
+    s = np.atleast_1d(np.asarray(torque_uncertainty, dtype=float)).reshape(-1)
     if s.size == 1:
         s = np.full(n, float(s[0]))
     if s.size != n or not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise ValueError(f"torque_noise must be {n} finite stds > 0 (N m), one per joint, got {torque_noise!r}")
+        raise ValueError(f"torque_uncertainty must be {n} finite stds > 0 (N m), one per joint, got {torque_uncertainty!r}")
     return s
 
 
@@ -241,17 +241,17 @@ class KalmanModelDesign:
     width: float
     predicted_error: dict
     predicted_joint_std: float
-    torque_noise: list | None
+    torque_uncertainty: list | None
 
     def as_dict(self):
         """The fields as a JSON-ready dict."""
         return dict(self.__dict__)
 
 
-def predicted_model_error(robot, omega, sigma, dt, torque_noise, fit, samples=64, seed=0):
+def predicted_model_error(robot, omega, sigma, dt, torque_uncertainty, fit, samples=64, seed=0):
     """RMS over ``samples`` configurations of the predicted error norm (rad/s, noise only, every
     joint moving so no friction ambiguity) of the observer with the model: per eigenvalue lam_i
-    of C = M^-1 diag(torque_noise^2) M^-1, the stationary velocity variance of the chain with the
+    of C = M^-1 diag(torque_uncertainty^2) M^-1, the stationary velocity variance of the chain with the
     fitted gains at lam_hat_i and a-noise lam_hat_i, summed (the eigenvectors are orthonormal)
     and scaled by sigma^2 dt omega^3.
 
@@ -260,7 +260,7 @@ def predicted_model_error(robot, omega, sigma, dt, torque_noise, fit, samples=64
     robot : RobotModel
     omega, sigma, dt : float
         Bandwidth (1/s), encoder std (rad), sample time (s).
-    torque_noise : (n,) array
+    torque_uncertainty : (n,) array
         Torque noise std per joint (N m).
     fit : tuple
         ``fit_gains``'s result.
@@ -272,13 +272,13 @@ def predicted_model_error(robot, omega, sigma, dt, torque_noise, fit, samples=64
     for q in robot.sample_configurations(samples, seed):
         M = np.asarray(robot.M(q), dtype=float)
         Mi = np.linalg.inv(M)
-        lam = np.linalg.eigvalsh(Mi @ np.diag(np.asarray(torque_noise) ** 2) @ Mi)
+        lam = np.linalg.eigvalsh(Mi @ np.diag(np.asarray(torque_uncertainty) ** 2) @ Mi)
         total.append(sum(velocity_variance(fitted_gains(max(x, 0.0) / scale, fit), max(x, 0.0) / scale)
                          for x in lam))
     return math.sqrt(sigma ** 2 * dt * omega ** 3 * float(np.mean(total)))
 
 
-def design_kalman_model(robot, dt, noise=None, quantization=None, torque_noise=None, v_max=2.0,
+def design_kalman_model(robot, dt, noise=None, quantization=None, torque_uncertainty=None, v_max=2.0,
                         t_conv=0.2, t_settle=0.5, omega=None, poles=POLES):
     """The default gains of the kalman_model observer (module docstring).
 
@@ -289,7 +289,7 @@ def design_kalman_model(robot, dt, noise=None, quantization=None, torque_noise=N
         Sample time the noise predictions are made for (s); the gains do not depend on it.
     noise, quantization : float or None
         Encoder noise std and quantisation step (rad); both None: a 2^16 counts/rev encoder.
-    torque_noise : (n,) array or None
+    torque_uncertainty : (n,) array or None
         Std of the torque sensor's noise per joint (N m), as an identification reports it (the
         residual std); None: the kinematic variant (no model).
     v_max : float
@@ -328,8 +328,8 @@ def design_kalman_model(robot, dt, noise=None, quantization=None, torque_noise=N
     floor = lambda_floor(v_max)
     fit = fit_gains(floor, poles)
     tn = None
-    if torque_noise is not None:
-        tn = check_torque_noise(torque_noise, robot.n)
+    if torque_uncertainty is not None:
+        tn = check_torque_uncertainty(torque_uncertainty, robot.n)
         predicted["model"] = predicted_model_error(robot, omega, sigma, dt, tn, fit)
     return KalmanModelDesign(
         robot=robot.name, omega=float(omega), omega0=float(max(omega0, omega)), t_switch=1.5 * float(t_conv),
@@ -337,4 +337,4 @@ def design_kalman_model(robot, dt, noise=None, quantization=None, torque_noise=N
         dt=float(dt), v_max=float(v_max), t_conv=float(t_conv), t_settle=float(t_settle), lam_floor=float(floor),
         poles=[float(x) for x in fit[0]], coefficients=np.asarray(fit[1]).tolist(), fit_error=float(fit[2]),
         width=float(joint_std), predicted_error=predicted, predicted_joint_std=float(joint_std),
-        torque_noise=None if tn is None else tn.tolist())
+        torque_uncertainty=None if tn is None else tn.tolist())

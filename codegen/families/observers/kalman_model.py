@@ -44,7 +44,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from ..design.kalman_model import (POLES, check_per_joint, check_torque_noise, design_kalman_model,
+from ..design.kalman_model import (POLES, check_per_joint, check_torque_uncertainty, design_kalman_model,
                                    normalised_gains)
 from ...core.options import InputRanges, VariantOptions
 from ...core.spec import ObserverSpec, split_flow
@@ -52,7 +52,7 @@ from ._design import design_discretization, stable_report
 
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed000_2r"},
-            {"robot": "seed000_2r", "design": {"torque_noise": [0.5, 0.2], "coulomb": [1.0, 0.5],
+            {"robot": "seed000_2r", "design": {"torque_uncertainty": [0.5, 0.2], "coulomb": [1.0, 0.5],
                                                "torque_offset": [0.1, -0.1]}}]
 VARIANTS = ("kinematic", "model")
 
@@ -69,7 +69,7 @@ def _p_names(joints, K):
     return names
 
 
-def build(robot, variant=None, omega=None, noise=None, quantization=None, torque_noise=None, coulomb=None,
+def build(robot, variant=None, omega=None, noise=None, quantization=None, torque_uncertainty=None, coulomb=None,
           torque_offset=None, width=None, v_max=2.0, t_conv=0.2, t_settle=0.5, dt=None, poles=POLES):
     """kalman_model observer for ``robot`` (module docstring).
 
@@ -77,14 +77,14 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
     ----------
     robot : RobotModel
     variant : {"kinematic", "model"}, optional
-        Default "model" when ``torque_noise`` is given, else "kinematic"; a given variant must
+        Default "model" when ``torque_uncertainty`` is given, else "kinematic"; a given variant must
         agree with it.
     omega : float, optional
         Steady bandwidth (1/s) of the kinematic filter; default the design's (codegen.families.
         design.kalman_model: the smallest converging within t_settle).
     noise, quantization : float, optional
         Encoder noise std and quantisation step (rad); both None: a 2^16 counts/rev encoder.
-    torque_noise : float or (n,) sequence, optional
+    torque_uncertainty : float or (n,) sequence, optional
         Std of the measured torque's noise per joint (N m), e.g. the residual std of an
         identification; None: the kinematic variant (the model is not used).
     coulomb : (n,) sequence, optional
@@ -104,20 +104,20 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
         Partial fractions of the gain functions (model variant).
     """
     disc = design_discretization(dt)
-    design = design_kalman_model(robot, disc.dt, noise, quantization, torque_noise, v_max, t_conv,
+    design = design_kalman_model(robot, disc.dt, noise, quantization, torque_uncertainty, v_max, t_conv,
                                  t_settle, omega, poles)
     n = robot.n
-    implied = "kinematic" if torque_noise is None else "model"
+    implied = "kinematic" if torque_uncertainty is None else "model"
     if variant is not None and variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
     if variant is not None and variant != implied:
-        raise ValueError(f"variant {variant!r} needs torque_noise "
+        raise ValueError(f"variant {variant!r} needs torque_uncertainty "
                          + ("stated (N m per joint)" if variant == "model" else "unstated (None)"))
     variant = implied
     if variant == "kinematic":
         for name, v in (("coulomb", coulomb), ("torque_offset", torque_offset), ("width", width)):
             if v is not None:
-                raise ValueError(f"{name} is used with the model only: state torque_noise too")
+                raise ValueError(f"{name} is used with the model only: state torque_uncertainty too")
     joints = robot.joint_names
     K = None if variant == "kinematic" else len(design.poles)
     p_names = _p_names(joints, K)
@@ -135,7 +135,7 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
             raise ValueError(f"width must be a positive velocity (rad/s), got {width!r}")
         c = np.asarray(design.coefficients)
         p_default += [design.sigma, float(width)]
-        p_default += list(check_torque_noise(torque_noise, n)) + list(check_per_joint("coulomb", coulomb, n, True))
+        p_default += list(check_torque_uncertainty(torque_uncertainty, n)) + list(check_per_joint("coulomb", coulomb, n, True))
         p_default += list(check_per_joint("torque_offset", torque_offset, n))
         p_default += list(design.poles) + list(c[0].ravel()) + list(c[1].ravel())
 
