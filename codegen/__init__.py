@@ -1,4 +1,4 @@
-"""Observers generated as fast, verified C (DESIGN §1).
+"""Observers generated as fast, verified C (docs/architecture.md §1).
 
     from codegen import observers, compile_observer
     spec = observers.build("reduced_order", robot, quantization=1e-4)   # noise-aware k0

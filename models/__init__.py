@@ -1,4 +1,4 @@
-"""Robot models: what a robot is (no observers here). See DESIGN §1-§3."""
+"""Robot models: what a robot is (no observers here). See docs/architecture.md §1-§3."""
 from models.catalog import from_source, load_robot, names
 from models.robot import ModelError, RobotModel
 

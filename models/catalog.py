@@ -21,7 +21,7 @@ The URDF arms are the ones example-robot-data ships (``models.urdf.example_robot
 a gripper joint is locked (the observers estimate the arm, and a gripper's tiny inertia makes the
 model stiff: codegen.discrete.stability names it when it does).
 
-Elastic-joint robots (SPEC §6): ``load_elastic(name)`` wraps a catalog robot with the motor
+Elastic-joint robots (docs/papers/seed004.md §6): ``load_elastic(name)`` wraps a catalog robot with the motor
 inertias J and stiffness K of ``ELASTIC`` (or given ones); e.g. ``load_elastic("seed004_2r")``.
 """
 from __future__ import annotations
@@ -156,7 +156,7 @@ def _with_source_friction(robot, entry):
 
 
 def load_elastic(name, J=None, K=None):
-    """ElasticRobot (SPEC §6) on catalog robot ``name``; J, K default to ``ELASTIC[name]``."""
+    """ElasticRobot (docs/papers/seed004.md §6) on catalog robot ``name``; J, K default to ``ELASTIC[name]``."""
     from models.elastic import ElasticRobot
     if (J is None or K is None) and name not in ELASTIC:
         raise KeyError(f"no default J, K for {name!r}; give J= and K= (defaults for: {', '.join(ELASTIC)})")

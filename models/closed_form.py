@@ -1,4 +1,4 @@
-"""The seed robots given by formulas (SPEC §11.1, §11.2, §4.2).
+"""The seed robots given by formulas (docs/papers/experiments.md §11.1, §11.2, docs/papers/seed003.md §4.2).
 
 Catalog names:
   ``seed000_2r``      planar 2R of seed 000, Table I (thin rods, F = diag(0.1, 0.3))   [S000 Table I]
@@ -15,7 +15,7 @@ from models.robot import ModelError, RobotModel
 
 class Planar2R(RobotModel):
     """Planar 2R in a vertical plane: q1 absolute from the horizontal x axis, q2 relative,
-    gravity g0 along -y (SPEC §11.1, A0-1 [ASSUMPTION] Siciliano convention).
+    gravity g0 along -y (docs/papers/experiments.md §11.1, A0-1 [ASSUMPTION] Siciliano convention).
 
         M = [[a1 + 2 a2 cos q2, a3 + a2 cos q2], [a3 + a2 cos q2, a3]]
         a1 = I1 + m1 lc1^2 + I2 + m2 (l1^2 + lc2^2),  a2 = m2 l1 lc2,  a3 = I2 + m2 lc2^2
@@ -44,7 +44,7 @@ class Planar2R(RobotModel):
         return a1, p["m2"] * p["l1"] * p["lc2"], p["I2"] + p["m2"] * p["lc2"] ** 2
 
     def mass_matrix(self, q):
-        """M(q) = [[a1 + 2 a2 cos q2, a3 + a2 cos q2], [a3 + a2 cos q2, a3]]  (SPEC §11.1).
+        """M(q) = [[a1 + 2 a2 cos q2, a3 + a2 cos q2], [a3 + a2 cos q2, a3]]  (docs/papers/experiments.md §11.1).
 
         ``q`` is the (2, 1) SX joint angle (rad); returns the (2, 2) SX inertia matrix (kg m^2)."""
         a1, a2, a3 = self._a()
@@ -52,7 +52,7 @@ class Planar2R(RobotModel):
         return ca.blockcat([[a1 + 2 * a2 * c2, a3 + a2 * c2], [a3 + a2 * c2, a3]])
 
     def coriolis(self, q, v):
-        """C = -a2 sin q2 [[q2', q1' + q2'], [-q1', 0]]  (SPEC §11.1).
+        """C = -a2 sin q2 [[q2', q1' + q2'], [-q1', 0]]  (docs/papers/experiments.md §11.1).
 
         ``q`` (rad) and ``v`` (rad/s) are (2, 1) SX; returns the (2, 2) SX Christoffel matrix."""
         h = -self._a()[1] * ca.sin(q[1])
@@ -60,7 +60,7 @@ class Planar2R(RobotModel):
 
     def gravity(self, q):
         """g(q) = [(m1 lc1 + m2 l1) g0 cos q1 + m2 lc2 g0 cos(q1+q2);  m2 lc2 g0 cos(q1+q2)]
-        (SPEC §11.1).
+        (docs/papers/experiments.md §11.1).
 
         ``q`` is the (2, 1) SX joint angle (rad); returns the (2, 1) SX gravity torque (N m)."""
         p = self.p
@@ -70,7 +70,7 @@ class Planar2R(RobotModel):
                           p["m2"] * p["lc2"] * p["g0"] * c12)
 
     def com_positions(self, q):
-        """p = [lc1 c1, lc1 s1, l1 c1 + lc2 c12, l1 s1 + lc2 s12]  [S002 §V, SPEC §3.1].
+        """p = [lc1 c1, lc1 s1, l1 c1 + lc2 c12, l1 s1 + lc2 s12]  [S002 §V, docs/papers/seed002.md §3.1].
 
         ``q`` is the (2, 1) SX joint angle (rad); returns the (4, 1) SX of planar CoM
         positions (m)."""
@@ -82,7 +82,7 @@ class Planar2R(RobotModel):
 
 
 class Absolute2R(RobotModel):
-    """Two-link arm in absolute angles (seed 003, SPEC §4.2), phi = y1 - y2:
+    """Two-link arm in absolute angles (seed 003, docs/papers/seed003.md §4.2), phi = y1 - y2:
 
         M = [[c1, c3 cos phi], [c3 cos phi, c2]],   G = s [c4 cos y1; c5 cos y2]
 
@@ -135,7 +135,7 @@ class Absolute2R(RobotModel):
 
 def seed000_2r(mass_scale=1.0):
     """[S000 Table I]: m = (10, 20) kg, L = (1, 1.5) m, thin rods (d = L/2, I = m L^2/12),
-    F = diag(0.1, 0.3). ``mass_scale`` scales masses and rod inertias (Example 1b, SPEC §11.1)."""
+    F = diag(0.1, 0.3). ``mass_scale`` scales masses and rod inertias (Example 1b, docs/papers/experiments.md §11.1)."""
     m1, m2, l1, l2 = 10.0 * mass_scale, 20.0 * mass_scale, 1.0, 1.5
     name = "seed000_2r" if mass_scale == 1.0 else f"seed000_2r_m{mass_scale:g}"
     return Planar2R(name, m1, m2, l1, l2, l1 / 2, l2 / 2, m1 * l1 ** 2 / 12, m2 * l2 ** 2 / 12,
@@ -144,7 +144,7 @@ def seed000_2r(mass_scale=1.0):
 
 def seed002_2r():
     """[S002 §V]: m = (2, 1) kg, l = (0.4, 0.2) m, lc = (0.2, 0.1) m; inertias m l^2/12
-    [ASSUMPTION, SPEC §11.2]; no friction."""
+    [ASSUMPTION, docs/papers/experiments.md §11.2]; no friction."""
     return Planar2R("seed002_2r", 2.0, 1.0, 0.4, 0.2, 0.2, 0.1, 2.0 * 0.4 ** 2 / 12,
                     1.0 * 0.2 ** 2 / 12, g0=9.81, F=(0.0, 0.0))
 

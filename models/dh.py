@@ -8,7 +8,7 @@ mass m_i with CoM rc_i^i and inertia I_i (about the CoM) both in frame i. Then
     g(q) = - sum_i m_i Jv_i^T g0                                     (g0: gravity vector in frame 0)
 
 with Jv_i, Jw_i the CoM Jacobians: column j <= i is  z_{j-1} x (p_ci - o_{j-1})  and  z_{j-1}.
-C is the Christoffel matrix of the base class (AD of M). Catalog names (SPEC §11.3, §11.4):
+C is the Christoffel matrix of the base class (AD of M). Catalog names (docs/papers/experiments.md §11.3, §11.4):
 
   ``seed004_2r``  planar 2R under gravity of seed 004, Table 1     [S004 Table 1; CODE-CP config_2R.m]
   ``seed004_3r``  spatial 3R elbow robot of seed 004, Table 2       [S004 Table 2; CODE-CP config_3R.m]
@@ -121,7 +121,7 @@ def _seed004(name, dh, coms, gravity):
 
 
 def seed004_2r():
-    """Planar 2R of seed 004 (SPEC §11.3): DH [0, 0, 0.4, q1]; [0, 0, 0.4, q2], g0 = [0, -9.81, 0],
+    """Planar 2R of seed 004 (docs/papers/experiments.md §11.3): DH [0, 0, 0.4, q1]; [0, 0, 0.4, q2], g0 = [0, -9.81, 0],
     CoM [-0.3, 0, 0] in frame i (0.1 m from joint i, A4-4)."""
     r = _seed004("seed004_2r", [[0, 0, 0.4, 0], [0, 0, 0.4, 0]],
                  coms=[[-0.3, 0, 0]] * 2, gravity=[0, -9.81, 0])
@@ -130,7 +130,7 @@ def seed004_2r():
 
 
 def seed004_3r():
-    """Spatial 3R elbow of seed 004 (SPEC §11.4): DH [pi/2, 0.4, 0, q1]; [0, 0, 0.4, q2];
+    """Spatial 3R elbow of seed 004 (docs/papers/experiments.md §11.4): DH [pi/2, 0.4, 0, q1]; [0, 0, 0.4, q2];
     [0, 0, 0.4, q3], g0 = [0, 0, -9.81], CoMs [0, -0.3, 0], [-0.3, 0, 0], [-0.3, 0, 0]."""
     return _seed004("seed004_3r", [[np.pi / 2, 0.4, 0, 0], [0, 0, 0.4, 0], [0, 0, 0.4, 0]],
                     coms=[[0, -0.3, 0], [-0.3, 0, 0], [-0.3, 0, 0]], gravity=[0, 0, -9.81])

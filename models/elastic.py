@@ -1,4 +1,4 @@
-"""Elastic-joint robot (Spong 1987 assumptions), SPEC §6, seed 004.
+"""Elastic-joint robot (Spong 1987 assumptions), docs/papers/seed004.md §6, seed 004.
 
     M(q1) q1'' + c(q1, q1') + g(q1) + K (q1 - q2) = 0                  [S004 (2.6)]
     J q2'' - K (q1 - q2) = u                                            [S004 (2.7)]

@@ -1,4 +1,4 @@
-"""What a robot is: the rigid manipulator model of SPEC §0 with joint friction.
+"""What a robot is: the rigid manipulator model of docs/papers/seed000.md §0 with joint friction.
 
     M(q) qdd + C(q, qd) qd + tau_f(qd) + g(q) = tau          [S000 (1)]
     tau_f(v) = viscous v + coulomb tanh(v / coulomb_width) + offset   (per joint)
@@ -282,7 +282,7 @@ class RobotModel:
         raise NotImplementedError
 
     def coriolis(self, q, v):
-        """Christoffel C(q, v) [SPEC §0], in matrix form
+        """Christoffel C(q, v) [docs/papers/seed000.md §0], in matrix form
 
             C = 1/2 (Mdot + J - J^T),   Mdot = sum_i dM/dq_i v_i,   J = d(M(q) v)/dq |_v
 

@@ -49,7 +49,7 @@ class VelocityBoundOptions(Options):
 
 @dataclass(frozen=True)
 class HybridOptions(Options):
-    """Hybrid reduced-order observer (SPEC §1.3): the logic state r lives in [1, r_max]; the
+    """Hybrid reduced-order observer (docs/papers/seed000.md §1.3): the logic state r lives in [1, r_max]; the
     model is evaluated at the estimate saturated to ``v_bound`` as in VelocityBoundOptions."""
 
     r_max: int
@@ -62,7 +62,7 @@ class HybridOptions(Options):
 
 @dataclass(frozen=True)
 class QuadratureOptions(Options):
-    """I&I observers (SPEC §4, §5): beta by N-node Gauss-Legendre, the intervals of the joints
+    """I&I observers (docs/papers/seed003.md §4, §5): beta by N-node Gauss-Legendre, the intervals of the joints
     flagged ``periodic`` reduced modulo 2 pi with an N_period-node trapezoid per period."""
 
     N: int
@@ -77,7 +77,7 @@ class QuadratureOptions(Options):
 
 @dataclass(frozen=True)
 class NonMinimalOptions(Options):
-    """Seed 002's non-minimal coordinates (SPEC §3.1): which rows of the stacked CoM positions
+    """Seed 002's non-minimal coordinates (docs/papers/seed002.md §3.1): which rows of the stacked CoM positions
     are measured, which joints are observable from them, and the gravity vector g_o."""
 
     rows: tuple
@@ -92,7 +92,7 @@ class NonMinimalOptions(Options):
 
 @dataclass(frozen=True)
 class VariantOptions(Options):
-    """A family with named variants (Ciccarella-Germani O1..O4, SPEC §8.4)."""
+    """A family with named variants (Ciccarella-Germani O1..O4, docs/papers/seed004.md §8.4)."""
 
     variant: str
 

@@ -1,4 +1,4 @@
-"""ObserverSpec: a continuous-time observer as CasADi functions (DESIGN §1, §3).
+"""ObserverSpec: a continuous-time observer as CasADi functions (docs/architecture.md §1, §3).
 
 Every observer family builds one of these; ``discretize``, ``emit``, ``build`` and
 ``runtime`` only ever see this shape, never a particular observer.

@@ -179,7 +179,7 @@ def chol_lower(A):
 
 
 # ============================================================================ Lie derivatives and
-# observability coordinates (Ciccarella-Germani, Spong; SPEC §8.1, §9) -- seed-004 section
+# observability coordinates (Ciccarella-Germani, Spong; docs/papers/seed004.md §8.1, §9) -- seed-004 section
 def lie_derivative(h, x, f, k=1):
     """L_f^k h = d(L_f^{k-1} h)/dx f(x) (k >= 0) by forward-mode AD (jtimes)  [S004 (A.2)]."""
     for _ in range(int(k)):
@@ -390,7 +390,7 @@ def christoffel_slices(robot, q):
 
 
 def cholesky_velocity(robot, q):
-    """(M, T, T^{-1}) at q: M^{-1} = T T^T with T lower-triangular, T^{-1} = T^T M  [SPEC §5].
+    """(M, T, T^{-1}) at q: M^{-1} = T T^T with T lower-triangular, T^{-1} = T^T M  [docs/papers/seed003.md §5].
 
     T^{-1} is the lower-triangular factor of M = T^{-T} T^{-1} (``reversed_cholesky``) and T its
     triangular inverse (``lower_inverse``): no inverse of M, ~n^3/3 operations.
@@ -445,7 +445,7 @@ def _skew_function(robot):
 
 def skew_S(robot, q, b):
     """S(q, b) = -T^T M Tdot(b) - T^T C(q, T b) T, Tdot(b) = sum_k dT/dq_k (T b)_k: the
-    skew-symmetric Coriolis matrix in Cholesky velocities [DERIVED, SPEC §5].
+    skew-symmetric Coriolis matrix in Cholesky velocities [DERIVED, docs/papers/seed003.md §5].
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""What to build and how: the ``Target`` value (DESIGN §3) and its ``Discretization``.
+"""What to build and how: the ``Target`` value (docs/architecture.md §3) and its ``Discretization``.
 
 Plain data (no CasADi, no symbolic code): a targets file, the CLI and Python calls are parsed
 into a Target; ``emit`` receives it and records it in the metadata JSON; the independent

@@ -1,4 +1,4 @@
-"""ObserverSpec -> step Function with the elapsed time as an input (DESIGN §4: discretisation is
+"""ObserverSpec -> step Function with the elapsed time as an input (docs/architecture.md §4: discretisation is
 a visible choice).
 
     step(x, y_prev, y, u_prev, u, p, dt) -> (x_next, est)

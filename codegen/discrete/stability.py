@@ -1,4 +1,4 @@
-"""Discrete-time stability and accuracy of a discretised observer (DESIGN §4).
+"""Discrete-time stability and accuracy of a discretised observer (docs/architecture.md §4).
 
 The step x_k+1 = Phi(x_k; y, u, p) of ``codegen.discrete.discretize`` is linearised in x (CasADi
 Jacobian of the step with dt as an input; the robot's F, M, C enter through the flow) at working

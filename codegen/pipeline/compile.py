@@ -1,4 +1,4 @@
-"""The toolchain: compiler lookup, flags, content-hash cached compiles (DESIGN §4 "Build and runtime").
+"""The toolchain: compiler lookup, flags, content-hash cached compiles (docs/architecture.md §4 "Build and runtime").
 
 ``compile_library`` turns generated/<prefix>/ into lib<prefix>.so; ``codegen.verify.c_programs`` compiles its
 programs through the same ``compiler``, ``c_flags`` and ``cached_compile``. Default flags -O3

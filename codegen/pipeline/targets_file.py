@@ -1,4 +1,4 @@
-"""Targets in the user's words: a targets file (TOML), the CLI's options, or Python (DESIGN §3).
+"""Targets in the user's words: a targets file (TOML), the CLI's options, or Python (docs/architecture.md §3).
 
 One ``[[target]]`` table per generated observer; the CLI's options are the same keys::
 

@@ -1,6 +1,6 @@
-"""Independent reference observers: numpy + pinocchio, written from SPEC's equations.
+"""Independent reference observers: numpy + pinocchio, written from the papers' equations (docs/papers/).
 
-Never imports CasADi, ``models`` or the symbolic ``codegen`` modules (DESIGN §1), so a
+Never imports CasADi, ``models`` or the symbolic ``codegen`` modules (docs/architecture.md §1), so a
 cross-check of the generated C against it compares two independent implementations.
 It reads only plain data: an ObserverSpec's ``describe()`` (family, variant, robot source,
 slot names, default parameters, typed options, hybrid flag), or the same keys in a generated

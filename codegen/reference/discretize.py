@@ -1,4 +1,4 @@
-"""Fixed-step integrators of the reference (DESIGN §4).
+"""Fixed-step integrators of the reference (docs/architecture.md §4).
 
 ``f(t, x)`` is the flow with p fixed; t is the time since the start of the interval, so a
 first-order hold can interpolate y inside the step (zero-order hold simply ignores t); with

@@ -1,5 +1,5 @@
 """Verification, owned by neither side: random inputs per family, the error measure, and the
-C-vs-reference cross-check (DESIGN §3). The CLI and the tests call it from here.
+C-vs-reference cross-check (docs/architecture.md §3). The CLI and the tests call it from here.
 
     from codegen.verify import cross_check
     worst = cross_check(spec, count=1000)       # dict of worst relative errors

@@ -18,7 +18,7 @@ from .measure import relative_error
 
 
 def cross_check(spec, discretization=None, count=1000, seed=0, folder=None, **overrides):
-    """Worst relative errors of the compiled C against the independent reference (DESIGN §3).
+    """Worst relative errors of the compiled C against the independent reference (docs/architecture.md §3).
 
     From each of ``count`` random (x, y, u) (``random_inputs``): two samples (the second with
     another random y, u, so a first-order hold integrates a real interval), comparing estimates

@@ -1,6 +1,6 @@
 """Control laws as compiled C against the independent numpy references (codegen/reference/):
-seed-000 open-loop torques (18)/(19) and the Example-3 tracking law (SPEC §1.4, §12.1), Spong's
-feedback-linearising (SPEC §9) and integral-manifold (SPEC §10) controllers on the seed-004
+seed-000 open-loop torques (18)/(19) and the Example-3 tracking law (docs/papers/seed000.md §1.4, docs/papers/experiments.md §12.1), Spong's
+feedback-linearising (docs/papers/seed004.md §9) and integral-manifold (docs/papers/seed004.md §10) controllers on the seed-004
 elastic 2R and 3R (derivatives y3, y4, F, h0', h0'' exact by hyper-duals on the reference side).
 Each law is compiled once; >= 200 random, physically sensible inputs each, relative error <= 1e-9."""
 import numpy as np
@@ -53,7 +53,7 @@ def _compare(spec, obs, ref, ys, ps):
     return worst
 
 
-# ---------------------------------------------------------------- seed 000 (SPEC §1.4, §12.1)
+# ---------------------------------------------------------------- seed 000 (docs/papers/seed000.md §1.4, docs/papers/experiments.md §12.1)
 @pytest.mark.parametrize("kind", ["ex1", "ex2", "tracking"])
 def test_seed000_laws_match_reference(kind):
     spec, obs, ref = _law(f"seed000:{kind}")
@@ -76,11 +76,11 @@ def test_seed000_laws_match_reference(kind):
     assert worst <= TOL
 
 
-# ---------------------------------------------------------------- Spong laws (SPEC §9, §10, §12.4)
+# ---------------------------------------------------------------- Spong laws (docs/papers/seed004.md §9, §10, docs/papers/experiments.md §12.4)
 def _elastic_inputs(n, rng, count):
     """Measurements y = [x; q_d .. q_d''''] in physical ranges: links within (-pi, pi), speeds of
     a few rad/s, motor positions/speeds close to the links' (elastic torques up to ~200 N m),
-    a reference near q1 with moderate derivatives; half of them from the cubic of SPEC §12.4."""
+    a reference near q1 with moderate derivatives; half of them from the cubic of docs/papers/experiments.md §12.4."""
     from codegen.families.controllers.spong import cubic_reference
     ys = []
     for k in range(count):

@@ -1,5 +1,5 @@
-"""Gain design of the reduced-order observer for the seed-000 robot (SPEC §1.2), and the
-design package's place in the import graph (DESIGN §1: no back-edges)."""
+"""Gain design of the reduced-order observer for the seed-000 robot (docs/papers/seed000.md §1.2), and the
+design package's place in the import graph (docs/architecture.md §1: no back-edges)."""
 import ast
 import subprocess
 import sys
@@ -13,7 +13,7 @@ from models import load_robot
 
 
 def test_kappa_of_planar_coriolis():
-    """SPEC §0: kappa = max_{|v|=1} ||N(v)||_2 = 1.64449 with N(v) = [[v2, v1+v2], [-v1, 0]]."""
+    """docs/papers/seed000.md §0: kappa = max_{|v|=1} ||N(v)||_2 = 1.64449 with N(v) = [[v2, v1+v2], [-v1, 0]]."""
     N = lambda v: np.array([[v[1], v[0] + v[1]], [-v[0], 0.0]])  # noqa: E731
     slices = np.hstack([N([1, 0]), N([0, 1])])[None]
     assert c0_batch(slices, 2)[0][0] == pytest.approx(1.64449, abs=1e-5)
@@ -33,7 +33,7 @@ def test_seed000_k0_eta1_vmax2():
 
 
 def test_seed000_scheduled_gains_table():
-    """[S000 (16)] for eta = 1, vbar = 2: k_r = 5.3214 + 10.7154 r (SPEC §1.2 table)."""
+    """[S000 (16)] for eta = 1, vbar = 2: k_r = 5.3214 + 10.7154 r (docs/papers/seed000.md §1.2 table)."""
     k = scheduled_gains(load_robot("seed000_2r"), eta=1.0, vbar=2.0, r_max=6)
     table = [16.037, 26.752, 37.468, 48.183, 58.899, 69.614]
     assert np.allclose(k, table, atol=1e-3)

@@ -1,4 +1,4 @@
-"""Closed-form seed robots against their SPEC formulas, and the Christoffel properties."""
+"""Closed-form seed robots against their formulas (docs/papers/), and the Christoffel properties."""
 import casadi as ca
 import numpy as np
 import pytest
@@ -14,7 +14,7 @@ speeds = st.lists(st.floats(-5, 5), min_size=2, max_size=2)
 
 
 def test_seed000_matches_spec_numbers():
-    """SPEC §1.2/§11.1: M11 = 38.3333 + 30 cos q2, M12 = 15 + 15 cos q2, M22 = 15; g; F."""
+    """docs/papers/seed000.md §1.2/§11.1: M11 = 38.3333 + 30 cos q2, M12 = 15 + 15 cos q2, M22 = 15; g; F."""
     r = load_robot("seed000_2r")
     for q in np.random.default_rng(0).uniform(-np.pi, np.pi, (50, 2)):
         c2 = np.cos(q[1])
@@ -27,7 +27,7 @@ def test_seed000_matches_spec_numbers():
 
 
 def test_seed002_mass_matrix_is_jacobian_form():
-    """SPEC §11.2: M = J_p^T diag(m) J_p + J_o^T diag(I) J_o, J_p from (34)."""
+    """docs/papers/experiments.md §11.2: M = J_p^T diag(m) J_p + J_o^T diag(I) J_o, J_p from (34)."""
     r = load_robot("seed002_2r")
     m1, m2, l1, lc1, lc2 = 2.0, 1.0, 0.4, 0.2, 0.1
     I1, I2 = m1 * 0.4 ** 2 / 12, m2 * 0.2 ** 2 / 12
@@ -42,7 +42,7 @@ def test_seed002_mass_matrix_is_jacobian_form():
 
 
 def test_seed003_matches_spec():
-    """SPEC §4.2: M = [[c1, c3 cos phi], [c3 cos phi, c2]], Christoffel C, G = [c4 cos y1; c5 cos y2]."""
+    """docs/papers/seed003.md §4.2: M = [[c1, c3 cos phi], [c3 cos phi, c2]], Christoffel C, G = [c4 cos y1; c5 cos y2]."""
     r = load_robot("seed003_2r_abs")
     y, x = np.array([0.4, -1.1]), np.array([0.7, -2.0])
     phi = y[0] - y[1]
@@ -78,7 +78,7 @@ def test_christoffel_properties(name, q, a, b):
 
 
 def test_mass_scaling_for_example_1b():
-    """SPEC §11.1 Example 1b: masses (and rod inertias) x 1.1."""
+    """docs/papers/experiments.md §11.1 Example 1b: masses (and rod inertias) x 1.1."""
     M0, M1 = seed000_2r().M([0.3, 0.2]), seed000_2r(mass_scale=1.1).M([0.3, 0.2])
     assert np.allclose(np.array(M1), 1.1 * np.array(M0))
 

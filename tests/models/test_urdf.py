@@ -2,7 +2,7 @@
 pinocchio's own; URDF fixtures in tests/data/.
 
 Tolerances: 1e-10 relative to the norm of pinocchio's value (pinocchio run on the SNAPPED
-model, the one our algorithms read), as DESIGN §4 states.
+model, the one our algorithms read), as docs/architecture.md §4 states.
 """
 import hashlib
 import json
@@ -145,7 +145,7 @@ def test_rnea_and_com_match_pinocchio(name, request):
 
 @pytest.mark.parametrize("name", ["ur5", "panda"])
 def test_christoffel_properties(name, request):
-    """Mdot = C + C^T and C(q, a) b = C(q, b) a (SPEC §0) on random samples."""
+    """Mdot = C + C^T and C(q, a) b = C(q, b) a (docs/papers/seed000.md §0) on random samples."""
     robot = request.getfixturevalue(name)
     q, v = ca.SX.sym("q", robot.n), ca.SX.sym("v", robot.n)
     Mdot = ca.Function("Mdot", [q, v], [ca.jtimes(robot.mass_matrix(q), q, v)])

@@ -1,5 +1,5 @@
 """Seed 000 in full: hybrid reduced-order and Nicosia–Tomei observers (C vs reference, jump
-logic), the Example laws, and Examples 1–3 (SPEC §1, §2, §12.1)."""
+logic), the Example laws, and Examples 1–3 (docs/papers/seed000.md §1, §2, docs/papers/experiments.md §12.1)."""
 import numpy as np
 import pytest
 
@@ -37,7 +37,7 @@ def test_emitted_c_equals_reference(family, robot):
 
 
 def _near_threshold_states(spec, count, rng):
-    """(x, y) with ||x2hat|| within 1e-6 (relative) of an up or down threshold of SPEC §1.3."""
+    """(x, y) with ||x2hat|| within 1e-6 (relative) of an up or down threshold of docs/papers/seed000.md §1.3."""
     k, (eta, vbar, delta) = spec.p_default[:-3], spec.p_default[-3:]
     r_max = len(k)
     X, Y = [], []
@@ -81,7 +81,7 @@ def test_hybrid_c_equals_reference_near_thresholds(hybrid, hybrid_spec):
     (1, 5.0, 4), (1, 100.0, 6),                       # repeated up-jumps at one instant; capped at r_max
     (6, 0.5, 1), (4, 1.0, 2)])                        # repeated down-jumps
 def test_jump_rule(hybrid, hybrid_spec, r0, speed, r_plus):
-    """SPEC §1.3 for eta = 1, vbar = 2, delta = 0.1, in the C and in the reference; x2hat is
+    """docs/papers/seed000.md §1.3 for eta = 1, vbar = 2, delta = 0.1, in the C and in the reference; x2hat is
     continuous across the jump (z+ = x2hat - k_{r+} y)."""
     k = hybrid_spec.p_default[:-3]
     y, u = np.array([0.7, -1.3]), np.array([5.0, -2.0])
@@ -217,7 +217,7 @@ def test_example2_switching():
 
 
 def test_example2_spec_delta_chatters_under_high_noise():
-    """Why Example 2 uses delta = 0.3: with SPEC's 0.1 the noise alone crosses the down threshold
+    """Why Example 2 uses delta = 0.3: with the docs' 0.1 (docs/papers/seed000.md §1.3) the noise alone crosses the down threshold
     and back (a dwell of a few samples); the main run (0.3) keeps a dwell > 0.1 s (above)."""
     _, s, _ = S.example2(fixed=(), delta=S.DELTA_SPEC)
     assert s["hybrid"]["min_dwell_s"] < 0.01 and s["hybrid"]["switches"] > 8
@@ -238,7 +238,7 @@ def test_example3_main_run_from_tracking_error():
 
 
 def test_example3_quintic_variant_tracks_without_switching():
-    """SPEC §12.1's quintic from q(0): no peak beyond qd(0), r stays 1 (why it is only a variant)."""
+    """docs/papers/experiments.md §12.1's quintic from q(0): no peak beyond qd(0), r stays 1 (why it is only a variant)."""
     res, s = S.example3(setpoint=False)
     assert s["tracking_error_final"] < 2e-3 and s["tracking_error_max_after_move"] < 2e-2
     assert s["hybrid"]["r_max_reached"] == 1 and s["peak_speed"] == s["speed_at_t0"]

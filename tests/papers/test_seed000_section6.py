@@ -69,4 +69,4 @@ def test_designed_observer_converges_and_c_equals_reference(robot, design):
     ref, _ = example1_both(reference=True, T=0.2)
     c = res.est["reduced_order_nonlinear"][:len(ref.t)]
     r = ref.est["reduced_order_nonlinear"]
-    assert np.abs(c - r).max() <= 1e-9 * max(1.0, np.abs(r).max())     # DESIGN §4
+    assert np.abs(c - r).max() <= 1e-9 * max(1.0, np.abs(r).max())     # docs/architecture.md §4

@@ -15,7 +15,7 @@ from codegen.reference.robots import reference_robot
 from codegen.verify import random_inputs, relative_error
 from models import load_robot
 
-TOL_C = 1e-9          # emitted C vs reference, relative (DESIGN §4)
+TOL_C = 1e-9          # emitted C vs reference, relative (docs/architecture.md §4)
 TOL_KIN = 1e-12       # symbolic kinematics vs closed form / pinocchio, relative to the scale
 
 
@@ -94,7 +94,7 @@ def test_row_selection_maximises_worst_conditioning(r2):
 
 @pytest.mark.parametrize("name", ["seed002_2r", "ur5"])
 def test_force_signal_sign_convention(name):
-    """SPEC §3.1: f_{f,i} = m_i (J_p^i qdd + Jdot_p^i qd - g_o). At rest under gravity
+    """docs/papers/seed002.md §3.1: f_{f,i} = m_i (J_p^i qdd + Jdot_p^i qd - g_o). At rest under gravity
     compensation (tau = g(q)) f_f = -m g_o (the supporting force); in motion it equals the
     reference's m (J_p qdd + Jdot_p qd - g_o) with qdd from pinocchio / closed-form dynamics."""
     robot = load_robot(name)
@@ -199,7 +199,7 @@ def test_nominal_run_converges(nominal):
 def test_adaptive_is_less_noise_sensitive(nominal, noise, margin):
     """std = 3 mrad and 30 mrad at 1 kHz: steady-state (last 1 s of 4 s) velocity-error RMS of
     the adaptive observer well below that of (35) (measured: 0.14 vs 2.05 and 1.38 vs 3.81 rad/s
-    over 5 s). At SPEC's "30 %" reading (~0.21 rad) the order reverses (9.5 vs 7.2): see the
+    over 5 s). At the "30 %" reading (docs/papers/experiments.md) (~0.21 rad) the order reverses (9.5 vs 7.2): see the
     seed002-noisy scenario and the closing note."""
     from codegen.evaluate.scenarios.seed002 import experiment, summarize
     s = summarize(experiment(T=4.0, noise=noise))

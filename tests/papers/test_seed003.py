@@ -1,4 +1,4 @@
-"""Seed 003: I&I speed observer (SPEC §4) and the reconstructed AOV observer (SPEC §5)."""
+"""Seed 003: I&I speed observer (docs/papers/seed003.md §4) and the reconstructed AOV observer (docs/papers/seed003.md §5)."""
 from functools import lru_cache
 
 import casadi as ca
@@ -33,7 +33,7 @@ def _random_state(robot, y, scale=1.0, r=(0.05, 0.5)):
 
 
 def test_cholesky_velocity_and_skew_S():
-    """SPEC §5: M^{-1} = T T^T (T lower), T^{-1} = T^T M, and S(q, b) skew-symmetric
+    """docs/papers/seed003.md §5: M^{-1} = T T^T (T lower), T^{-1} = T^T M, and S(q, b) skew-symmetric
     (symbolic helpers shared by the AOV observer and its bounds)."""
     from codegen.core.symbolic import cholesky_velocity, skew_S
     robot = load_robot("seed003_2r_abs")
@@ -49,7 +49,7 @@ def test_cholesky_velocity_and_skew_S():
 
 
 def test_eq59_is_transposed_christoffel_symbolic():
-    """SPEC §4.2 / A3-1: (59) = M^{-1}(k1 I - C^T) with the models' Christoffel C (CasADi side)."""
+    """docs/papers/seed003.md §4.2 / A3-1: (59) = M^{-1}(k1 I - C^T) with the models' Christoffel C (CasADi side)."""
     robot = load_robot("seed003_2r_abs")
     c1, c2, c3 = 0.9698, 0.1575, 0.264
     y, x, k1 = ca.SX.sym("y", 2), ca.SX.sym("x", 2), ca.SX.sym("k1")
@@ -68,7 +68,7 @@ def test_eq59_is_transposed_christoffel_symbolic():
 
 
 def test_design_reproduces_seed_constants():
-    """k_m, k_M, k_c of SPEC §4.2 / [S003 (58)] and Deltabar_x = k_c/k_m (Lemma 1)."""
+    """k_m, k_M, k_c of docs/papers/seed003.md §4.2 / [S003 (58)] and Deltabar_x = k_c/k_m (Lemma 1)."""
     d = ii_speed_bounds(load_robot("seed003_2r_abs"))
     assert abs(d.k_m - 0.079239) < 5e-7
     assert abs(d.k_M - 1.048061) < 5e-7
@@ -77,7 +77,7 @@ def test_design_reproduces_seed_constants():
 
 
 def test_lemma2_coefficients_match_closed_form():
-    """a_ji = sup_phi |dH0_ij/dphi| (SPEC §4.2 closed form of H0) to 1e-6 relative."""
+    """a_ji = sup_phi |dH0_ij/dphi| (docs/papers/seed003.md §4.2 closed form of H0) to 1e-6 relative."""
     d = ii_speed_bounds(load_robot("seed003_2r_abs"))
     c1, c2, c3 = 0.9698, 0.1575, 0.264
     phi = np.linspace(-np.pi, np.pi, 400001)
@@ -169,7 +169,7 @@ def test_emitted_c_equals_reference_ur5():
 
 @pytest.mark.slow
 def test_seed003_scenario_converges():
-    """SPEC §12.3 (0.6 s): s_y -> y, xhat and s_x -> x, r bounded, for the I&I observer; the
+    """docs/papers/experiments.md §12.3 (0.6 s): s_y -> y, xhat and s_x -> x, r bounded, for the I&I observer; the
     AOV comparison is in the same summary."""
     from codegen.evaluate.scenarios.seed003 import run_seed003
     s, tr = run_seed003(T=0.6, plots=False)

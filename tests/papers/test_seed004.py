@@ -1,5 +1,5 @@
 """Seed 004: DH/elastic models, symbolic Lie tools, CG O1-O4 and Tomei against the reference,
-the generated C against the reference, and a short Sim-1 run (SPEC §6-§10, §11.3-§11.4, §12.4)."""
+the generated C against the reference, and a short Sim-1 run (docs/papers/seed004.md §6-§10, docs/papers/experiments.md §11.3-§11.4, §12.4)."""
 import casadi as ca
 import numpy as np
 import pytest
@@ -20,7 +20,7 @@ def qs():
     return np.random.default_rng(4).uniform(-np.pi, np.pi, size=(25, 3))
 
 
-# ---------------------------------------------------------------- models (SPEC §11.3, §11.4)
+# ---------------------------------------------------------------- models (docs/papers/experiments.md §11.3, §11.4)
 def test_2r_mass_matrix_and_gravity(qs):
     r = load_robot("seed004_2r")
     for q in qs[:, :2]:
@@ -51,7 +51,7 @@ def test_3r_mass_matrix_det_and_gravity(qs):
 
 
 def test_3r_det_Q_formula(qs):
-    """SPEC §8.3 / report (5.7): det Q = 1.5625e34 / [(16 cos^2 q3 - 297)^2 (...)^2], for the
+    """docs/papers/seed004.md §8.3 / report (5.7): det Q = 1.5625e34 / [(16 cos^2 q3 - 297)^2 (...)^2], for the
     symbolic Q = dPhi/dx (AD) and for the reference's hyper-dual Q."""
     from codegen.core import symbolic as sym
     e = load_elastic("seed004_3r")
@@ -96,7 +96,7 @@ def test_elastic_robot_shape_and_source():
     assert np.allclose(lhs + 20000 * (x[:2] - x[4:6]), 0, atol=1e-9)       # link equation
 
 
-# ---------------------------------------------------------------- symbolic tools (SPEC §8.1)
+# ---------------------------------------------------------------- symbolic tools (docs/papers/seed004.md §8.1)
 def test_relative_degree_and_decoupling_matrix():
     from codegen.core import symbolic as sym
     e = load_elastic("seed004_2r")
@@ -285,7 +285,7 @@ def test_sim1_figures_one_per_paper_figure(tmp_path):
 
 @pytest.mark.slow
 def test_3r_manifold_uses_spec_fast_poles():
-    """SPEC §10: the 3R integral-manifold controller the scenarios compile places the fast poles
+    """docs/papers/seed004.md §10: the 3R integral-manifold controller the scenarios compile places the fast poles
     at the authors' 70 [-1, -1.2, ..., -1.6] (its compiled gains are those of these poles)."""
     from codegen.families.controllers.spong import spong_fast_gains
     from codegen.evaluate.scenarios import seed004 as s

@@ -170,7 +170,7 @@ def _seed000_plant(t):
 
 
 def test_continuous_observer_converges_on_seed000_plant():
-    """SPEC §1.1: with k0 = 16.037 (SPEC §1.2) the estimate of the continuous-time observer
+    """docs/papers/seed000.md §1.1: with k0 = 16.037 (docs/papers/seed000.md §1.2) the estimate of the continuous-time observer
     converges to the true velocity; the error falls by > 1e5 within 1 s (rate ~ k0)."""
     t = np.linspace(0.0, 1.0, 11)
     robot, tau, plant, s0 = _seed000_plant(t)

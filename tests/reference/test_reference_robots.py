@@ -1,4 +1,4 @@
-"""The reference robots (codegen/reference/robots.py and below): closed forms from SPEC's
+"""The reference robots (codegen/reference/robots.py and below): closed forms from the docs'
 formulas, URDF robots through pinocchio, DH and elastic robots with hyper-dual derivatives."""
 from pathlib import Path
 
@@ -17,7 +17,7 @@ CLOSED_FORM = ["seed000_2r", "seed002_2r", "seed003_2r_abs"]
 
 # ---------------------------------------------------------------------------- closed forms
 def test_seed000_mass_matrix_numbers():
-    """SPEC §1.2: M11 = 38.3333 + 30 cos q2, M12 = 15 + 15 cos q2, M22 = 15."""
+    """docs/papers/seed000.md §1.2: M11 = 38.3333 + 30 cos q2, M12 = 15 + 15 cos q2, M22 = 15."""
     robot = reference_robot(SEED_SOURCES["seed000_2r"])
     for q in RNG.uniform(-np.pi, np.pi, (20, 2)):
         c2 = np.cos(q[1])
@@ -27,7 +27,7 @@ def test_seed000_mass_matrix_numbers():
 
 
 def test_seed002_mass_matrix_from_jacobians():
-    """SPEC §11.2 Remark 2: M = J_p^T diag(m) J_p + J_o^T diag(I) J_o, J_p from [S002 (34)]."""
+    """docs/papers/experiments.md §11.2 Remark 2: M = J_p^T diag(m) J_p + J_o^T diag(I) J_o, J_p from [S002 (34)]."""
     robot = reference_robot(SEED_SOURCES["seed002_2r"])
     m1, m2, l1, lc1, lc2 = 2.0, 1.0, 0.4, 0.2, 0.1
     I1, I2 = m1 * 0.4 ** 2 / 12, m2 * 0.2 ** 2 / 12
@@ -57,7 +57,7 @@ def _christoffel_checks(robot, samples=10, rtol_mdot=1e-8):
         q = RNG.uniform(-np.pi, np.pi, n)
         v, a, b = RNG.standard_normal((3, n))
         C = robot.C(q, v)
-        # Mdot = C + C^T [SPEC §0]. With h = 1e-5 and O(1..100) entries the central
+        # Mdot = C + C^T [docs/papers/seed000.md §0]. With h = 1e-5 and O(1..100) entries the central
         # difference is good to ~1e-9 absolute; 1e-8 relative to the largest entry of M.
         scale = np.abs(robot.M(q)).max() * max(1.0, np.abs(v).max())
         np.testing.assert_allclose(C + C.T, _mdot_fd(robot, q, v), rtol=0, atol=rtol_mdot * scale)
@@ -72,7 +72,7 @@ def test_christoffel_properties_closed_form(name):
 
 
 def test_seed003_equation_59_is_transposed_christoffel():
-    """SPEC §4.2 / A3-1: (59) equals M^{-1}(k1 I - C^T) with C the Christoffel matrix."""
+    """docs/papers/seed003.md §4.2 / A3-1: (59) equals M^{-1}(k1 I - C^T) with C the Christoffel matrix."""
     robot = reference_robot(SEED_SOURCES["seed003_2r_abs"])
     c1, c2, c3 = 0.9698, 0.1575, 0.264
     k1 = 40.0
@@ -145,7 +145,7 @@ def test_ur5_locked_joint_is_a_sub_block():
 def test_urdf_continuous_joints_match_seed000_closed_form():
     """The seed-000 arm as a URDF with continuous joints (pinocchio nq = 2, (cos, sin)),
     in the vertical x-z plane (rotation about -y maps x to (cos q, 0, sin q)): pinocchio's
-    M, C, g, F, forward dynamics equal the closed form of SPEC §11.1 (tests/data/seed000_2r.urdf:
+    M, C, g, F, forward dynamics equal the closed form of docs/papers/experiments.md §11.1 (tests/data/seed000_2r.urdf:
     I1 = m1 l1^2/12 = 10/12, I2 = m2 l2^2/12 = 3.75)."""
     path = Path(__file__).parents[1] / "data" / "seed000_2r.urdf"
     urdf = reference_robot({"kind": "urdf", "path": str(path), "sha256": file_sha256(path),

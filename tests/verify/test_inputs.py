@@ -1,6 +1,6 @@
 """Cross-check inputs (codegen.verify.inputs) drawn where each family declares them
 (``spec.inputs``, codegen.core.options.InputRanges): finite, inside the declared ranges, integer slots
-integers, and the compiled C equal to the independent reference on them (DESIGN §4: 1e-9)."""
+integers, and the compiled C equal to the independent reference on them (docs/architecture.md §4: 1e-9)."""
 import copy
 import importlib
 

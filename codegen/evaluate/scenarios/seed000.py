@@ -1,10 +1,10 @@
-"""Examples 1–3 of seed 000 (Cristofaro & De Luca), SPEC §12.1.
+"""Examples 1–3 of seed 000 (Cristofaro & De Luca), docs/papers/experiments.md §12.1.
 
     seed000-ex1a  open loop (18), noisy + quantised y: reduced-order vs Nicosia–Tomei
     seed000-ex1b  open loop (18), plant masses +10 %: reduced-order vs Nicosia–Tomei
     seed000-ex2   open loop (19), high noise: hybrid (switching k_r) vs fixed high gains
-    seed000-ex3   output feedback (SPEC §1.4) on the hybrid observer's estimate, from an
-                  initial tracking error (EX3_ASSUMPTION); the SPEC quintic as a variant
+    seed000-ex3   output feedback (docs/papers/seed000.md §1.4) on the hybrid observer's estimate, from an
+                  initial tracking error (EX3_ASSUMPTION); the docs' quintic (docs/papers/seed000.md §1.4) as a variant
 
 Plant: compiled RK4 at PLANT_STEP (1e-4 s, 10 sub-steps per 1 kHz sample), torque held over a
 sample. Observers: compiled C (``reference=False``) or the numpy reference, at 1 kHz, RK4 with
@@ -27,26 +27,26 @@ from ..sim.sensors import Sensor
 
 Q0 = np.array([-2 * np.pi / 3, np.pi / 10])      # [S000 §V] q(0)
 QD0 = np.array([-0.5, 1.0])                      # [S000 §V] qd(0)
-DT = 1e-3                                        # 1 kHz sampling [SPEC §12.1]
+DT = 1e-3                                        # 1 kHz sampling [docs/papers/experiments.md §12.1]
 PLANT_STEP = 1e-4                                # plant RK4 step (see tests/test_sim.py)
-T_OPEN, T_CLOSED = 20.0, 12.0                    # [ASSUMPTION SPEC §12.1] horizons
+T_OPEN, T_CLOSED = 20.0, 12.0                    # [ASSUMPTION docs/papers/experiments.md §12.1] horizons
 NOISE_1A = dict(noise_std=2e-4, quantum=7e-4)    # [S000 Ex. 1a] Delta_q; sigma [ASSUMPTION]
-NOISE_HIGH = dict(noise_std=1e-3, quantum=7e-4)  # [ASSUMPTION SPEC §12.1] "high level of noise"
+NOISE_HIGH = dict(noise_std=1e-3, quantum=7e-4)  # [ASSUMPTION docs/papers/experiments.md §12.1] "high level of noise"
 ETA, VMAX, VBAR = 1.0, 2.0, 2.0                  # [S000 §V]
-DELTA_SPEC = 0.1                                 # [ASSUMPTION SPEC §1.3] down-jump tolerance
+DELTA_SPEC = 0.1                                 # [ASSUMPTION docs/papers/seed000.md §1.3] down-jump tolerance
 PAPER = "guarantee"                              # the papers' gains: (12), (16), K_P = 500 I
-DELTA_HIGH_NOISE = 0.3   # [ASSUMPTION SPEC §1.3 "scale delta with the noise"]: > noise peak of x2hat (~0.2)
-DELTA_WHY = ("Example 2 uses delta = 0.3, not SPEC's 0.1: with sigma = 1e-3 rad at 1 kHz the noise "
+DELTA_HIGH_NOISE = 0.3   # [ASSUMPTION docs/papers/seed000.md §1.3 "scale delta with the noise"]: > noise peak of x2hat (~0.2)
+DELTA_WHY = ("Example 2 uses delta = 0.3, not the docs' 0.1: with sigma = 1e-3 rad at 1 kHz the noise "
              "alone moves ||x2hat|| by more than 0.1 rad/s about ||x2|| (noise_on_speed_peak), so with "
              "0.1 the logic chatters across the down threshold (with_delta_0.1: switches, min dwell); "
-             "SPEC §1.3 says to scale delta with the noise")
+             "docs/papers/seed000.md §1.3 says to scale delta with the noise")
 LEVELS = (1e-2, 1e-3)
 _ROBOTS = {}
 
 
 # ----------------------------------------------------------------------------- building blocks
 def robot(mass_scale=1.0):
-    """seed000_2r [SPEC §11.1] with link masses x ``mass_scale``, one instance per scale (so the
+    """seed000_2r [docs/papers/experiments.md §11.1] with link masses x ``mass_scale``, one instance per scale (so the
     gain designs are cached)."""
     from models.closed_form import seed000_2r
     if mass_scale not in _ROBOTS:
@@ -87,7 +87,7 @@ def open_loop_law(example, dt=DT):
 def tracking_law(feedback, dt=DT, q_start=Q0):
     """Example-3 law fed by measured q and the estimate of observer ``feedback``; reference
     quintic from ``q_start`` (rad) to qbar over [0, 8] s (q_start = qbar: a constant set-point);
-    sampled every ``dt`` s [SPEC §1.4]."""
+    sampled every ``dt`` s [docs/papers/seed000.md §1.4]."""
     from ...families.controllers.seed000 import tracking
 
     def assemble(t, y, est, x, out):
@@ -186,7 +186,7 @@ def ex1b(reference=False, out=Path("build/sim/seed000-ex1b"), T=T_OPEN):
 def example2(reference=False, T=T_OPEN, dt=DT, seed=2, fixed=None, delta=None):
     """Open loop (19), high noise: the hybrid observer and fixed-gain reduced-order observers
     with k = k_r for r in ``fixed`` (default 2..r_max), down-jump tolerance ``delta`` (default
-    DELTA_HIGH_NOISE) [SPEC §1.3]. C or numpy ``reference`` observers; sensor NOISE_HIGH with ``seed``;
+    DELTA_HIGH_NOISE) [docs/papers/seed000.md §1.3]. C or numpy ``reference`` observers; sensor NOISE_HIGH with ``seed``;
     horizon ``T`` and period ``dt`` in s. Returns (Result, summary, gains k_r)."""
     from ...families.observers import build
     nominal = robot()
@@ -247,16 +247,16 @@ EX3_ASSUMPTION = (
     "[ASSUMPTION] main run: q_d(t) = qbar = (pi/4, -pi/3) from t = 0 (a set-point), so the run starts "
     "with the tracking error qbar - q(0) = (2.88, -1.36) rad and the robot reaches qbar at steady "
     "state, after about 8 s: the reading under which the seed's Figs. 6-7 (initial velocity peak, "
-    "r rising and returning to 1) can occur. Variant (SPEC §12.1): a quintic rest-to-rest q(0) -> "
+    "r rising and returning to 1) can occur. Variant (docs/papers/experiments.md §12.1): a quintic rest-to-rest q(0) -> "
     "qbar over [0, 8] s, which starts on the robot and never leaves r = 1")
 ZOOM = (0.0, 0.3)                                # Fig. 7's zoomed box [s] [ASSUMPTION]
 
 
 def example3(reference=False, T=T_CLOSED, dt=DT, seed=3, setpoint=True):
-    """Output feedback (SPEC §1.4) using the hybrid observer's estimate, noise as in 1a.
+    """Output feedback (docs/papers/seed000.md §1.4) using the hybrid observer's estimate, noise as in 1a.
 
     Reference: with ``setpoint`` (main run, EX3_ASSUMPTION) the constant q_d = qbar, else the
-    quintic q(0) -> qbar of SPEC §12.1. C or numpy ``reference`` observer; sensor as in 1a with
+    quintic q(0) -> qbar of docs/papers/experiments.md §12.1. C or numpy ``reference`` observer; sensor as in 1a with
     ``seed``; horizon ``T`` and period ``dt`` in s. Returns (Result, summary)."""
     from ...families.controllers.seed000 import Q_GOAL, T_MOVE, quintic
     from ...families.observers import build
@@ -299,7 +299,7 @@ def _ex3_figures(res, out, tag, what):
 
 def ex3(reference=False, out=Path("build/sim/seed000-ex3"), T=T_CLOSED):
     """Example 3: the main run from an initial tracking error (set-point qbar; run.csv, fig6_*,
-    fig7_*) and the SPEC quintic from q(0) as a variant (run_quintic.csv, *_quintic.png).
+    fig7_*) and the docs' quintic (docs/papers/seed000.md §1.4) from q(0) as a variant (run_quintic.csv, *_quintic.png).
     ``reference``: numpy reference observers instead of C; ``out``: folder written; ``T``: horizon, s."""
     out = Path(out)
     res, s = example3(reference, T=T)

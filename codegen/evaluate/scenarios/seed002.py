@@ -1,6 +1,6 @@
-"""Seed 002 (Lotfi & Namvar) §V reproduced, and the adaptive observer on ur5 (SPEC §12.2).
+"""Seed 002 (Lotfi & Namvar) §V reproduced, and the adaptive observer on ur5 (docs/papers/experiments.md §12.2).
 
-Plant: the robot under computed-torque tracking with the *true* state [ASSUMPTION, SPEC §12.2]
+Plant: the robot under computed-torque tracking with the *true* state [ASSUMPTION, docs/papers/experiments.md §12.2]
 
     tau = M(q) (qdd_d + 40 (qd_d - qd) + 400 (q_d - q)) + C(q, qd) qd + F qd + g(q),
     q_d = [sin 10 t, cos 10 t],  q(0) = q_d(0),  qd(0) = qd_d(0),
@@ -11,10 +11,10 @@ the recorded samples with ``run`` (the loop in C, or the numpy reference with re
 
 Measurements: y = (q_s, f_f) for the adaptive observer, y = q_s for the non-smooth one, with
 q_s = q + white Gaussian noise sampled at 1 kHz and held (std = 0.3 RMS(q_i) "30 %", A2-3, or
-a fixed std), and the CoM forces f_{f,i} = m_i (J_p^i qdd + Jdot_p^i qd - g_o) of SPEC §3.1
-computed from the true state and the applied torque (no force noise, SPEC §12.2).
+a fixed std), and the CoM forces f_{f,i} = m_i (J_p^i qdd + Jdot_p^i qd - g_o) of docs/papers/seed002.md §3.1
+computed from the true state and the applied torque (no force noise, docs/papers/experiments.md §12.2).
 
-Step: dt = 1e-4 s for everything (SPEC §3.3: the sign of (35) is integrated literally, no
+Step: dt = 1e-4 s for everything (docs/papers/seed002.md §3.3: the sign of (35) is integrated literally, no
 smoothing; RK4 with the measurement held over the step).
 
 Scenarios: ``seed002`` (noise-free, Figs. 1–2 plus the comparison), ``seed002-noisy``
@@ -36,7 +36,7 @@ from ..sim import plots
 from ..sim.blocks import block
 from ..sim.plant import Plant
 
-KP, KD = 400.0, 40.0                     # computed-torque gains, SPEC §12.2
+KP, KD = 400.0, 40.0                     # computed-torque gains, docs/papers/experiments.md §12.2
 SU_INIT = np.array([2.0, 2.0, -1.0, -1.0])   # est0 = [qd_hat(0), qhat(0)], [S002 §V-B]
 
 
@@ -103,7 +103,7 @@ def noisy(Q, std, dt, rate=1e3, seed=0):
 def run_observer(spec, Y, U, dt, reference=False, est0=None):
     """EST (N, nest) of ``spec`` over the samples ``Y`` (N, ny), ``U`` (N, nu) (C, or the numpy
     reference if ``reference``), from ``est0`` (None: zeros), RK4 with step ``dt`` s and y held over
-    each step (zero-order hold: the sign of (35) integrated literally, SPEC §3.3)."""
+    each step (zero-order hold: the sign of (35) integrated literally, docs/papers/seed002.md §3.3)."""
     obs = block(spec, Discretization(dt=dt, method="rk4", hold="zoh"), reference=reference)
     obs.reset(Y[0], est0=est0)
     return obs.run(Y, U)
@@ -158,7 +158,7 @@ def experiment(robot_name="seed002_2r", T=5.0, dt=1e-4, noise=0.0, reference=Fal
     spec = build("lotfi_namvar", robot, rows=rows, **(gains or {}))
     nm = nonminimal(robot, rows)
     N = len(t)
-    FF = np.asarray(nm.force_function().map(N)(Q.T, QD.T, TAU.T)).T            # SPEC §3.1
+    FF = np.asarray(nm.force_function().map(N)(Q.T, QD.T, TAU.T)).T            # docs/papers/seed002.md §3.1
     qs = ca.SX.sym("q", robot.n)
     J_fun = ca.Function("J_n", [qs], [nm.jacobian(qs)])
     Jall = np.asarray(J_fun.map(N)(Q.T)).reshape(nm.r, N, len(nm.joints))

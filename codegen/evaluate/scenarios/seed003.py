@@ -1,5 +1,5 @@
-"""Seed 003 (Arbo, Grotli & Gravdahl): the I&I speed observer on the two-link arm (SPEC §12.3),
-compared with the reconstructed Astolfi-Ortega-Venkatraman observer (SPEC §5), and the I&I
+"""Seed 003 (Arbo, Grotli & Gravdahl): the I&I speed observer on the two-link arm (docs/papers/experiments.md §12.3),
+compared with the reconstructed Astolfi-Ortega-Venkatraman observer (docs/papers/seed003.md §5), and the I&I
 observer on ur5 (``seed003-ur5``). The quadrature study is in sim/studies.py, the ur5 benchmark in
 codegen/evaluate/bench.py.
 
@@ -8,7 +8,7 @@ A3-4], horizon 2 s. I&I observer (k1, k2, k3, c_r) = (40, 8, 2.5, 0.001) with st
 xi(0) = [-8.45, 68.33], s_y(0) = [1, 2], s_x(0) = [10, 20], r(0) = 0.1 (Table I), set through
 ``obs.state`` since s_y(0) != y(0). AOV observer: k1 = 10, k2 = 8, k3 = 2.5, c_r = 1, r(0) = 1 and
 the same filter states taken literally (qhat(0) = s_y(0), phat(0) = s_x(0), xi(0) = Table I)
-[ASSUMPTION, SPEC §5 item 5].
+[ASSUMPTION, docs/papers/seed003.md §5 item 5].
 
 Sample time: dt = 1e-4 s, RK4, one sub-step, for the plant (10 RK4 sub-steps) and both observers.
 The observer's fastest mode is about k1/k_m = 505 1/s plus psi2 ~ r^2/2 ||dbeta/dy||^2, both far
@@ -58,7 +58,7 @@ def specs(N=None, wrap="auto", N_period=None):
 
 def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True, N=None, wrap="auto",
                 N_period=None):
-    """Closed loop of SPEC §12.3 with both observers (I&I speed and AOV).
+    """Closed loop of docs/papers/experiments.md §12.3 with both observers (I&I speed and AOV).
 
     Parameters
     ----------
@@ -133,7 +133,7 @@ def run_seed003(reference=False, out=None, T=HORIZON, dt=DT, plots=True, N=None,
 
 
 def summarize(tr, n):
-    """Convergence figures of both observers (SPEC §12.3 'Expected') from the traces ``tr`` of
+    """Convergence figures of both observers (docs/papers/experiments.md §12.3 'Expected') from the traces ``tr`` of
     ``run_seed003``, for ``n`` joints: a dict per observer."""
     t, X = tr["t"], tr["x"]
     q, qd = X[:, :n], X[:, n:]

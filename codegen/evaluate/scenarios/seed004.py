@@ -1,5 +1,5 @@
 """Seed 004 (Caciolai & Pustina): elastic-joint robots, Tomei and Ciccarella-Germani observers,
-Spong's controllers. Simulations 1-10 of SPEC §12.4: ``python -m codegen simulate seed004-simK``.
+Spong's controllers. Simulations 1-10 of docs/papers/experiments.md §12.4: ``python -m codegen simulate seed004-simK``.
 
 Discretisation (stated; the seed integrates the continuous-time loop with ode15s): every block
 is sampled at dt = 1e-4 s.
@@ -23,7 +23,7 @@ the paper's quantities (per-component errors x - xhat of link and motor position
 velocities; link tracking errors; the desired trajectory) over the paper's time spans
 (FIG_SPAN, read off the axes of the authors' report), each with a CSV of the plotted data;
 ``run.csv`` holds the whole run at 1 kHz. The 3R manifold controller uses the authors' fast
-poles 70 [-1, -1.2, ..., -1.6] (SPEC §10), the 2R one the seed's -70 {1.1, ..., 1.4} (A4-5).
+poles 70 [-1, -1.2, ..., -1.6] (docs/papers/seed004.md §10), the 2R one the seed's -70 {1.1, ..., 1.4} (A4-5).
 
 When the controller uses the true state, the plant/controller loop runs first and the observers
 then run over the recorded (y, u) in C (``obs.run``): they do not act on the loop. With an
@@ -49,8 +49,8 @@ OBSERVER_SUBSTEPS = {2: 1, 3: 4}          # per number of joints (see the module
 T_SIM, T_TRAJ = 10.0, 5.0
 THRESHOLD = 0.02                  # convergence: ||e(t)|| < 2 % of ||e(0)|| from then on
 FAST_POLES_2R = -70.0 * np.array([1.1, 1.2, 1.3, 1.4])     # [S004 Sim. 2] (A4-5: the seed's set)
-FAST_POLES_3R = 70.0 * np.array([-1, -1.2, -1.3, -1.4, -1.5, -1.6])   # [CODE-CP config_3R.m] SPEC §10
-STATE_BLOCKS = ("link_q", "link_qd", "motor_q", "motor_qd")   # x = [q1; q1'; q2; q2'] (SPEC §6)
+FAST_POLES_3R = 70.0 * np.array([-1, -1.2, -1.3, -1.4, -1.5, -1.6])   # [CODE-CP config_3R.m] docs/papers/seed004.md §10
+STATE_BLOCKS = ("link_q", "link_qd", "motor_q", "motor_qd")   # x = [q1; q1'; q2; q2'] (docs/papers/seed004.md §6)
 CSV_EVERY = 10                    # run.csv (and figure CSVs over spans > 1 s) at 1 kHz
 FIG_SPAN = {3: 2.2, 4: 0.045, 8: 0.2, 9: 0.2, 10: 0.1, 11: 0.032, 12: 0.5, 13: 0.1,
             14: 0.2, 15: 0.05, 16: 0.15, 17: 0.2}   # time axis of the paper's figures [s] (report.pdf)
@@ -63,7 +63,7 @@ def _robot(name):
 
 
 def observer(robot, kind, eigenvalues=None, reference=False, dt=DT, hold=OBSERVER_HOLD, substeps=None):
-    """A stepped observer of ``robot``: kind 'tomei' [SPEC §7] or 'O1'..'O4' [SPEC §8] with the
+    """A stepped observer of ``robot``: kind 'tomei' [docs/papers/seed004.md §7] or 'O1'..'O4' [docs/papers/seed004.md §8] with the
     given ``eigenvalues`` (CG only; None: its default), C or the numpy ``reference``; RK4 with
     ``substeps`` (None: OBSERVER_SUBSTEPS) per sample of ``dt`` s, measurement ``hold``.
     Returns (spec, block)."""
@@ -77,7 +77,7 @@ def observer(robot, kind, eigenvalues=None, reference=False, dt=DT, hold=OBSERVE
 
 def measurement(spec, X):
     """The measurement rows (N, ny) of the observer ``spec`` for true states X (N, 4n),
-    x = [q1; q1'; q2; q2'] [SPEC §6]."""
+    x = [q1; q1'; q2; q2'] [docs/papers/seed004.md §6]."""
     n = X.shape[1] // 4
     x1, x2, x3 = X[:, :n], X[:, n:2 * n], X[:, 2 * n:3 * n]
     names = spec.y_names
@@ -97,7 +97,7 @@ def measurement(spec, X):
 
 def controller(robot, kind, dt=DT):
     """Spong's controller, kind 'fl' (feedback linearisation) or 'manifold' (fast poles
-    FAST_POLES_2R / FAST_POLES_3R) of ``robot`` [SPEC §9, §10], compiled; evaluated once per
+    FAST_POLES_2R / FAST_POLES_3R) of ``robot`` [docs/papers/seed004.md §9, §10], compiled; evaluated once per
     sample of ``dt`` s (u held)."""
     from ...families.controllers import spong
     if kind == "fl":
@@ -109,7 +109,7 @@ def controller(robot, kind, dt=DT):
 
 def reference_table(t, q0, qf, T=T_TRAJ):
     """Rows [q_d and its derivatives 1..4] (N, 5n) of spong.cubic_reference at the times t (N,) s:
-    cubic rest-to-rest from ``q0`` to ``qf`` (n,) rad in ``T`` s, then held [SPEC §12.4]."""
+    cubic rest-to-rest from ``q0`` to ``qf`` (n,) rad in ``T`` s, then held [docs/papers/experiments.md §12.4]."""
     q0, qf = np.asarray(q0, float), np.asarray(qf, float)
     t = np.asarray(t, float)[:, None]
     s = np.clip(t / T, 0.0, 1.0)
@@ -356,7 +356,7 @@ def sim2(reference=False, out="build/sim/seed004-sim2", T=T_SIM, dt=DT):
             summary[f"{kind}_estimated_rms_rad"] = float("inf")
             summary[f"{kind}_estimated_failure"] = str(exc)[:120]
             errors["estimated"][label] = None
-    for state in ("true", "estimated"):   # SPEC §12.4: the manifold controller tracks better
+    for state in ("true", "estimated"):   # docs/papers/experiments.md §12.4: the manifold controller tracks better
         fl, mf = summary[f"fl_{state}_rms_rad"], summary[f"manifold_{state}_rms_rad"]
         summary[f"fl_over_manifold_rms_{state}"] = fl / mf if mf > 0 else float("inf")
     summary["figures"] = {
@@ -390,7 +390,7 @@ STUDIES = {
 
 
 def study_3r(k, reference=False, out=None, T=T_SIM, dt=DT):
-    """3R study k (SPEC §12.4 table): manifold controller (fast poles FAST_POLES_3R) on the true
+    """3R study k (docs/papers/experiments.md §12.4 table): manifold controller (fast poles FAST_POLES_3R) on the true
     state to [pi/2, pi, 0]; the paper's error figures (and Fig. 7 for Sim 3), run.csv.
     C or numpy ``reference`` observers; figures and CSVs in the folder ``out``; horizon ``T`` and
     sample period ``dt`` in s. Returns the summary dict.

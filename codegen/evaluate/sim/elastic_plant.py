@@ -1,4 +1,4 @@
-"""The true elastic-joint robot as a compiled block (SPEC §6): x = [q1; q1'; q2; q2'] (4n),
+"""The true elastic-joint robot as a compiled block (docs/papers/seed004.md §6): x = [q1; q1'; q2; q2'] (4n),
 x' = f(x) + G u, integrated in C by RK4 with ``substeps`` sub-steps per sample, u held over
 the sample (zero-order hold); see sim/plant.py.
 """

@@ -4,9 +4,9 @@
 |----------------------|------------------------------------------------------------|
 | seed000_torque_ex1   | open-loop torque of seed 000 Example 1 [S000 (18)]         |
 | seed000_torque_ex2   | open-loop torque of seed 000 Example 2 [S000 (19)]         |
-| seed000_tracking     | seed 000 Example-3 output-feedback law (SPEC §1.4)         |
-| spong_fl             | Spong's feedback linearisation (SPEC §9)                   |
-| spong_manifold       | Spong's integral-manifold controller (SPEC §10)            |
+| seed000_tracking     | seed 000 Example-3 output-feedback law (docs/papers/seed000.md §1.4)         |
+| spong_fl             | Spong's feedback linearisation (docs/papers/seed004.md §9)                   |
+| spong_manifold       | Spong's integral-manifold controller (docs/papers/seed004.md §10)            |
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Control laws of the seed-000 experiments (SPEC §1.4, §12.1), as specs like any observer.
+"""Control laws of the seed-000 experiments (docs/papers/seed000.md §1.4, docs/papers/experiments.md §12.1), as specs like any observer.
 
 A law is an ObserverSpec with no state (nx = 0): its measurement vector carries what the law
 reads (joint positions, velocity estimate, time), it has no input, and its "estimate" is the
@@ -9,7 +9,7 @@ torque. So it is emitted, compiled and loaded through ``compile_observer`` like 
     tracking(robot, ...): tau = M(q)(qdd_d + Lambda(qd_d - x2hat))
                                 + C(q, x2hat)(qd_d + Lambda(q_d - q)) + g(q)
                                 + K_P (q_d - q) + K_D (qd_d - x2hat)      [S000 eq. after Fig. 5]
-with q_d a quintic rest-to-rest motion q_start -> q_goal over [0, T_move] [ASSUMPTION SPEC §12.1].
+with q_d a quintic rest-to-rest motion q_start -> q_goal over [0, T_move] [ASSUMPTION docs/papers/experiments.md §12.1].
 """
 from __future__ import annotations
 

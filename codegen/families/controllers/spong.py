@@ -1,17 +1,17 @@
-"""Spong's controllers for elastic-joint robots (seed 004 §4, SPEC §9, §10), as specs.
+"""Spong's controllers for elastic-joint robots (seed 004 §4, docs/papers/seed004.md §9, §10), as specs.
 
 Both are static laws, ObserverSpec-shaped with a 1-slot dummy state (nx = 1, never changes) so
 they emit and compile through ``compile_observer``; call ``estimate(y, [])`` for u. The
 measurement is y = [x (4n); q_d; q_d'; q_d''; q_d'''; q_d''''] (9n): the (true or estimated)
 state and the reference derivatives. The output is u, saturated at +-u_max (200 N m, §12.4).
 
-Feedback linearisation (SPEC §9) with Spong coordinates y = Phi(x) = [q1, q1', q1'', q1''']:
+Feedback linearisation (docs/papers/seed004.md §9) with Spong coordinates y = Phi(x) = [q1, q1', q1'', q1''']:
 
     y'''' = F(x) + M^{-1} K J^{-1} u,   F = L_f^4 q1
     u  = J K^{-1} M(q1) (nu - F(x))                                       [S004 (4.5)]
     nu = q_d'''' + K_c (y - y_d)   (per joint row -[a0, a1, a2, a3])       [S004 (4.7)]
 
-Integral manifold (SPEC §10), mu = K^{-1}, z = K(q1 - q2):
+Integral manifold (docs/papers/seed004.md §10), mu = K^{-1}, z = K(q1 - q2):
 
     u0 = (M + J)(q_d'' + K_P (q_d - q1) + K_D (q_d' - q1')) + c + g       [CODE-CP]
     h0 = -A2^{-1}(a2 + B2 u0),  a2 = -M^{-1}(c + g), A2 = -(M^{-1} + J^{-1}), B2 = -J^{-1}  (4.18)
@@ -64,7 +64,7 @@ def _saturate(u, umax):
 
 
 def feedback_linearization(robot, poles=None, u_max=200.0):
-    """Spong FL controller (SPEC §9)  [S004 (4.5), (4.7)], as a static spec.
+    """Spong FL controller (docs/papers/seed004.md §9)  [S004 (4.5), (4.7)], as a static spec.
 
     Parameters
     ----------
@@ -73,7 +73,7 @@ def feedback_linearization(robot, poles=None, u_max=200.0):
     poles : (4n,) array_like, optional
         Closed-loop poles (1/s), four per joint in order; default -5{1..4n}.
     u_max : float
-        Saturation of each motor torque, N m (default 200, SPEC §12.4).
+        Saturation of each motor torque, N m (default 200, docs/papers/experiments.md §12.4).
 
     Returns
     -------
@@ -99,7 +99,7 @@ def feedback_linearization(robot, poles=None, u_max=200.0):
 
 
 def integral_manifold(robot, KP=7000.0, KD=7000.0, fast_poles=None, u_max=200.0):
-    """Spong integral-manifold controller (SPEC §10)  [S004 (4.17)-(4.23)], as a static spec.
+    """Spong integral-manifold controller (docs/papers/seed004.md §10)  [S004 (4.17)-(4.23)], as a static spec.
 
     Parameters
     ----------
@@ -107,12 +107,12 @@ def integral_manifold(robot, KP=7000.0, KD=7000.0, fast_poles=None, u_max=200.0)
         n joints.
     KP, KD : float
         Gains of the rigid (slow) law u0 on q_d - q1 (1/s^2) and q_d' - q1' (1/s); default
-        7000 each (SPEC §10).
+        7000 each (docs/papers/seed004.md §10).
     fast_poles : (2n,) array_like, optional
         Eigenvalues of the fast (boundary-layer) loop, 1/s, two per joint in order; default
         -70{1.1, 1.2, ...} (the seed's set, A4-5).
     u_max : float
-        Saturation of each motor torque, N m (default 200, SPEC §12.4).
+        Saturation of each motor torque, N m (default 200, docs/papers/experiments.md §12.4).
 
     Returns
     -------
@@ -163,7 +163,7 @@ def integral_manifold(robot, KP=7000.0, KD=7000.0, fast_poles=None, u_max=200.0)
 
 
 def cubic_reference(t, q0, qf, T):
-    """Rest-to-rest cubic q_d(t) and derivatives up to 4 (SPEC §12.4, A4-9): (5, n) array at time
+    """Rest-to-rest cubic q_d(t) and derivatives up to 4 (docs/papers/experiments.md §12.4, A4-9): (5, n) array at time
     ``t`` (s), from ``q0`` to ``qf`` (n,) (rad) over [0, T] (s), held outside."""
     q0, qf = np.asarray(q0, float), np.asarray(qf, float)
     s = min(max(t / T, 0.0), 1.0)

@@ -4,7 +4,7 @@ A quantity maximised over the joint ranges is first sampled (the centre of the r
 uniform random configurations), then refined locally from the best samples by a batched
 pattern search (every candidate of a sweep evaluated in one call). The Coriolis constant
 
-    c0(q) = max_{|v| = 1} ||C(q, v)||_2 = max_{|v| = 1} ||C(q, v) v||_2          (SPEC §0, [DERIVED])
+    c0(q) = max_{|v| = 1} ||C(q, v)||_2 = max_{|v| = 1} ||C(q, v) v||_2          (docs/papers/seed000.md §0, [DERIVED])
 
 (the second form because C(q, a) b = C(q, b) a makes the bilinear form symmetric, and the norm
 of a symmetric bilinear form is the max of its quadratic form) is computed by gradient ascent of
@@ -95,7 +95,7 @@ def refine_max(fun, robot, points, vals, refine=3, starts=None):
 
 
 def c0_batch(slices, n, starts=None, extra_starts=2, iters=500, seed=0, tol=1e-13):
-    """c0 = max_{|v|=1} ||C(q, v) v||_2 for a batch of configurations (SPEC §0; equal to
+    """c0 = max_{|v|=1} ||C(q, v) v||_2 for a batch of configurations (docs/papers/seed000.md §0; equal to
     max_{|v|=1} ||sum_k v_k C_k||_2 for Christoffel slices, module docstring).
 
     Gradient ascent on the sphere, v <- C(v)^T C(v) v / ||.|| (the gradient of ||C(v) v||^2 is

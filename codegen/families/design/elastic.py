@@ -1,6 +1,6 @@
 """Gains for the elastic-joint robots of seed 004: pole placement on Brunovsky chains
 (companion coefficients), the Ciccarella-Germani observer variants, Tomei's Lyapunov gain and
-the Spong controllers (SPEC §7, §8, §10).
+the Spong controllers (docs/papers/seed004.md §7, §8, §10).
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ def companion_gains(poles):
 
 
 def ciccarella_germani_gains(variant, n, eigenvalues):
-    """Per-channel gain vectors of the CG observer variants (SPEC §8.3, §8.4), flat.
+    """Per-channel gain vectors of the CG observer variants (docs/papers/seed004.md §8.3, §8.4), flat.
 
     O1, O4: joint i gets eigenvalues[4i:4i+4] -> 4 companion coefficients.
     O2:     joint i: [-p_{4i}, companion(p_{4i+1}, p_{4i+2}, p_{4i+3})] (position error gain
@@ -54,7 +54,7 @@ def ciccarella_germani_gains(variant, n, eigenvalues):
 
 
 def tomei_K1(A, Qlyap):
-    """K1 solving A^T K1 + K1 A = Q (Thm 3.1 of seed 004, SPEC §7), by
+    """K1 solving A^T K1 + K1 A = Q (Thm 3.1 of seed 004, docs/papers/seed004.md §7), by
     scipy.linalg.solve_continuous_lyapunov(A^T, Q) (which solves A^T X + X A = Q).
 
     Parameters
@@ -88,7 +88,7 @@ def spong_fl_gains(n, poles):
 def spong_fast_gains(n, poles, stiffness):
     """Per joint [k_eta, k_etad] of zeta_i = k_eta eta_i + k_etad eta_i' so that
     eta'' = K zeta has the eigenvalues (p_a, p_b): k_eta = -p_a p_b / K_i,
-    k_etad = (p_a + p_b) / K_i  [S004 (4.23), SPEC §10.4 DERIVED]; the poles are cycled
+    k_etad = (p_a + p_b) / K_i  [S004 (4.23), docs/papers/seed004.md §10.4 DERIVED]; the poles are cycled
     over the joints two by two (2n needed).
 
     Parameters

@@ -1,5 +1,5 @@
 """Offline constants and bounds of the I&I speed observers of seed 003 (Arbo, Grotli & Gravdahl),
-SPEC §4.1-§4.2 and §5, computed for any robot (never typed in).
+docs/papers/seed003.md §4.1-§4.2 and §5, computed for any robot (never typed in).
 
 I&I speed observer:
 
@@ -16,7 +16,7 @@ s_y with y_i in place i), and |dDelta_ji/de| <= k1 |dH0_ji/dq| + sum_m |x_m| |dH
 entrywise, whose 2-norm over k is bounded by the triangle inequality: the seed's "sum of the
 sup-norms of the terms" rule, made computable for any robot.
 
-AOV observer (the seed's comparison, SPEC §5) [DERIVED]: the same Lemma-2 coefficients for the
+AOV observer (the seed's comparison, docs/papers/seed003.md §5) [DERIVED]: the same Lemma-2 coefficients for the
 affine split Hbar(q, p) = k1 T^{-1} + sum_m p_m Cbar(q, e_m) T^{-1}, and
 Deltabar_p = max_q max_{|a|=1} ||Cbar(q, a) T^{-1}||_F.
 """
@@ -70,7 +70,7 @@ class IISpeedDesign:
 
 @dataclass
 class IIAovDesign:
-    """Bounds of the reconstructed Astolfi-Ortega-Venkatraman observer (SPEC §5) [DERIVED]:
+    """Bounds of the reconstructed Astolfi-Ortega-Venkatraman observer (docs/papers/seed003.md §5) [DERIVED]:
     Hbar(q, p) = k1 T^{-1} + sum_m p_m Cbar(q, e_m) T^{-1}."""
     robot: str
     deltabar_p: float          # max_q max_{|a|=1} ||Cbar(q, a) T^{-1}||_F
@@ -183,7 +183,7 @@ def _ii_aov_design_cached(robot, samples, seed, refine):
 
 
 def ii_aov_bounds(robot, samples=2000, seed=0, refine=True):
-    """Deltabar_p and the Lemma-2 coefficients of Deltabar_q for the AOV observer (SPEC §5).
+    """Deltabar_p and the Lemma-2 coefficients of Deltabar_q for the AOV observer (docs/papers/seed003.md §5).
 
     Parameters
     ----------

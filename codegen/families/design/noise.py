@@ -34,7 +34,7 @@ and the error from an initial eps0 decays like eps0 exp(-k0 t): below ``tol`` wi
 needs k0 >= ln(eps0 / tol) / t_conv (the convergence floor), eps0 = v_max: the estimate starts at 0
 while the robot may move at up to v_max [ASSUMPTION].
 
-Nicosia-Tomei (kd, kp) (SPEC §2), per mode mu of M^-1: eps1'' + kd eps1' + kp mu eps1 = e, the
+Nicosia-Tomei (kd, kp) (docs/papers/seed000.md §2), per mode mu of M^-1: eps1'' + kd eps1' + kp mu eps1 = e, the
 estimate x2hat = kp mu s / (s^2 + kd s + kp mu) y [DERIVED], so
 
     noise variance  sigma_e^2 dt (kp mu)^2 / (2 kd)   (white noise of PSD sigma_e^2 dt)

@@ -1,6 +1,6 @@
 """Gains of the reduced-order observer of seed 000 [S000 (8), (12), (13), Remark 3, (16)].
 
-    c0(q)   = max_{|v| = 1} ||C(q, v)||_2                                       (SPEC §0)
+    c0(q)   = max_{|v| = 1} ||C(q, v)||_2                                       (docs/papers/seed000.md §0)
     k0      = max_q [c0(q)(v_max + eta) - lambda_min(F)] / lambda_min(M(q))      (12)
     lambda1 = min_q lambda_min(M(q)) / 2,  lambda2 = max_q lambda_max(M(q)) / 2  (8)
     radius of E = eta sqrt(lambda1 / lambda2)                                    (13)

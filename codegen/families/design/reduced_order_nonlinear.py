@@ -157,7 +157,7 @@ def gain_for(g, C, eta, v_max):
     """(k0, maximiser) of (12') for K1 = C phi(y): sampled on g.stats' points, then refined
     (c0 from every start of the power method at each refined point, not a warm start).
     ``g``: the sampled _Gain of the robot; ``C``: (n, nb), K1 = C phi(y); ``eta``, ``v_max``: rad/s
-    (SPEC §0 (12))."""
+    (docs/papers/seed000.md §0 (12))."""
     lamF = _lambda_min_F(g.stats.robot)
 
     def need(c0, lmin_q):

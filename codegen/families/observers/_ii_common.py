@@ -1,4 +1,4 @@
-"""What the two I&I speed observers share (seed 003 §II-B, SPEC §4.1 and §5).
+"""What the two I&I speed observers share (seed 003 §II-B, docs/papers/seed003.md §4.1 and §5).
 
 Both build an output map beta(y, s_y, s_x) column by column from a target Jacobian whose
 columns are ``col(i, q, x)``:

@@ -1,8 +1,8 @@
-"""Non-minimal (link centre-of-mass) kinematics of any RobotModel, seed 002 (SPEC §3.1).
+"""Non-minimal (link centre-of-mass) kinematics of any RobotModel, seed 002 (docs/papers/seed002.md §3.1).
 
     p = [p_1; ...; p_n] in R^{m n},  v_p = J_p(q) qd                        [S002 (6),(8)]
     m_i p_i'' - m_i g_o = f_{f,i}      (net non-gravitational CoM force)     [S002 (4)], A2-2
-    f_{f,i} = m_i (J_p^i qdd + Jdot_p^i qd - g_o)                           SPEC §3.1 [DERIVED]
+    f_{f,i} = m_i (J_p^i qdd + Jdot_p^i qd - g_o)                           docs/papers/seed002.md §3.1 [DERIVED]
     pi = selected rows of p,  nu = J_n(q) qd,  nu_j' = a_j + theta_j f_{f,j}  [S002 (9)-(11)]
 
 with a_j the matching entry of [g_o; ...; g_o] and theta_j = 1/m_{link(j)}. m = ``robot.dim``
@@ -167,7 +167,7 @@ class NonMinimal:
         return ca.jtimes(ca.jtimes(self.pi(q), q, qd), q, qd)
 
     def force(self, q, qd, qdd):
-        """f_f rows = m_link (J_n qdd + Jdot_n qd - a)  SPEC §3.1."""
+        """f_f rows = m_link (J_n qdd + Jdot_n qd - a)  docs/papers/seed002.md §3.1."""
         mass = ca.DM(1.0 / self.theta)
         vdot = ca.jtimes(self.pi(q), q, qdd) + self.bias(q, qd)
         return mass * (vdot - ca.DM(self.a))

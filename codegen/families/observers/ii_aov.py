@@ -1,5 +1,5 @@
 """Original I&I speed observer of Astolfi, Ortega & Venkatraman (CDC 2009), as reconstructed in
-SPEC §5 [DERIVED] (A3-5): the comparison observer of seed 003.
+docs/papers/seed003.md §5 [DERIVED] (A3-5): the comparison observer of seed 003.
 
 Cholesky velocity: M(q)^{-1} = T T^T (T lower), pbar = T^{-1} qd, T^{-1} = T^T M.
 
@@ -50,7 +50,7 @@ def p_names(n):
 
 
 def hbar_column(robot, q, v, k1, e):
-    """Hbar(q, v) e = k1 T^{-1} e - T^{-1} (dT/dq e) v - T^T C(q, e) T v  [DERIVED, SPEC §5]: at
+    """Hbar(q, v) e = k1 T^{-1} e - T^{-1} (dT/dq e) v - T^T C(q, e) T v  [DERIVED, docs/papers/seed003.md §5]: at
     e = e_i, column i of the ideal Jacobian Hbar(q, v) = (k1 I + Cbar(q, v)) T^{-1}.
 
     Parameters
@@ -78,8 +78,8 @@ def _skew_routine(robot):
 
 def build(robot, k1=10.0, k2=8.0, k3=2.5, c_r=1.0, r0=1.0, N=DEFAULT_N, bounds=None,
           samples=None, refine=True, wrap="auto", N_period=None):
-    """AOV observer for ``robot`` (defaults: seed-003 comparison k1 = 10, SPEC §5 item 5), the
-    equations of the module docstring [DERIVED, SPEC §5].
+    """AOV observer for ``robot`` (defaults: seed-003 comparison k1 = 10, docs/papers/seed003.md §5 item 5), the
+    equations of the module docstring [DERIVED, docs/papers/seed003.md §5].
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""I&I globally exponentially convergent speed observer, Arbo, Grotli & Gravdahl (seed 003, SPEC §4.1).
+"""I&I globally exponentially convergent speed observer, Arbo, Grotli & Gravdahl (seed 003, docs/papers/seed003.md §4.1).
 
     H(q, x)   = M(q)^{-1} (k1 I - C(q, x))        Christoffel C (A3-1)                  [S003 (11)]
     beta      = sum_i int_0^{y_i} H_i([s_y with sigma in place i], s_x) d sigma          [S003 (12)]

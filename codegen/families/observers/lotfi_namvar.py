@@ -1,4 +1,4 @@
-"""Adaptive velocity observer of Lotfi & Namvar on the non-minimal model (seed 002, SPEC §3.2).
+"""Adaptive velocity observer of Lotfi & Namvar on the non-minimal model (seed 002, docs/papers/seed002.md §3.2).
 
 Per selected CoM coordinate j (channel), states zhat_{j1}, zhat_{j2}, zeta_j, thetahat_j:
 
@@ -23,7 +23,7 @@ Vectors (r channels, n_o observable joints, see ``_nonminimal``):
 
 init: zhat1(0) = zhat1_from_y0 pi(q0) (0: Table II's zhat(0) = 0), zhat2(0) = J_n(q0) est0[qd],
 zeta(0) = 0, thetahat(0) = thetahat0.
-Projection [S002 §IV-A; ASSUMPTION bounds 0.05..20, off by default, SPEC §3.2]: when
+Projection [S002 §IV-A; ASSUMPTION bounds 0.05..20, off by default, docs/papers/seed002.md §3.2]: when
 projection = 1 the jump map clips thetahat into [theta_min, theta_max] before every step
 (a clipped, not smooth, projection: the box is invariant exactly at every sample).
 """
@@ -34,7 +34,7 @@ import numpy as np
 
 from ...core.options import InputRanges, NonMinimalOptions
 from ...core.spec import ObserverSpec
-from ._nonminimal import nonminimal  # public: p rows, J_n and the CoM forces f_f of a robot (SPEC §3.1)
+from ._nonminimal import nonminimal  # public: p rows, J_n and the CoM forces f_f of a robot (docs/papers/seed002.md §3.1)
 
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed002_2r"}, {"robot": "seed002_2r", "design": {"rows": [1, 2, 3]}}]
@@ -66,7 +66,7 @@ def default_gains(nm):
 
 def build(robot, rows="all", alpha=None, lam=None, gamma=None, thetahat0=None,
           zhat1_from_y0=None, projection=False, theta_min=0.05, theta_max=20.0):
-    """Lotfi–Namvar observer for ``robot`` (SPEC §3.2)  [S002 (12), (13), (17)].
+    """Lotfi–Namvar observer for ``robot`` (docs/papers/seed002.md §3.2)  [S002 (12), (13), (17)].
 
     Gains are per channel (scalars broadcast); None takes ``default_gains``.
 
@@ -88,7 +88,7 @@ def build(robot, rows="all", alpha=None, lam=None, gamma=None, thetahat0=None,
     projection : bool
         Clip thetahat into [theta_min, theta_max] before every step (the jump map).
     theta_min, theta_max : float
-        Projection box, 1/kg [ASSUMPTION 0.05..20, SPEC §3.2].
+        Projection box, 1/kg [ASSUMPTION 0.05..20, docs/papers/seed002.md §3.2].
 
     Returns
     -------

@@ -1,9 +1,9 @@
-"""Full-order velocity observer of Nicosia & Tomei (1990), the comparison in seed 000 (SPEC §2).
+"""Full-order velocity observer of Nicosia & Tomei (1990), the comparison in seed 000 (docs/papers/seed000.md §2).
 
     x1tilde = y - x1hat
     x1hat'  = x2hat + K_D x1tilde                                    [CODE-KUKA SimObserver]
     x2hat'  = M(y)^{-1}[tau - C(y, x1hat') x1hat' - F x1hat' - g(y) + K_P x1tilde]
-            = FD(y, x1hat', tau + K_P x1tilde)                        [DERIVED, SPEC §2]
+            = FD(y, x1hat', tau + K_P x1tilde)                        [DERIVED, docs/papers/seed000.md §2]
 
 C is evaluated at x1hat', not at x2hat (A0-6: the proof needs x1hat'), saturated to the velocity
 bound (FD(y, sat(x1hat'), ...), codegen.families.observers._bound; the published observer inside
@@ -29,7 +29,7 @@ from ._design import check_design, design_discretization, stable_report
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed000_2r"}]
 
-KP_DEFAULT = 500.0   # [ASSUMPTION SPEC §2, A0-4], the "guarantee" design's k_P
+KP_DEFAULT = 500.0   # [ASSUMPTION docs/papers/seed000.md §2, A0-4], the "guarantee" design's k_P
 
 
 def design_gains(robot, design, eta, v_max, noise, quantization, uncertainty, dt, t_conv,

@@ -1,4 +1,4 @@
-"""Reduced-order velocity observer of Cristofaro & De Luca (seed 000, SPEC §1.1).
+"""Reduced-order velocity observer of Cristofaro & De Luca (seed 000, docs/papers/seed000.md §1.1).
 
     M(y) z' = -C(y, x2hat) x2hat - F x2hat - g(y) - M(y) (dk/dy) x2hat + tau     [S000 (6)]
     x2hat   = z + k(y),   k(y) = k0 y                                            [S000 (9)]
@@ -101,7 +101,7 @@ def _spec(robot, k0, report, bound, bound_report):
         init=ca.Function("init", [y0, est0, k], [est0 - k * y0]),  # [CODE-KUKA] z(0) = x2hat(0) - k0 y(0)
         # z' = [FD(y, x2hat) - k0^2 y] - k0 z: the gain rate k0 on every z, integrated exactly
         rate=ca.Function("rate", [z, k], [k]), rate_states=[f"z_{j}" for j in robot.joint_names],
-        # bumpless retuning: z+ = z + (k0_old - k0_new) y keeps x2hat continuous [DERIVED, SPEC §1.3]
+        # bumpless retuning: z+ = z + (k0_old - k0_new) y keeps x2hat continuous [DERIVED, docs/papers/seed000.md §1.3]
         retune=ca.Function("retune", [z, y, k, k_new], [z + (k - k_new) * y]), gains={"k0": ("k0",)},
         options=VelocityBoundOptions(v_bound=tuple(bound)),
         design={**(report or {"k0": float(k0), "given": True}), **bound_report},

@@ -1,4 +1,4 @@
-"""Reduced-order velocity observer with hybrid (scheduled) gain, seed 000 (SPEC §1.2–§1.3).
+"""Reduced-order velocity observer with hybrid (scheduled) gain, seed 000 (docs/papers/seed000.md §1.2–§1.3).
 
 Flow (logic state r constant), as the fixed-gain family with k0 -> k_r   [S000 (6),(16)]:
 
@@ -7,7 +7,7 @@ Flow (logic state r constant), as the fixed-gain family with k0 -> k_r   [S000 (
 (sat: the velocity bound of codegen.families.observers._bound, the published flow inside it)
 
 Jump map, applied before every step (the logic state lives in the observer state, so the
-generated C does the switching)                                           [DERIVED, SPEC §1.3, A0-3]:
+generated C does the switching)                                           [DERIVED, docs/papers/seed000.md §1.3, A0-3]:
 
     up   while ||x2hat|| >= r vbar - eta                     and r < r_max   (repeatable)
     down while ||x2hat|| <= (r-1) vbar - eta - delta         and r >= 2      (repeatable)
@@ -16,7 +16,7 @@ generated C does the switching)                                           [DERIV
 State x = [z; r], measurement y = q, input u = tau, estimate x2hat,
 parameters p = [k_1 .. k_{r_max}, eta, vbar, delta] (k_r designed by (16)).
 The literal sets (15)-(17) loop (Zeno) right after an up-jump; the rule above keeps the
-safety property ||x2|| <= ||x2hat|| + eta <= r vbar while k_r is active (SPEC §1.3).
+safety property ||x2|| <= ||x2hat|| + eta <= r vbar while k_r is active (docs/papers/seed000.md §1.3).
 """
 from __future__ import annotations
 
@@ -53,7 +53,7 @@ def scheduled_gain(r, k):
 
 
 def switch(r, speed, eta, vbar, delta, r_max):
-    """Logic state after the jumps of SPEC §1.3 at estimated speed ||x2hat|| = ``speed``, from ``r``
+    """Logic state after the jumps of docs/papers/seed000.md §1.3 at estimated speed ||x2hat|| = ``speed``, from ``r``
     (1..r_max), with ``eta``, ``vbar`` and the down-jump tolerance ``delta`` (rad/s).
 
     Each test is unrolled r_max - 1 times ("repeat the test"); after the up-jumps the
@@ -76,7 +76,7 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, 
     r_max : int
         Number of scheduled gains (the logic state is kept in [1, r_max]).
     delta : float
-        Down-jump tolerance layer (rad/s) [ASSUMPTION SPEC §1.3: 0.1].
+        Down-jump tolerance layer (rad/s) [ASSUMPTION docs/papers/seed000.md §1.3: 0.1].
     gains : sequence of r_max floats, optional
         k_1 .. k_{r_max}; given, they bypass the design (not the stability check).
     noise, quantization, uncertainty, dt, t_conv, torque_uncertainty

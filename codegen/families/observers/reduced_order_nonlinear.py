@@ -1,5 +1,5 @@
 """Reduced-order velocity observer with a nonlinear gain k(y) = k0 K1(y) (seed 000 §VI,
-deformation reduction; beyond the paper, SPEC §1.1 with a general k):
+deformation reduction; beyond the paper, docs/papers/seed000.md §1.1 with a general k):
 
     M(y) z' = -C(y, x2hat) x2hat - F x2hat - g(y) - M(y) (dk/dy) x2hat + tau     [S000 (6)]
     x2hat   = z + k(y),   k(y) = k0 K1(y),   K1(y) = C phi(y)                    [S000 §VI]

@@ -1,6 +1,6 @@
 """Reduced-order velocity observer with a time-switched gain: fast, then quiet [DERIVED].
 
-The fixed-gain observer of seed 000 (SPEC §1.1) with the gain k0 until t_switch, then k0_final
+The fixed-gain observer of seed 000 (docs/papers/seed000.md §1.1) with the gain k0 until t_switch, then k0_final
 (the hybrid-gain idea of seed 000 §IV with time as the switching signal). A constant gain must
 choose between converging fast (k0 large) and passing little encoder noise (the estimate's noise
 grows like k0 sigma); the design (codegen.families.design.noise.switched_gains) converges with the floor
@@ -12,7 +12,7 @@ gain and then runs at the noise-aware optimum:
 
 Jump, applied at each sample: when t_switch <= s < t_switch + 1/2 (the clock has passed the
 switch time and the switch has not happened), z+ = z + (k0 - k0_final) y (x2hat continuous,
-as at a hybrid jump, SPEC §1.3) and s+ = t_switch + 1 (marks the switch done).
+as at a hybrid jump, docs/papers/seed000.md §1.3) and s+ = t_switch + 1 (marks the switch done).
 
 sat: the velocity bound of codegen.families.observers._bound (the published observer inside it).
 State x = [z (n); s], measurement y = q, input u = tau, parameters

@@ -1,10 +1,10 @@
 """Model-free non-smooth velocity observer of Su, Müller & Zheng as printed in seed 002
-(SPEC §3.3), literal form and the Xian-form variant.
+(docs/papers/seed002.md §3.3), literal form and the Xian-form variant.
 
 Literal (35), states (qhat, w = qhat'):                                        [S002 (35)]
     qhat' = w
     w'    = -K0 sg(qhat - q) - (K1 + I) w - K2 (qhat - q),           qd_hat = w
-Xian form, states (qhat, w = p):                                    [DERIVED] SPEC §3.3, A2-5
+Xian form, states (qhat, w = p):                                    [DERIVED] docs/papers/seed002.md §3.3, A2-5
     qhat' = w + (K1 + I)(q - qhat)
     w'    = K0 sg(q - qhat) + K2 (q - qhat),                         qd_hat = qhat'
     w(0)  = qhat'(0) - (K1 + I)(q(0) - qhat(0))
@@ -15,7 +15,7 @@ With e = qhat - q and the runtime switch ``xian`` in {0, 1} both are one set of 
     w'    = -K0 sg(e) - K2 e - (1 - xian)(K1 + 1) w
     qd_hat = w - xian (K1 + 1) e
 sg = sign when sgn_eps = 0, else tanh(e / sgn_eps) (smoothing for reproducible fixed steps,
-SPEC §3.3 suggests eps = 1e-4; default 0 = literal sign, run with dt <= 1e-4 s).
+docs/papers/seed002.md §3.3 suggests eps = 1e-4; default 0 = literal sign, run with dt <= 1e-4 s).
 
 Vectors: x = [qhat (n), w (n)], y = q (n), u = tau (n) (unused: the observer is model-free;
 kept so it takes the same inputs as every observer), est = [qd_hat (n), qhat (n)],
@@ -43,7 +43,7 @@ def sg(e, eps):
 
 
 def build(robot, form="literal", smoothing_eps=None, K0=None, K1=None, K2=None):
-    """Su–Müller–Zheng observer for ``robot`` (SPEC §3.3)  [S002 (35)] (only its size and joint
+    """Su–Müller–Zheng observer for ``robot`` (docs/papers/seed002.md §3.3)  [S002 (35)] (only its size and joint
     names are used).
 
     Parameters

@@ -1,7 +1,7 @@
-"""Tomei's observer for elastic-joint robots (TAC 35(6), 1990; seed 004 §3.1, SPEC §7).
+"""Tomei's observer for elastic-joint robots (TAC 35(6), 1990; seed 004 §3.1, docs/papers/seed004.md §7).
 
 Measured: link position and velocity y = [q1; q1'], input u. With e = q - qhat (consistent sign
-convention of SPEC §7, Ka_eff restoring, A4-6):
+convention of docs/papers/seed004.md §7, Ka_eff restoring, A4-6):
 
     M(q1) qhat1'' = -S(q1, q1') qhat1' - tau_f(qhat1') - K(qhat1 - qhat2) - g(q1) + Ka (q1 - qhat1) - v1
     J qhat2''     =  K(qhat1 - qhat2) + u
@@ -30,14 +30,14 @@ ROBOT = "elastic"   # needs an ElasticRobot (codegen.pipeline.targets_file check
 
 
 def build(robot, A=2000.0, K2=2000.0, Ka=10000.0, Q_lyap=2000.0, K1=None):
-    """Tomei observer (SPEC §7) for the ElasticRobot ``robot``; gains A, K2, Ka, Q_lyap (each a
+    """Tomei observer (docs/papers/seed004.md §7) for the ElasticRobot ``robot``; gains A, K2, Ka, Q_lyap (each a
     scalar or (n,), > 0) default to the seed's Sim-1 gains, K1 ((n,)) to the solution of the
     Lyapunov equation with A and Q_lyap (0.5 I)."""
     n = robot.n
     d = lambda v: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy()  # noqa: E731
     A, K2, Ka, Q_lyap = d(A), d(K2), d(Ka), d(Q_lyap)
     if np.any(A <= 0) or np.any(K2 <= 0) or np.any(Ka <= 0) or np.any(Q_lyap <= 0):
-        raise ValueError("Tomei gains A, K2, Ka, Q_lyap must be positive (SPEC §7, Thm 3.1)")
+        raise ValueError("Tomei gains A, K2, Ka, Q_lyap must be positive (docs/papers/seed004.md §7, Thm 3.1)")
     K1 = d(np.diag(tomei_K1(np.diag(A), np.diag(Q_lyap)))) if K1 is None else d(K1)
 
     rigid, Kst, J = robot.rigid, ca.DM(robot.K), ca.DM(robot.J)

@@ -1,10 +1,10 @@
-"""Reference Ciccarella-Germani observer O1-O4 (SPEC §8) in numpy, on reference/elastic.py.
+"""Reference Ciccarella-Germani observer O1-O4 (docs/papers/seed004.md §8) in numpy, on reference/elastic.py.
 
     xhat' = f(xhat) + G u + Q(xhat)^{-1} Kg (y - H(xhat))                 [S004 (3.10)]
 
-Q is assembled in the channel-major order of SPEC §8 (per joint [q, q', q'', q'''] for O1/O2,
-SPEC §8.3 closed forms, derivatives exact by hyper-duals) or written out as the constant
-matrix of the linear Phi (O3, O4; SPEC §8.4), and solved by a plain LU (np.linalg.solve)
+Q is assembled in the channel-major order of docs/papers/seed004.md §8 (per joint [q, q', q'', q'''] for O1/O2,
+docs/papers/seed004.md §8.3 closed forms, derivatives exact by hyper-duals) or written out as the constant
+matrix of the linear Phi (O3, O4; docs/papers/seed004.md §8.4), and solved by a plain LU (np.linalg.solve)
 -- not the block forward substitution of the generated code.
 
 Parameters: one gain per row of Phi (channel-major), then ``rcond_min`` (unused here: the
@@ -59,7 +59,7 @@ def _phi_Q(robot, variant, x):
 
 
 def _H_and_rows(robot, variant, x):
-    """(H(x), row_error) of the variant (SPEC §8.4)."""
+    """(H(x), row_error) of the variant (docs/papers/seed004.md §8.4)."""
     n = robot.n
     x1, x2, x3, _ = robot.split(x)
     if variant == "O1":
@@ -80,7 +80,7 @@ def rhs(robot, x, y, u, p, variant):
     x : (4n,) array
         xhat = [q1; q1'; q2; q2'] (rad, rad/s).
     y : (n,) or (2n,) array
-        The variant's measurement H(x) (SPEC §8.4): O1 q1, O2 [q1_i, q1'_i]_i, O3 [q2; tau_el],
+        The variant's measurement H(x) (docs/papers/seed004.md §8.4): O1 q1, O2 [q1_i, q1'_i]_i, O3 [q2; tau_el],
         O4 q2.
     u : (n,) array
         Motor torques, N m.
@@ -112,7 +112,7 @@ def init(robot, y0, est0, p):
 
 def sizes(robot, variant):
     """{"nx": 4n, "ny": n (O1, O4) or 2n (O2, O3), "nu": n, "nest": 4n} for ``robot`` (n joints)
-    and ``variant`` (SPEC §8.4)."""
+    and ``variant`` (docs/papers/seed004.md §8.4)."""
     n = robot.n
     ny = {"O1": n, "O4": n, "O2": 2 * n, "O3": 2 * n}[variant]
     return {"nx": 4 * n, "ny": ny, "nu": n, "nest": 4 * n}

@@ -1,4 +1,4 @@
-"""Reconstructed Astolfi-Ortega-Venkatraman I&I observer (SPEC §5 [DERIVED]), numpy only.
+"""Reconstructed Astolfi-Ortega-Venkatraman I&I observer (docs/papers/seed003.md §5 [DERIVED]), numpy only.
 
     M^{-1} = T T^T (T lower),  T^{-1} = T^T M,  dT/dq_k = T Phi(T^{-1} d(M^{-1})/dq_k T^{-T})
         (Phi: lower triangle with half diagonal; from d(T T^T) = d(M^{-1}), [DERIVED])
@@ -55,7 +55,7 @@ def _phi(X):
 
 
 def kinematics(robot, q):
-    """M^{-1} = T T^T (T lower) and dT/dq_k = T Phi(T^{-1} d(M^{-1})/dq_k T^{-T})  (SPEC §5 [DERIVED]).
+    """M^{-1} = T T^T (T lower) and dT/dq_k = T Phi(T^{-1} d(M^{-1})/dq_k T^{-T})  (docs/papers/seed003.md §5 [DERIVED]).
 
     Parameters
     ----------
@@ -85,7 +85,7 @@ def kinematics(robot, q):
 
 
 def S(robot, q, b):
-    """S(q, b) = -T^T M sum_k dT/dq_k (T b)_k - T^T C(q, T b) T  (SPEC §5) (n, n), skew-symmetric;
+    """S(q, b) = -T^T M sum_k dT/dq_k (T b)_k - T^T C(q, T b) T  (docs/papers/seed003.md §5) (n, n), skew-symmetric;
     ``robot`` as in ``kinematics``, q (n,) rad, b (n,)."""
     Mq, T, _, dT = kinematics(robot, q)
     Tb = T @ b
@@ -93,7 +93,7 @@ def S(robot, q, b):
 
 
 def hbar_column(robot, q, p, k1, i):
-    """Hbar_i(q, p) = k1 T^{-1} e_i - T^T M dT/dq_i p - T^T C(q, e_i) T p  (SPEC §5) (n,);
+    """Hbar_i(q, p) = k1 T^{-1} e_i - T^T M dT/dq_i p - T^T C(q, e_i) T p  (docs/papers/seed003.md §5) (n,);
     ``robot`` as in ``kinematics``, q (n,) rad (complex allowed), p (n,) the momentum-like
     estimate, k1 (1/s), i the column."""
     Mq, T, Tinv, dT = kinematics(robot, q)
@@ -103,7 +103,7 @@ def hbar_column(robot, q, p, k1, i):
 
 
 def beta_and_derivatives(robot, y, qhat, phat, k1, N, derivatives=True, periodic=None, N_period=None):
-    """beta = sum_i int_0^{y_i} Hbar_i and its derivatives (SPEC §5 [DERIVED]).
+    """beta = sum_i int_0^{y_i} Hbar_i and its derivatives (docs/papers/seed003.md §5 [DERIVED]).
 
     Parameters
     ----------
@@ -149,7 +149,7 @@ def beta_and_derivatives(robot, y, qhat, phat, k1, N, derivatives=True, periodic
 
 
 def rhs(robot, x, y, u, p, N=None, periodic=None, N_period=None):
-    """[xi'; qhat'; phat'; r'] (SPEC §5, module docstring).
+    """[xi'; qhat'; phat'; r'] (docs/papers/seed003.md §5, module docstring).
 
     Parameters
     ----------

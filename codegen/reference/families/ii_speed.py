@@ -1,4 +1,4 @@
-"""I&I speed observer of Arbo, Grotli & Gravdahl (seed 003), numpy + pin, from SPEC §4.1.
+"""I&I speed observer of Arbo, Grotli & Gravdahl (seed 003), numpy + pin, from docs/papers/seed003.md §4.1.
 
     H(q, x)  = M(q)^{-1}(k1 I - C(q, x))                                    [S003 (11)], A3-1
     beta     = sum_i int_0^{y_i} H_i(z_i(sigma), s_x) d sigma,  z_i = s_y with sigma at i   (12)
@@ -11,7 +11,7 @@ The integrals are N-node Gauss-Legendre sums (numpy leggauss); the q-derivatives
 reference robot's exact dMw_dq / dCab_dq (closed forms, or pinocchio's analytical RNEA
 derivatives), never from finite differences. The rest (alpha1..3, r', psi1, psi2 with Frobenius
 norms, est = [s_x; xhat], init) follows the module docstring of the symbolic family, written
-again here from SPEC §4.1:
+again here from docs/papers/seed003.md §4.1:
 
     xhat = xi + beta; e_y = s_y - y; e_x = s_x - xhat
     M Delta_x = C(y, e_x); M Delta_y = k1 I - C(y, s_x) - M dbeta/dy
@@ -117,7 +117,7 @@ def h_column_derivatives(robot, q, x, k1, i):
 
 
 def column_nodes(yi, N, periodic=False, N_period=None):
-    """Quadrature of int_0^{yi} f ~= sum_k h_k f(sigma_k) (SPEC §4.1, docs/quadrature.md).
+    """Quadrature of int_0^{yi} f ~= sum_k h_k f(sigma_k) (docs/papers/seed003.md §4.1, docs/quadrature.md).
 
     N-node Gauss-Legendre on [0, yi]; for a 2 pi-periodic joint, with yi = 2 pi m + rho
     (m = floor(yi/2pi + 1/2)), m times the N_period-node trapezoid over [-pi, pi) plus

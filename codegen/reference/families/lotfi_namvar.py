@@ -1,4 +1,4 @@
-"""Lotfi–Namvar adaptive observer, numpy reference (SPEC §3.1–3.2, seed 002).
+"""Lotfi–Namvar adaptive observer, numpy reference (docs/papers/seed002.md §3.1–3.2, seed 002).
 
 Per channel j (a selected CoM coordinate, pi_j = p_{rows[j]}(q)):
     zhat_{j1}'  = -(lambda_j + alpha_j) zhat_{j1} + zhat_{j2} + zeta_j thetahat_j
@@ -26,7 +26,7 @@ from ._family import bound
 
 
 class NonMinimal(NamedTuple):
-    """Seed 002's non-minimal coordinates on a reference robot (SPEC §3.1, A2-2).
+    """Seed 002's non-minimal coordinates on a reference robot (docs/papers/seed002.md §3.1, A2-2).
 
     Attributes
     ----------
@@ -128,7 +128,7 @@ def jump(robot, x, y, p, nm):
 
 
 def init(robot, y0, est0, p, nm):
-    """x(0) = [zhat1_from_y0 pi(q0); J_n(q0) qd_hat(0); 0; thetahat0]  (SPEC §3.2).
+    """x(0) = [zhat1_from_y0 pi(q0); J_n(q0) qd_hat(0); 0; thetahat0]  (docs/papers/seed002.md §3.2).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Nicosia–Tomei full-order observer (SPEC §2), numpy.
+"""Nicosia–Tomei full-order observer (docs/papers/seed000.md §2), numpy.
 
     x1tilde = y - x1hat,   x1hat' = x2hat + kd x1tilde
     x2hat'  = M(y)^{-1}[tau - C(y, x1hat') x1hat' - F x1hat' - g(y) + kp x1tilde]
@@ -24,7 +24,7 @@ def configure(robot, options):
 
 
 def output(robot, x, y, u, p):
-    """The velocity estimate x2hat (SPEC §2).
+    """The velocity estimate x2hat (docs/papers/seed000.md §2).
 
     Parameters
     ----------
@@ -47,7 +47,7 @@ def output(robot, x, y, u, p):
 
 
 def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
-    """[x1hat' (rad/s); x2hat' (rad/s^2)] (2n,) of SPEC §2, the K_P x1tilde term entering as a
+    """[x1hat' (rad/s); x2hat' (rad/s^2)] (2n,) of docs/papers/seed000.md §2, the K_P x1tilde term entering as a
     torque, the model M, C, g, F at the configuration y_cfg (n,) rad and at x1hat' saturated to
     ``v_bound`` ((n,) rad/s or None), x1tilde = y - x1hat at the measurement; robot, x, y, u, p
     as in ``output``."""

@@ -1,4 +1,4 @@
-"""Reduced-order velocity observer, linear gain k(y) = k0 y (SPEC §1.1, seed 000).
+"""Reduced-order velocity observer, linear gain k(y) = k0 y (docs/papers/seed000.md §1.1, seed 000).
 
     x2hat = z + k0 y                                                         [S000 (6),(9)]
     z'    = M(y)^{-1} [tau - C(y, v) v - F v - g(y)] - k0 x2hat,  v = sat(x2hat)   [S000 (6),(9)]

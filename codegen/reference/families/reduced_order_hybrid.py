@@ -1,8 +1,8 @@
-"""Reduced-order observer with hybrid gain k_r (SPEC §1.2–§1.3, seed 000), numpy.
+"""Reduced-order observer with hybrid gain k_r (docs/papers/seed000.md §1.2–§1.3, seed 000), numpy.
 
     x2hat = z + k_r y,   z' = M(y)^{-1}[tau - C(y,x2hat) x2hat - F x2hat - g(y)] - k_r x2hat,  r' = 0
                                                                           [S000 (6),(9),(16)]
-Jumps before each step [DERIVED, SPEC §1.3]: while ||x2hat|| >= r vbar - eta and r < r_max,
+Jumps before each step [DERIVED, docs/papers/seed000.md §1.3]: while ||x2hat|| >= r vbar - eta and r < r_max,
 r += 1; else while r >= 2 and ||x2hat|| <= (r-1) vbar - eta - delta, r -= 1; then
 z+ = z + (k_r - k_{r+}) y, so x2hat is continuous.
 
@@ -92,7 +92,7 @@ def rhs(robot, x, y, u, p, v_bound=None):
 
 
 def jump(robot, x, y, p):
-    """[z+; r+] (n + 1,): the switching rule of SPEC §1.3 (up- then down-jumps, repeated) with
+    """[z+; r+] (n + 1,): the switching rule of docs/papers/seed000.md §1.3 (up- then down-jumps, repeated) with
     the z reset that keeps x2hat continuous [DERIVED]; robot, x, y, p as in ``output``."""
     k, eta, vbar, delta = _split(p)
     r_max = len(k)

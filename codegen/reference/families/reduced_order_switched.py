@@ -4,7 +4,7 @@
                                                                         [S000 (6),(9)]
     k = k0 while the switch is not done (s < t_switch + 1/2), else k0_final;  s' = 1 before, 0 after
     jump at a sample with t_switch <= s < t_switch + 1/2: z+ = z + (k0 - k0_final) y,
-    s+ = t_switch + 1 (x2hat continuous)                                [DERIVED, as SPEC §1.3]
+    s+ = t_switch + 1 (x2hat continuous)                                [DERIVED, as docs/papers/seed000.md §1.3]
 
 The model at the estimate saturated to the declared velocity bound (as reduced_order).
 x = [z (n, rad/s); s (s)], y = q (n, rad), u = tau (n, N m), p = [k0, k0_final (1/s),

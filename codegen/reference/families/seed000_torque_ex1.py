@@ -1,4 +1,4 @@
-"""Reference open-loop torque of seed-000 Example 1 (SPEC §1.4, §12.1; [S000 (18)]), numpy.
+"""Reference open-loop torque of seed-000 Example 1 (docs/papers/seed000.md §1.4, docs/papers/experiments.md §12.1; [S000 (18)]), numpy.
 
 A stateless law (nx = 0): y = [q_1 .. q_n, t], no input, "estimate" = the torque
 

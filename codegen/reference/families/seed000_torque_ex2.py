@@ -1,4 +1,4 @@
-"""Reference open-loop torque of seed-000 Example 2 (SPEC §12.1; [S000 (19)]), numpy.
+"""Reference open-loop torque of seed-000 Example 2 (docs/papers/experiments.md §12.1; [S000 (19)]), numpy.
 
 Stateless (nx = 0): y = [q_1 .. q_n, t], no input, "estimate" = the torque
 

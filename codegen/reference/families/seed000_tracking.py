@@ -1,4 +1,4 @@
-"""Reference Example-3 output-feedback law of seed 000 (SPEC §1.4, §12.1), numpy.
+"""Reference Example-3 output-feedback law of seed 000 (docs/papers/seed000.md §1.4, docs/papers/experiments.md §12.1), numpy.
 
 Stateless (nx = 0). y = [q (n), x2hat (n), t]; p = [q_start (n), q_goal (n), T_move, lambda,
 kp (n), kd (n)] (diagonal gains); "estimate" = the torque
@@ -7,7 +7,7 @@ kp (n), kd (n)] (diagonal gains); "estimate" = the torque
           + K_P (q_d - q) + K_D (qd_d - x2hat)                           [S000 eq. after Fig. 5]
 
 with q_d the rest-to-rest quintic q_start -> q_goal over [0, T_move], held outside
-[ASSUMPTION SPEC §12.1]:  q_d = q_start + (q_goal - q_start) h(s), s = clip(t / T_move, 0, 1),
+[ASSUMPTION docs/papers/experiments.md §12.1]:  q_d = q_start + (q_goal - q_start) h(s), s = clip(t / T_move, 0, 1),
 h = 10 s^3 - 15 s^4 + 6 s^5 (h' and h'' by t, written out below). Never imports CasADi.
 """
 from __future__ import annotations

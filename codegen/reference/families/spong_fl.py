@@ -1,4 +1,4 @@
-"""Reference Spong feedback-linearising controller (SPEC §9, §12.4) in numpy, on the reference
+"""Reference Spong feedback-linearising controller (docs/papers/seed004.md §9, docs/papers/experiments.md §12.4) in numpy, on the reference
 elastic robot (codegen/reference/robots/elastic.py). Never imports CasADi or the symbolic code.
 
 A static law with a 1-slot dummy state (nx = 1, never changes), no input; its "estimate" is the
@@ -38,7 +38,7 @@ def require_exact(robot, family):
 
 
 def law_inputs(family, robot, y, p):
-    """The checked inputs of a Spong law (SPEC §12.4).
+    """The checked inputs of a Spong law (docs/papers/experiments.md §12.4).
 
     Parameters
     ----------
@@ -63,7 +63,7 @@ def law_inputs(family, robot, y, p):
 
 
 def spong_y3_y4_F(robot, x, with_F=True):
-    """Spong's y3, y4 and F = L_f y4 of an elastic state, exact (SPEC §9, [DERIVED] above).
+    """Spong's y3, y4 and F = L_f y4 of an elastic state, exact (docs/papers/seed004.md §9, [DERIVED] above).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Reference Spong integral-manifold controller (SPEC §10, §12.4) in numpy, on the reference
+"""Reference Spong integral-manifold controller (docs/papers/seed004.md §10, docs/papers/experiments.md §12.4) in numpy, on the reference
 elastic robot (codegen/reference/robots/elastic.py). Never imports CasADi or the symbolic code.
 
 Static law, dummy state (nx = 1), no input, "estimate" = u. y = [x (4n); q_d .. q_d''''] (9n);

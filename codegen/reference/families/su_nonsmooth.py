@@ -1,4 +1,4 @@
-"""Su–Müller–Zheng non-smooth observer, numpy reference (SPEC §3.3, seed 002 (35)).
+"""Su–Müller–Zheng non-smooth observer, numpy reference (docs/papers/seed002.md §3.3, seed 002 (35)).
 
 e = qhat - q;  sg = sign (sgn_eps = 0) or tanh(e / sgn_eps)
 literal (xian = 0):  qhat' = w,  w' = -K0 sg(e) - (K1 + 1) w - K2 e,  qd_hat = w    [S002 (35)]

@@ -1,5 +1,5 @@
-"""Reference Tomei observer (SPEC §7) in numpy; same equations as codegen/families/observers/tomei.py,
-written from SPEC §7 on the reference elastic robot (S(q1, q1') qhat1' by polarisation of the
+"""Reference Tomei observer (docs/papers/seed004.md §7) in numpy; same equations as codegen/families/observers/tomei.py,
+written from docs/papers/seed004.md §7 on the reference elastic robot (S(q1, q1') qhat1' by polarisation of the
 Newton-Euler c(q, v) = C(q, v) v, see christoffel_times).
 
     M(q1) qhat1'' = -S(q1,q1') qhat1' - tau_f(qhat1') - K(qhat1 - qhat2) - g(q1) + Ka(q1 - qhat1) - v1
@@ -17,7 +17,7 @@ def christoffel_times(rigid, q, v, w):
     """C(q, v) w for the Christoffel C, without forming C on a rigid part that has none.
 
     With c(q, a) = C(q, a) a (Newton-Euler with zero acceleration, gravity removed) and the
-    symmetry C(q, a) b = C(q, b) a [SPEC §0]:
+    symmetry C(q, a) b = C(q, b) a [docs/papers/seed000.md §0]:
 
         C(q, v) w = 1/2 [c(q, v + w) - c(q, v) - c(q, w)]   (polarisation)  [DERIVED]
 
@@ -42,7 +42,7 @@ def christoffel_times(rigid, q, v, w):
 
 
 def rhs(robot, x, y, u, p):
-    """x' of the Tomei observer (SPEC §7, module docstring).
+    """x' of the Tomei observer (docs/papers/seed004.md §7, module docstring).
 
     Parameters
     ----------

@@ -2,10 +2,10 @@
 
 The dispatcher on top of the robot modules; imports point one way:
 
-    robots ──► rigid (closed forms), urdf (pinocchio), dh (Newton-Euler), elastic (SPEC §6)
+    robots ──► rigid (closed forms), urdf (pinocchio), dh (Newton-Euler), elastic (docs/papers/seed004.md §6)
     elastic ──► dh ──► hyperdual;  urdf ──► rigid;  rigid, dh ──► friction ──► hyperdual
 
-Never imports CasADi or the symbolic code (DESIGN §1): written from SPEC's equations so that
+Never imports CasADi or the symbolic code (docs/architecture.md §1): written from the papers' equations (docs/papers/) so that
 a cross-check against the generated C proves something.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ from .elastic import ElasticRobot
 from .rigid import Absolute2R, Planar2R
 from .urdf import UrdfRobot
 
-# SPEC §11.1, §11.2, §12.3 numbers, kept here so tests can rebuild the seed robots
+# docs/papers/experiments.md §11.1, §11.2, §12.3 numbers, kept here so tests can rebuild the seed robots
 # without the symbolic catalog.
 _SEED000 = dict(m1=10.0, m2=20.0, l1=1.0, l2=1.5)
 _SEED002 = dict(m1=2.0, m2=1.0, l1=0.4, l2=0.2)
@@ -29,7 +29,7 @@ SEED_SOURCES = {
     "seed002_2r": {
         "kind": "closed_form", "name": "seed002_2r", "model": "planar_2r",
         "params": dict(_SEED002, lc1=0.2, lc2=0.1,
-                       I1=2.0 * 0.4 ** 2 / 12, I2=1.0 * 0.2 ** 2 / 12,  # [ASSUMPTION] SPEC §11.2
+                       I1=2.0 * 0.4 ** 2 / 12, I2=1.0 * 0.2 ** 2 / 12,  # [ASSUMPTION] docs/papers/experiments.md §11.2
                        g0=9.81, F=[0.0, 0.0]),                           # [S002 §V]
     },
     "seed003_2r_abs": {
@@ -53,7 +53,7 @@ def reference_robot(source):
         ``{"kind": "closed_form", "model": "planar_2r" | "absolute_2r", "params": {...}}``,
         ``{"kind": "urdf", "path", "sha256", "locked_joints": {name: value}, "snap_tol"}``,
         ``{"kind": "dh", "dh", "masses", "coms", "inertias", "gravity", "F"}`` (reference/dh.py),
-        ``{"kind": "elastic", "rigid": <source>, "J": (n,), "K": (n,)}`` (SPEC §6);
+        ``{"kind": "elastic", "rigid": <source>, "J": (n,), "K": (n,)}`` (docs/papers/seed004.md §6);
         ``name`` optional in each; a rigid kind may carry ``"friction": {"viscous", "coulomb",
         "offset": (n,), "coulomb_width"}`` (reference/robots/friction.py), which replaces the
         description's friction (closed-form and DH "F", the URDF's damping and friction).

@@ -1,4 +1,4 @@
-"""Reference DH robots (SPEC §11.3, §11.4): a Newton-Euler recursion on the DH table.
+"""Reference DH robots (docs/papers/experiments.md §11.3, §11.4): a Newton-Euler recursion on the DH table.
 
 Written with the generic arithmetic of reference/hyperdual.py, so it runs on floats and on
 hyper-dual arrays (exact first and second derivatives). M(q) comes from the same recursion

@@ -1,4 +1,4 @@
-"""Reference elastic-joint robots (SPEC §6) in numpy, over a reference rigid robot.
+"""Reference elastic-joint robots (docs/papers/seed004.md §6) in numpy, over a reference rigid robot.
 
 Not an observer family (no ``rhs``): the reference families ``ciccarella_germani``, ``tomei``
 and the Spong controllers build on it. The rigid part is given (reference/robots.py builds it
@@ -20,7 +20,7 @@ from .hyperdual import seeded
 
 
 class ElasticRobot:
-    """Elastic-joint robot x = [q1; q1'; q2; q2'] (SPEC §6) over a reference rigid robot.
+    """Elastic-joint robot x = [q1; q1'; q2; q2'] (docs/papers/seed004.md §6) over a reference rigid robot.
 
     Parameters
     ----------
@@ -93,11 +93,11 @@ class ElasticRobot:
         return dq @ d1 + dv @ d2 + Minv @ (-(self.K @ (d1 - d3)) - rob.friction_jacobian(x2) @ d2)
 
     def y4(self, x):
-        """q1''' = D y3 [f(x)] = f4(x1, x2, x3) + M^{-1} K x4  (SPEC §8.3) (n,), rad/s^3."""
+        """q1''' = D y3 [f(x)] = f4(x1, x2, x3) + M^{-1} K x4  (docs/papers/seed004.md §8.3) (n,), rad/s^3."""
         return self._Dy3(x, self.f(x))
 
     def spong_jacobian(self, x, fd_step=1e-5):
-        """Spong coordinates and their Jacobian (SPEC §8.3).
+        """Spong coordinates and their Jacobian (docs/papers/seed004.md §8.3).
 
         DH robots: exact by hyper-duals. URDF robots: rows of y4 by central differences of the
         exact (pinocchio first-order) y4, O(fd_step^2) [no second-order ABA derivatives].
@@ -139,6 +139,6 @@ class ElasticRobot:
         return np.concatenate([x1, x2, self.y3(x), self.y4(x)]), Q
 
     def spong_F(self, x):
-        """F(x) = L_f y4 (SPEC §9), the drift of y4' = F(x) + M^{-1} K J^{-1} u (n,), rad/s^4."""
+        """F(x) = L_f y4 (docs/papers/seed004.md §9), the drift of y4' = F(x) + M^{-1} K J^{-1} u (n,), rad/s^4."""
         _, Q = self.spong_jacobian(x)
         return Q[3 * self.n:] @ self.f(x)

@@ -5,7 +5,7 @@ evaluated at x + e1 u + e2 w gives, with no truncation error,
 
     F(x) (part a),  DF[u] (part b),  DF[w] (part c),  D^2F[u, w] (part d).
 
-This is what the Ciccarella-Germani Q(x) and Spong's F(x) need (SPEC §8.3, §9) on the
+This is what the Ciccarella-Germani Q(x) and Spong's F(x) need (docs/papers/seed004.md §8.3, §9) on the
 Newton-Euler DH recursion of reference/dh.py. The functions below (sin, cos, tanh, stack, cross,
 dot, solve) take floats and hyper-duals alike, so that one recursion serves both.
 """

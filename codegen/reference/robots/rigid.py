@@ -1,6 +1,6 @@
-"""Reference rigid robots given by formulas: numbers only (numpy), from SPEC's equations.
+"""Reference rigid robots given by formulas: numbers only (numpy), from the papers' equations (docs/papers/).
 
-Every reference robot gives the rigid model of SPEC §0 with joint friction
+Every reference robot gives the rigid model of docs/papers/seed000.md §0 with joint friction
 
     M(q) qdd + C(q, qd) qd + tau_f(qd) + g(q) = tau          [S000 (1)]
     tau_f(v) = F v + coulomb tanh(v / w) + offset             (reference/robots/friction.py)
@@ -78,7 +78,7 @@ class ReferenceRobot(Friction):
 
 
 class Planar2R(ReferenceRobot):
-    """Planar 2R arm in a vertical plane (SPEC §11.1): q1 absolute from the horizontal
+    """Planar 2R arm in a vertical plane (docs/papers/experiments.md §11.1): q1 absolute from the horizontal
     x axis, q2 relative, gravity g0 along -y.
 
         M = [[a1 + 2 a2 c2, a3 + a2 c2], [a3 + a2 c2, a3]]
@@ -113,12 +113,12 @@ class Planar2R(ReferenceRobot):
         """M(q) (2, 2) of the class docstring."""
         c2 = np.cos(q[1])
         m12 = self.a3 + self.a2 * c2
-        return np.array([[self.a1 + 2 * self.a2 * c2, m12], [m12, self.a3]])   # SPEC §11.1
+        return np.array([[self.a1 + 2 * self.a2 * c2, m12], [m12, self.a3]])   # docs/papers/experiments.md §11.1
 
     def C(self, q, v):
         """C(q, v) (2, 2) of the class docstring."""
         h = -self.a2 * np.sin(q[1])
-        return h * np.array([[v[1], v[0] + v[1]], [-v[0], 0.0]])             # SPEC §11.1
+        return h * np.array([[v[1], v[0] + v[1]], [-v[0], 0.0]])             # docs/papers/experiments.md §11.1
 
     def dMw_dq(self, q, w):
         """d(M(q) w)/dq (n x n, column j = dM/dq_j w) for a fixed w (closed form)."""
@@ -137,7 +137,7 @@ class Planar2R(ReferenceRobot):
         return np.array([(p["m1"] * p["lc1"] + p["m2"] * p["l1"]) * p["g0"] * np.cos(q[0]) + g12, g12])
 
     def com_positions(self, q):
-        """p = [lc1 c1, lc1 s1, l1 c1 + lc2 c12, l1 s1 + lc2 s12]  [S002 (34)], SPEC §3.1: (4,), m,
+        """p = [lc1 c1, lc1 s1, l1 c1 + lc2 c12, l1 s1 + lc2 s12]  [S002 (34)], docs/papers/seed002.md §3.1: (4,), m,
         at joint positions ``q`` (2,), rad."""
         p = self.params
         c1, s1, c12, s12 = np.cos(q[0]), np.sin(q[0]), np.cos(q[0] + q[1]), np.sin(q[0] + q[1])
@@ -155,7 +155,7 @@ class Planar2R(ReferenceRobot):
 
     @property
     def gravity_vector(self):
-        """g_o = [0, -g0] (vertical plane, SPEC §11.1)."""
+        """g_o = [0, -g0] (vertical plane, docs/papers/experiments.md §11.1)."""
         return np.array([0.0, -self.params["g0"]])
 
     def com_bias(self, q, v):
@@ -170,7 +170,7 @@ class Planar2R(ReferenceRobot):
 
 
 class Absolute2R(ReferenceRobot):
-    """Two-DoF arm in absolute angles (SPEC §4.2, seed 003), phi = y1 - y2:
+    """Two-DoF arm in absolute angles (docs/papers/seed003.md §4.2, seed 003), phi = y1 - y2:
 
         M = [[c1, c3 cos phi], [c3 cos phi, c2]]
         C = [[0, c3 sin phi x2], [-c3 sin phi x1, 0]]     (Christoffel, A3-1)
@@ -199,7 +199,7 @@ class Absolute2R(ReferenceRobot):
         return np.array([[c1, m12], [m12, c2]])                             # [S003 (56a)]
 
     def C(self, q, v):
-        """C(q, v) (2, 2): the Christoffel matrix, not the printed (56b) [SPEC A3-1]."""
+        """C(q, v) (2, 2): the Christoffel matrix, not the printed (56b) [docs/papers/ambiguities.md A3-1]."""
         s = self.c[2] * np.sin(q[0] - q[1])
         return np.array([[0.0, s * v[1]], [-s * v[0], 0.0]])
 

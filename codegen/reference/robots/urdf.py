@@ -1,6 +1,6 @@
 """Reference URDF robots through pinocchio's own algorithms (crba, nle, aba, Coriolis).
 
-The same interface as reference/rigid.py (SPEC §0, [S000 (1)]); pinocchio, not our symbolic
+The same interface as reference/rigid.py (docs/papers/seed000.md §0, [S000 (1)]); pinocchio, not our symbolic
 spatial algebra, so a cross-check of the generated C against it compares two implementations.
 """
 from __future__ import annotations
