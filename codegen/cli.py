@@ -430,7 +430,8 @@ def cmd_identify(args):
     from .evaluate.identify import identify
     robot = _robot_of(args)
     ident = identify(read_csv(args.log, robot.joint_names), robot, cutoff=args.cutoff,
-                     test_fraction=args.test_fraction, coulomb_width=args.coulomb_width, progress=True)
+                     test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
+                     max_rel_std=args.max_rel_std, progress=True)
     ident.write(Path(args.out or work_dir() / "identify"))
     print(ident.text, end="")
     return 0
@@ -573,6 +574,9 @@ def parser():
                            help=f"held-out tail of the log (default {idf.DEFAULT_TEST_FRACTION:g})")
             x.add_argument("--coulomb-width", type=float, help="w of tanh(qd/w) (rad/s; default the "
                            "model's coulomb_width)")
+            x.add_argument("--max-rel-std", type=float, default=idf.DEFAULT_MAX_REL_STD,
+                           help="refuse a log leaving a parameter combination's relative std above this "
+                                f"(default {idf.DEFAULT_MAX_REL_STD:g})")
             x.add_argument("--out", metavar="DIR", help="folder of the identified URDF and report (default build/identify)")
     return ap
 

@@ -877,11 +877,17 @@ def _refusal(arm, poor, std_beta, bound, d, train):
     names_ = ", ".join(arm.joint_names[j] for j in joints)
     what = (f"joint{'s' if len(joints) > 1 else ''} {names_} do{'es' if len(joints) == 1 else ''} not move"
             if still else f"the motion of joint{'s' if len(joints) > 1 else ''} {names_} does not excite them enough")
+    # a std falls as 1/sqrt(duration): how much longer a log of the same motion would have to be
+    longer = float(np.max(std_beta[poor]) / bound) ** 2
+    duration = float(np.ptp(d.t[train]))
+    more = ("" if still else
+            f", or record {longer:.2g} x longer ({longer * duration:.3g} s of the same motion), or accept "
+            f"the worst at {np.max(std_beta[poor]):.2g} (--max-rel-std {np.max(std_beta[poor]) * 1.01:.2g})")
     return (f"recording: the log does not determine the model: {len(poor)} of {len(arm.indep)} identifiable "
             f"parameter combinations have a relative std above {bound:g} ({which}"
             f"{'; ...' if len(poor) > len(worst) else ''}); {what} ({motion}). Record a log along an "
             f"excitation trajectory (python -m codegen excite {src} --out traj.csv) and identify on it"
-            + (", or lock a joint that cannot move (--lock JOINT=VALUE)" if still else ""))
+            + (", or lock a joint that cannot move (--lock JOINT=VALUE)" if still else more))
 
 
 def _report(arm, t, t_split, train, test, x, residual, sigma, std_post, std_data, std_beta, cond,

@@ -52,7 +52,7 @@ def robot_model(robot_name):
     return load_robot(urdf=path, locked_joints=locked or None)
 
 
-def runs(robot_name, seed=0, T=T_TASK, T_excitation=T_EXCITATION, excitation=None):
+def runs(robot_name, seed=0, T=T_TASK, T_excitation=T_EXCITATION, excitation=None, torque_noise_of="effort"):
     """The plant and its two runs (module docstring).
 
     Parameters
@@ -65,6 +65,9 @@ def runs(robot_name, seed=0, T=T_TASK, T_excitation=T_EXCITATION, excitation=Non
     excitation : callable, optional
         t -> (q_d, qd_d, qdd_d), the excitation reference; default
         ``fourier_excitation(robot, seed=seed)``.
+    torque_noise_of : {"effort", "rms"}
+        The torque sensor's 1 % white noise: of each joint's effort limit (a full-scale figure,
+        the same in both runs) or of the run's torque RMS (``RealPlant``).
 
     Returns
     -------
@@ -72,26 +75,27 @@ def runs(robot_name, seed=0, T=T_TASK, T_excitation=T_EXCITATION, excitation=Non
         The plant, the excitation run and the task run.
     """
     if excitation is None:
-        return _runs(robot_name, int(seed), float(T), float(T_excitation))
-    return _simulate(robot_name, int(seed), float(T), float(T_excitation), excitation)
+        return _runs(robot_name, int(seed), float(T), float(T_excitation), torque_noise_of)
+    return _simulate(robot_name, int(seed), float(T), float(T_excitation), excitation, torque_noise_of)
 
 
 @lru_cache(maxsize=4)
-def _runs(robot_name, seed, T, T_excitation):
-    return _simulate(robot_name, seed, T, T_excitation, None)
+def _runs(robot_name, seed, T, T_excitation, torque_noise_of):
+    return _simulate(robot_name, seed, T, T_excitation, None, torque_noise_of)
 
 
-def _simulate(robot_name, seed, T, T_excitation, excitation):
+def _simulate(robot_name, seed, T, T_excitation, excitation, torque_noise_of):
     from ..sim.real_plant import RealPlant, fourier_excitation, point_to_point
     robot = robot_model(robot_name)
-    plant = RealPlant(robot, seed=seed)
+    plant = RealPlant(robot, seed=seed, torque_noise_of=torque_noise_of)
     ref = excitation if excitation is not None else fourier_excitation(robot, seed=seed)
     exc = plant.run(ref, T_excitation, seed=(seed, 1))
     task = plant.run(point_to_point(robot, seed=seed), T, seed=(seed, 2))
     return plant, exc, task
 
 
-def experiment(robot_name, out=None, seed=0, T=T_TASK, T_excitation=T_EXCITATION, excitation=None):
+def experiment(robot_name, out=None, seed=0, T=T_TASK, T_excitation=T_EXCITATION, excitation=None,
+               torque_noise_of="effort"):
     """Simulate the two runs of ``robot_name`` and write them (module docstring).
 
     Parameters
@@ -99,7 +103,7 @@ def experiment(robot_name, out=None, seed=0, T=T_TASK, T_excitation=T_EXCITATION
     robot_name : {"ur5", "panda", "kinova"}
     out : path-like, optional
         Folder for the CSVs and perturbation.json.
-    seed, T, T_excitation, excitation
+    seed, T, T_excitation, excitation, torque_noise_of
         As in ``runs``.
 
     Returns
@@ -109,7 +113,7 @@ def experiment(robot_name, out=None, seed=0, T=T_TASK, T_excitation=T_EXCITATION
         each run's statistics (``RealRun.stats``), the files and the wall time.
     """
     t0 = time.perf_counter()
-    plant, exc, task = runs(robot_name, seed, T, T_excitation, excitation)
+    plant, exc, task = runs(robot_name, seed, T, T_excitation, excitation, torque_noise_of)
     truth = plant.truth()
     files = {}
     if out is not None:
@@ -162,7 +166,7 @@ def truth_recording(folder, name, joint_names):
 
 
 def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, families=None,
-            progress=True):
+            torque_noise_of="effort", max_rel_std=0.1, progress=True):
     """What a user of the real arm does, judged against the plant's truth: identify the robot on
     the excitation log, then run the observers on the task log twice, with the identified model
     and with the URDF as shipped, against the baselines tuned on the truth.
@@ -182,6 +186,12 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
         As in ``runs``.
     families : sequence of str, optional
         Observer families (default ``codegen.evaluate.compare.DEFAULT_FAMILIES``).
+    torque_noise_of : {"effort", "rms"}
+        As in ``runs``.
+    max_rel_std : float
+        Identification's refusal bound (``identify``): 0.1, not its 0.05, because 1 % of a
+        wrist's 28 N m effort limit is 0.28 N m of noise on a 0.3-0.6 N m friction: a 10 s log
+        leaves the wrist's friction at 7-9 % relative std (its refusal says so).
     progress : bool
         Progress bars on stderr.
 
@@ -203,11 +213,12 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
     robot = robot_model(robot_name)
     ex = identify_excitation(robot, T=T_excitation, seed=seed, progress=progress)
     summary = experiment(robot_name, out=out, seed=seed, T=T, T_excitation=T_excitation,
-                         excitation=lambda t: tuple(a[0] for a in ex.at(t)))
+                         excitation=lambda t: tuple(a[0] for a in ex.at(t)), torque_noise_of=torque_noise_of)
     truth = json.loads((out / "perturbation.json").read_text())
     joints = robot.joint_names
     from dataclasses import replace
-    ident = identify(replace(truth_recording(out, "excitation", joints), qd=None), robot, progress=progress)
+    ident = identify(replace(truth_recording(out, "excitation", joints), qd=None), robot,
+                     max_rel_std=max_rel_std, progress=progress)
     files = ident.write(out / "identified")
     report = ident.report
     found = {k: np.array([report["friction"][j][k] for j in joints]) for k in ("viscous", "coulomb")}
