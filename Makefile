@@ -8,7 +8,7 @@ PY := $(VENV)/bin/python
 ARM_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm newlib-source
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
-.PHONY: generate test test-fast sanitize c-tools bench clean check embedded arm-toolchain docs
+.PHONY: generate test test-fast test-long sanitize c-tools bench clean check embedded arm-toolchain docs
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -23,14 +23,20 @@ $(VENV)/.installed-bench: $(VENV)/.installed
 generate: $(VENV)/.installed
 	$(PY) -m codegen generate -c targets.toml
 
-# every test, in parallel on every core (pytest-xdist), then the sanitizers and the fuzzer
+# every test but the experiment-scale ones (marked long), in parallel on every core
+# (pytest-xdist), then the sanitizers and the fuzzer: under 10 minutes on 2 cores
 test: $(VENV)/.installed c-tools
-	$(PY) -m pytest -n auto
+	$(PY) -m pytest -n auto -m "not long"
 	$(PY) -m codegen sanitize
 
-# the quick set for iteration (no test marked slow), under 2 minutes on 2 cores
+# the quick set for iteration (no test marked slow or long), under 2 minutes on 2 cores
 test-fast: $(VENV)/.installed
-	$(PY) -m pytest -n auto -m "not slow"
+	$(PY) -m pytest -n auto -m "not slow and not long"
+
+# the experiment-scale tests (a real arm's identification and observers, the elastic
+# cross-checks, xarm7): CI runs them after `make test`
+test-long: $(VENV)/.installed
+	$(PY) -m pytest -n auto -m long
 
 # the C under ASan/UBSan on edge-case CSVs and a libFuzzer campaign (also part of `make test`)
 sanitize: $(VENV)/.installed c-tools

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tomllib
 from dataclasses import replace
@@ -422,6 +423,19 @@ def cmd_excite(args):
     return 0
 
 
+def _width(text):
+    """--coulomb-width: "auto" or a positive number (rad/s)."""
+    if text == "auto":
+        return text
+    try:
+        w = float(text)
+    except ValueError:
+        w = float("nan")
+    if not (math.isfinite(w) and w > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number (rad/s) or auto, got {text!r}")
+    return w
+
+
 def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
     joint (codegen.evaluate.identify); writes the identified URDF, the friction side file and the
@@ -572,8 +586,10 @@ def parser():
                            help=f"zero-phase low-pass (Hz, default {idf.DEFAULT_CUTOFF:g})")
             x.add_argument("--test-fraction", type=float, default=idf.DEFAULT_TEST_FRACTION,
                            help=f"held-out tail of the log (default {idf.DEFAULT_TEST_FRACTION:g})")
-            x.add_argument("--coulomb-width", type=float, help="w of tanh(qd/w) (rad/s; default the "
-                           "model's coulomb_width)")
+            x.add_argument("--coulomb-width", type=_width, default="auto",
+                           help="w of tanh(qd/w) (rad/s), or auto (default): the width of "
+                                f"{', '.join(f'{w:g}' for w in idf.WIDTHS)} and the model's own that "
+                                "predicts the held-out tail best")
             x.add_argument("--max-rel-std", type=float, default=idf.DEFAULT_MAX_REL_STD,
                            help="refuse a log leaving a parameter combination's relative std above this "
                                 f"(default {idf.DEFAULT_MAX_REL_STD:g})")

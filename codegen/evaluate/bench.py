@@ -345,8 +345,70 @@ def sweep_ur5(path=None, modes=(0, 1, 2)):
     return row
 
 
+def _instructions_per_step(target, robot, dt, steps=(200, 1200)):
+    """Instructions per ``<prefix>_step`` of ``target`` (a velocity observer of ``robot`` at
+    sample time ``dt``): valgrind's callgrind on run_csv over ``steps`` samples of the demo
+    trajectory, counting inside the step only (--toggle-collect), the difference of the totals
+    over the difference of the counts (the first sample's start-up cancels); None without
+    valgrind."""
+    import re
+    import shutil
+    import subprocess
+    import tempfile
+
+    from ..verify.c_programs import compile_harness, write_csv
+    from ..verify.trajectory import demo_trajectory
+    if shutil.which("valgrind") is None:
+        return None
+    exe = compile_harness(target)["run_csv"]
+    totals = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for N in steps:
+            t, Q, _, TAU = demo_trajectory(robot, T=(N - 1) * dt, dt=dt)
+            write_csv(Path(tmp) / "in.csv", t, Q, TAU)
+            out = Path(tmp) / "cg.out"
+            subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+                            f"--toggle-collect={Path(target).name}_step", str(exe),
+                            str(Path(tmp) / "in.csv"), str(Path(tmp) / "est.csv")],
+                           check=True, capture_output=True)
+            totals.append(int(re.search(r"^summary:\s+(\d+)", out.read_text(), re.M).group(1)))
+    return (totals[1] - totals[0]) / (steps[1] - steps[0])
+
+
+def friction_step(robot="ur5", families=("reduced_order", "kalman_model")):
+    """The step's cost with friction in the model against the same observer without: ``robot``
+    as shipped (no friction) and with viscous, Coulomb and offset on every joint (values of the
+    real ur5's identification), each ``family`` at its defaults (quantisation 1e-4; kalman_model
+    with a torque uncertainty, so the model is used). Instructions per step (valgrind) and
+    ns per step (time_step, fastest of its blocks' medians) with their ratios."""
+    from models import load_robot
+
+    from ..families import observers
+    from ..verify.c_programs import time_target
+    plain = load_robot(robot)
+    n = plain.n
+    rough = plain.with_friction(viscous=np.linspace(1.8, 0.3, n), coulomb=np.linspace(3.0, 0.5, n),
+                                offset=np.full(n, -0.2))
+    rows = []
+    for family in families:
+        opts = {"quantization": 1e-4}
+        if family == "kalman_model":
+            opts["torque_uncertainty"] = [0.3] * n
+        row = {"family": family, "robot": robot}
+        for label, r in (("plain", plain), ("friction", rough)):
+            spec = observers.build(family, r, **opts)
+            target, _ = _emit(spec, Discretization(dt=1e-3, substeps="auto"))
+            row[f"instructions_{label}"] = _instructions_per_step(target, r, 1e-3)
+            row[f"ns_{label}"] = time_target(target)["ns_per_step"]
+        if row["instructions_plain"]:
+            row["ratio_instructions"] = row["instructions_friction"] / row["instructions_plain"]
+        row["ratio_ns"] = row["ns_friction"] / row["ns_plain"]
+        rows.append(row)
+    return rows
+
+
 SCENARIOS = {"seed000": seed000_loop, "seed003": seed003_ii_ur5, "seed003_aov": seed003_ii_aov_ur5,
-             "seed004": seed004_cg, "sweep_ur5": sweep_ur5}
+             "seed004": seed004_cg, "sweep_ur5": sweep_ur5, "friction": friction_step}
 
 
 # ---------------------------------------------------------------------------- report

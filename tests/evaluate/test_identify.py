@@ -211,8 +211,9 @@ def test_identifies_the_gripper_arm(gripper, gripper_traj, gripper_case, tmp_pat
     ident = idf.identify(rec, gripper)
     check_traj = idf.excitation(gripper, T=10.0, starts=1, maxiter=0, seed=7)
     paths = check(gripper, gripper_traj, ident, plant, friction, sigma, tmp_path / "out", check_traj)
+    # the default width ("auto") is the plant's, chosen among idf.WIDTHS by the held-out residual
     assert ident.report["coulomb_width"] == gripper.coulomb_width
-    assert ident.report["coulomb_width_source"].startswith("the robot model's coulomb_width")
+    assert ident.report["coulomb_width_source"].startswith("selected by the held-out residual")
     # the locked gripper and everything but the identified <inertial>s and <dynamics> as they were
     old, new = ET.parse(GRIPPER).getroot(), ET.parse(paths["urdf"]).getroot()
     same = lambda e: ET.tostring(e)  # noqa: E731
@@ -220,6 +221,26 @@ def test_identifies_the_gripper_arm(gripper, gripper_traj, gripper_case, tmp_pat
                        ("link", "finger_l"), ("link", "finger_r"), ("link", "hand"), ("link", "base")):
         assert same(old.find(f"{kind}[@name='{name}']")) == same(new.find(f"{kind}[@name='{name}']"))
     assert len(new.findall("joint")) == len(old.findall("joint"))
+
+
+def test_selects_the_plant_coulomb_width(gripper, gripper_traj, gripper_case):
+    """A plant whose dry friction switches 10x faster than the model's width (0.02 rad/s against
+    0.2): "auto" finds 0.02, and its friction within 10 %; the model's own width leaves a held-out
+    residual above the noise and the friction further off."""
+    plant, friction, _, _ = gripper_case
+    rec, sigma = simulate(plant, gripper_traj, friction, 0.02, np.random.default_rng(5))
+    auto = idf.identify(rec, gripper)
+    fixed = idf.identify(rec, gripper, coulomb_width=gripper.coulomb_width)
+    assert auto.report["coulomb_width"] == 0.02 and fixed.report["coulomb_width_source"] == "given"
+    held_out = auto.report["coulomb_width_held_out_rms"]
+    assert set(held_out) == {f"{w:g}" for w in idf.WIDTHS}
+    for k, true in zip(idf.FRICTION[:2], friction[:2]):
+        np.testing.assert_allclose(auto.friction[k], true, rtol=0.10, err_msg=k)
+
+    def residual(ident):
+        return np.array([ident.report["residual_rms"]["after"][j] for j in gripper.joint_names])
+    assert np.all(residual(auto) <= residual(fixed) * (1 + 1e-9))
+    assert np.max(residual(fixed) / sigma) > 1.2 * np.max(residual(auto) / sigma)
 
 
 def test_round_trip_recovers_the_identified_urdf(gripper, gripper_traj, gripper_case, tmp_path):

@@ -338,18 +338,42 @@ def test_short_scenario_writes_the_runs_and_the_truth(tmp_path):
     assert s["body_mass_real"] != s["body_mass_nominal"]
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("name", ["ur5", "panda", "kinova"])
-def test_full_scenario(name, tmp_path):
-    """The 10 s excitation and 20 s task runs: the arm stays within its velocity and effort
-    limits, tracks to a few mrad, and the log has about 1 % of its rows missing."""
-    from codegen.evaluate import scenarios
-    assert scenarios.run(f"mujoco-{name}-real", out=tmp_path) == 0
-    s = json.loads((tmp_path / f"mujoco-{name}-real" / "summary.json").read_text())
-    for run, T in (("excitation", 10.0), ("task", 20.0)):
+def _check_runs(s, T_task):
+    """The runs of an ``experiment`` summary: within the velocity and effort limits, tracked to a
+    few mrad, about 1 % of the rows missing."""
+    for run, T in (("excitation", 10.0), ("task", T_task)):
         st = s[run]
         assert T - 1.6e-3 < st["T"] <= T
         assert 0.005 < st["dropped_fraction"] < 0.015
         assert np.all(np.array(st["qd_max"]) <= 0.85 * np.array(st["velocity_limit"]))
         assert np.all(np.array(st["tau_max"]) < np.array(st["effort"]))
         assert max(st["tracking_error_max"]) < 1e-2
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("name", ["panda", "kinova"])
+def test_full_scenario(name, tmp_path):
+    """The 10 s excitation and 20 s task runs (ur5's: test_observe_ur5)."""
+    from codegen.evaluate.scenarios.mujoco_real import experiment
+    _check_runs(experiment(name, out=tmp_path), 20.0)
+
+
+@pytest.mark.long
+def test_observe_ur5(tmp_path):
+    """What the user of the real ur5 does (the scenario's ``observe``, a 12 s task): identification
+    on the 10 s excitation finds every joint's viscous and Coulomb friction within 10 % of the
+    plant's (measured 0.5-3.6 %) and a held-out torque residual within 2x the sensor's noise
+    (measured 0.95-1.07x); the recommended observer (kalman_model), with the identified model
+    and with the URDF as shipped, beats the constant-acceleration Kalman filter tuned on the
+    truth (measured 0.73x both; <= 0.5x is not reached: README, On a real arm), is below
+    1e-2 rad/s within 0.3 s of a start from zero at speed and finite on every sample."""
+    from codegen.evaluate.scenarios.mujoco_real import observe
+    s = observe("ur5", tmp_path, T=12.0, families=["kalman_model"], progress=False)
+    _check_runs(s, 12.0)
+    ident = s["identification"]
+    assert max(max(v) for v in ident["friction_error"].values()) <= 0.10, ident["friction_error"]
+    assert max(ident["residual_over_noise"]) <= 2.0, ident["residual_over_noise"]
+    for model in ("identified", "urdf"):
+        km = s[f"observers_{model}"]["kalman_model"]
+        assert km["finite"] and km["ratio"] < 1.0 and km["t_conv"] <= 0.3, (model, km)
+    assert "kalman_model" in (tmp_path / "compare_identified" / "table.txt").read_text()

@@ -203,7 +203,7 @@ def _stamped_runs_supported():
     return "t" in inspect.signature(CompiledObserver.run).parameters
 
 
-@pytest.mark.slow
+@pytest.mark.long
 @pytest.mark.skipif(not _stamped_runs_supported(),
                     reason="needs the observers' step over the elapsed time (CompiledObserver.run(..., t=...))")
 def test_beats_the_tuned_kalman_filter_on_a_real_ur5():

@@ -59,7 +59,8 @@ def test_small_arm_builds_and_checks_at_the_defaults(tmp_path, monkeypatch, caps
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("arm", [a for a in ARMS if a != SMALL])
+@pytest.mark.parametrize("arm", [pytest.param(a, marks=pytest.mark.long) if a == "xarm7" else a
+                                 for a in ARMS if a != SMALL])   # xarm7: 19 sub-steps, 2 minutes
 def test_arm_builds_and_checks_at_the_defaults(arm, tmp_path, monkeypatch, capsys):
     """Every arm at the defaults, with the fewest stable sub-steps: one less is unstable. The arms
     whose URDF declares friction get more than one (xarm7: viscous 2 + Coulomb 1 N m over the

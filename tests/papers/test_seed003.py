@@ -158,7 +158,7 @@ def test_emitted_c_equals_reference_ur5():
     # ~100k-instruction kernel; its default gains need sub-steps at 1 kHz (the stability check
     # finds a spectral radius of 22 with one RK4 step, and its search for the substeps costs
     # minutes on this kernel): the RHS compared here does not depend on the step, so no check
-    obs = compile_observer(spec, dt=1e-3, method="rk4", hold="zoh", check=False, cflags=("-O1",))
+    obs = compile_observer(spec, dt=1e-3, method="rk4", hold="zoh", substeps=1, check=False, cflags=("-O1",))
     ref = _reference(spec, 1e-3)
     for k in range(3):
         y = robot.sample_configurations(1, 10 + k)[0] + 2 * np.pi * RNG.integers(-1, 2, 6)

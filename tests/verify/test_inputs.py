@@ -97,7 +97,8 @@ def test_jittered_configurations_are_one_fixed_draw():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("case", list(CASES))
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.long) if c.startswith("ciccarella_germani")
+                                  else c for c in CASES])   # CG: minutes each (elastic, Q(x)^-1)
 def test_c_equals_reference_on_drawn_inputs(case):
     """At the example's discretisation (the default one unless it states dt: the elastic
     observers run at seed 004's 1e-4 s) with the fewest stable sub-steps (the tanh-smoothed Su

@@ -15,8 +15,10 @@ four minimum-jerk point-to-point moves with rests (``point_to_point``, 20 s). Fi
     excitation_truth.csv, task_truth.csv   t, logged, q_<joint>, qd_<joint>, tau_<joint> (applied)
     perturbation.json                      what was drawn (RealPlant.truth)
 
-and the summary (sample times, torque-sensor error, friction drawn, tracking). Identification,
-observers and comparison build on these files.
+and the summary (sample times, torque-sensor error, friction drawn, tracking). ``observe`` (the
+scenario) then does what the arm's user does: identifies the robot on the excitation log and
+compares the observers with the identified model and with the URDF on the task log
+(``identified/``, ``compare_identified/``, ``compare_urdf/``).
 
     python -m codegen simulate mujoco-kinova-real [--T 20]
 """
@@ -166,7 +168,7 @@ def truth_recording(folder, name, joint_names):
 
 
 def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, families=None,
-            torque_noise_of="effort", max_rel_std=0.1, progress=True):
+            torque_noise_of="effort", max_rel_std=0.15, reference=False, progress=True):
     """What a user of the real arm does, judged against the plant's truth: identify the robot on
     the excitation log, then run the observers on the task log twice, with the identified model
     and with the URDF as shipped, against the baselines tuned on the truth.
@@ -188,10 +190,13 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
         Observer families (default ``codegen.evaluate.compare.DEFAULT_FAMILIES``).
     torque_noise_of : {"effort", "rms"}
         As in ``runs``.
+    reference : bool
+        Run the observers with the numpy reference instead of the compiled C.
     max_rel_std : float
-        Identification's refusal bound (``identify``): 0.1, not its 0.05, because 1 % of a
-        wrist's 28 N m effort limit is 0.28 N m of noise on a 0.3-0.6 N m friction: a 10 s log
-        leaves the wrist's friction at 7-9 % relative std (its refusal says so).
+        Identification's refusal bound (``identify``): 0.15, not its 0.05, because 1 % of a
+        wrist's effort limit (ur5 28 N m, panda 12) is 0.28 (0.12) N m of noise on a 0.3-1 N m
+        friction and a light link: a 10 s log leaves ur5's wrist friction at 7-9 % relative std
+        and panda's last links' inertia and friction at 11-13 % (the refusals say so).
     progress : bool
         Progress bars on stderr.
 
@@ -199,16 +204,17 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
     -------
     dict
         The summary: identification (friction found against the plant's, torque residual
-        against the sensor's noise), and per model the observers' and the best baseline's RMS
+        against the sensor's noise; or the refusal, when the log does not determine the model,
+        and then the URDF alone), and per model the observers' and the best baseline's RMS
         after t_ss, their ratio, the convergence time and whether every sample is finite.
     """
+    from dataclasses import replace
+
     import numpy as np
 
-    from models import load_robot
-
     from ..compare import DEFAULT_FAMILIES, compare, design_inputs
+    from ..identify import IdentificationError, identify
     from ..identify import excitation as identify_excitation
-    from ..identify import identify
     out = Path(out)
     robot = robot_model(robot_name)
     ex = identify_excitation(robot, T=T_excitation, seed=seed, progress=progress)
@@ -216,30 +222,21 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
                          excitation=lambda t: tuple(a[0] for a in ex.at(t)), torque_noise_of=torque_noise_of)
     truth = json.loads((out / "perturbation.json").read_text())
     joints = robot.joint_names
-    from dataclasses import replace
-    ident = identify(replace(truth_recording(out, "excitation", joints), qd=None), robot,
-                     max_rel_std=max_rel_std, progress=progress)
-    files = ident.write(out / "identified")
-    report = ident.report
-    found = {k: np.array([report["friction"][j][k] for j in joints]) for k in ("viscous", "coulomb")}
-    plant = {"viscous": np.array(truth["viscous"]), "coulomb": np.array(truth["coulomb"])}
-    noise = np.array(truth["sensors"]["torque_noise_std"] if truth["sensors"]["torque_noise_std"][0] is not None
-                     else summary["excitation"]["torque_error_std"])
-    residual = np.array([report["residual_rms"]["after"][j] for j in joints])
-    summary["identification"] = {
-        "friction_error": {k: (np.abs(found[k] - plant[k]) / plant[k]).round(4).tolist() for k in found},
-        "residual_over_noise": (residual / noise).round(3).tolist(),
-        "condition_number": report["condition_number"], "files": {k: str(f) for k, f in files.items()}}
     task = truth_recording(out, "task", joints)
     step = float(truth["sensors"]["encoder_step"])
-    urdf = files["urdf"]
-    models = {"identified": (load_robot(urdf=urdf, locked_joints=robot.source.get("locked_joints") or None),
-                             design_inputs(quantization=step, torque_uncertainty=residual.tolist())),
-              "urdf": (robot, design_inputs(quantization=step))}
+    models = {"urdf": (robot, design_inputs(quantization=step))}
+    try:
+        ident = identify(replace(truth_recording(out, "excitation", joints), qd=None), robot,
+                         max_rel_std=max_rel_std, progress=progress)
+    except IdentificationError as e:        # what the user is told; the URDF is all they have
+        summary["identification"] = {"refused": str(e)}
+        ident = None
+    if ident is not None:
+        models = {"identified": _identified(ident, out, robot, truth, summary, step), **models}
     t_ss = float(task.t[0] + (task.t[-1] - task.t[0]) / 2)
     for label, (model, design) in models.items():
         cmp = compare(task, model, families=families or DEFAULT_FAMILIES, design=design, t_ss=t_ss,
-                      title=f"real {robot_name} ({label} model)", progress=progress)
+                      reference=reference, title=f"real {robot_name} ({label} model)", progress=progress)
         folder = out / f"compare_{label}"
         folder.mkdir(parents=True, exist_ok=True)
         (folder / "table.txt").write_text(cmp.table() + "\n" + cmp.verdict() + "\n")
@@ -255,12 +252,42 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
     return summary
 
 
+def _identified(ident, out, robot, truth, summary, step):
+    """(identified robot, design inputs) of ``observe``, its files written to ``out/identified``
+    and ``summary["identification"]`` filled: friction found against the plant's, the held-out
+    residual against the sensor's noise."""
+    import numpy as np
+
+    from models import load_robot
+
+    from ..compare import design_inputs
+    files = ident.write(Path(out) / "identified")
+    report, joints = ident.report, robot.joint_names
+    found = {k: np.array([report["friction"][j][k] for j in joints]) for k in ("viscous", "coulomb")}
+    plant = {"viscous": np.array(truth["viscous"]), "coulomb": np.array(truth["coulomb"])}
+    noise = np.array(truth["sensors"]["torque_noise_std"] if truth["sensors"]["torque_noise_std"][0] is not None
+                     else summary["excitation"]["torque_error_std"])
+    residual = np.array([report["residual_rms"]["after"][j] for j in joints])
+    summary["identification"] = {
+        "friction_error": {k: (np.abs(found[k] - plant[k]) / plant[k]).round(4).tolist() for k in found},
+        "residual_over_noise": (residual / noise).round(3).tolist(), "coulomb_width": report["coulomb_width"],
+        "condition_number": report["condition_number"], "files": {k: str(f) for k, f in files.items()}}
+    model = load_robot(urdf=files["urdf"], locked_joints=robot.source.get("locked_joints") or None)
+    return model, design_inputs(quantization=step, torque_uncertainty=residual.tolist())
+
+
 def _scenario(robot_name):
     def run(reference=False, out=None, T=T_TASK):
-        return experiment(robot_name, out=out, T=T)
-    run.__doc__ = (f"Real {robot_name} on MuJoCo: the excitation and task logs, their truth and the drawn "
-                   f"perturbation (see codegen.evaluate.scenarios.mujoco_real); ``reference`` is unused "
-                   f"(no observer runs yet), ``out`` the folder, ``T`` the task run's length (s).")
+        if out is None:
+            import tempfile
+            with tempfile.TemporaryDirectory() as tmp:
+                return observe(robot_name, tmp, T=T, reference=reference)
+        return observe(robot_name, out, T=T, reference=reference)
+    run.__doc__ = (f"Real {robot_name} on MuJoCo, what its user does (``observe``): the excitation and "
+                   f"task logs with their truth, identification on the excitation, the default observers "
+                   f"(compiled C, or the numpy reference with ``reference``) against the tuned baselines "
+                   f"on the task with the identified model and with the URDF; ``out`` the folder, ``T`` "
+                   f"the task run's length (s).")
     return run
 
 
