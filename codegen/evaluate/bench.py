@@ -380,7 +380,20 @@ def friction_step(robot="ur5", families=("reduced_order", "kalman_model")):
     as shipped (no friction) and with viscous, Coulomb and offset on every joint (values of the
     real ur5's identification), each ``family`` at its defaults (quantisation 1e-4; kalman_model
     with a torque uncertainty, so the model is used). Instructions per step (valgrind) and
-    ns per step (time_step, fastest of its blocks' medians) with their ratios."""
+    ns per step (time_step, fastest of its blocks' medians) with their ratios.
+
+    Parameters
+    ----------
+    robot : str
+        A catalog robot.
+    families : sequence of str
+        Observer families compared.
+
+    Returns
+    -------
+    list of dict
+        Per family: instructions and ns per step without and with friction, their ratios.
+    """
     from models import load_robot
 
     from ..families import observers
