@@ -308,6 +308,15 @@ class _Arm:
     """A URDF robot's pinocchio model (locked joints removed, as the reference rebuilds it from
     ``robot.source``), its URDF tree, each body's primary link and the parameter scales."""
 
+    def effect(self, noise):
+        """(p,) the torque one unit of each scaled parameter makes on the robot's working range
+        (RMS), in units of each joint's torque scale or its torque ``noise`` (n,), whichever is
+        larger, the largest over the joints: std x effect is the torque uncertainty a parameter
+        leaves, and a joint whose rigid-body torque is below its sensor's noise (a wrist roll)
+        is not asked to be known better than that noise."""
+        unit = np.maximum(self.torque_scale, noise)
+        return (self.effect_joint * (self.torque_scale / unit)[:, None]).max(axis=0)
+
     def __init__(self, robot, coulomb_width=None):
         import pinocchio as pin
 
@@ -438,11 +447,9 @@ class _Arm:
         s[12 * n:] = ts
         self.scale = s
         Ws = Y / ts[None, :, None] * s
-        # what one unit of a scaled parameter does to the torque on these states, in units of
-        # each joint's torque scale (RMS, the largest over the joints): std x effect is the
-        # torque uncertainty a parameter leaves on the robot's working range
+        # what one unit of a scaled parameter does to each joint's torque on these states (RMS,
+        # in units of the joint's torque scale): see effect()
         self.effect_joint = np.sqrt(np.mean(Ws ** 2, axis=0))           # (n, p)
-        self.effect = self.effect_joint.max(axis=0)
         W = Ws.reshape(-1, self.p)
         self.indep, self.dep, self.K = base_parameters(W)
         self.T = np.zeros((len(self.indep), self.p))       # beta~ = T x~ (scaled units), (2)
@@ -734,7 +741,8 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
     tau_fit = tau_f[fit]
 
     def with_width(w):
-        """The fit's rows (columns in scaled units x~ = x / s) at Coulomb width ``w``."""
+        """The fit's rows (columns in scaled units x~ = x / s) at Coulomb width ``w``, which
+        becomes ``arm.width`` (what ``predict`` and the written files use)."""
         arm.width = float(w)
         r = base_rows.copy()
         r[:, i, 11 * n + i] = lowpass(t, np.tanh(dw.qd / w), cutoff)[fit]
@@ -794,13 +802,12 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
     cond = float(np.linalg.cond(_tri(R0[:, arm.indep])))
     sigma = noise(ols(R0, c0))
 
-    # what the log determines: std of the base parameters from the log alone, scaled; a joint
-    # whose torque on the working range is below its sensor's noise (a wrist roll) is judged
-    # against that noise: nothing is asked of a parameter below what the sensor itself adds
+    # what the log determines: std of the base parameters from the log alone, scaled, as the
+    # torque uncertainty each leaves (arm.effect: against the torque or the noise, the larger)
     R, c = compress(1.0 / sigma)
     std_beta, _ = _std(R @ arm.rowspace, arm.T @ arm.rowspace)
-    arm.effect = (arm.effect_joint * (arm.torque_scale / np.maximum(arm.torque_scale, sigma))[:, None]).max(axis=0)
-    rel = std_beta * arm.effect[arm.indep]
+    effect = arm.effect(sigma)
+    rel = std_beta * effect[arm.indep]
     poor = np.nonzero(~(rel <= max_rel_std))[0]
     if len(poor):
         raise IdentificationError(_refusal(arm, poor, rel, max_rel_std, d, train))
@@ -872,7 +879,7 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
     pred = predict(np.column_stack([np.r_[arm.pi_urdf, np.zeros(3 * n)], x, x_ols]), test)
     residual = {"before": _rms(tau[test] - pred[..., 0]), "after": _rms(tau[test] - pred[..., 1]),
                 "after_unconstrained": _rms(tau[test] - pred[..., 2]), "train_after": sigma}
-    report = _report(arm, t, t_split, train, test, x, residual, sigma, std_post, std_data, std_beta,
+    report = _report(arm, effect, t, t_split, train, test, x, residual, sigma, std_post, std_data, std_beta,
                      cond, cutoff, wide, D, tf, prior, max_rel_std, rounds)
     ident = Identification(arm, x, report)
     if out is not None:
@@ -934,7 +941,7 @@ def _refusal(arm, poor, std_beta, bound, d, train):
             + (", or lock a joint that cannot move (--lock JOINT=VALUE)" if still else more))
 
 
-def _report(arm, t, t_split, train, test, x, residual, sigma, std_post, std_data, std_beta, cond,
+def _report(arm, effect, t, t_split, train, test, x, residual, sigma, std_post, std_data, std_beta, cond,
             cutoff, wide, decimation, tf, prior, max_rel_std, rounds):
     J = arm.joint_names
     per = lambda v: {j: float(a) for j, a in zip(J, v)}  # noqa: E731
@@ -951,7 +958,7 @@ def _report(arm, t, t_split, train, test, x, residual, sigma, std_post, std_data
                             pseudo_inertia(x[10 * i:10 * i + 10]))[0])}
     beta = (arm.T @ (x / arm.scale)) * arm.scale[arm.indep]
     with np.errstate(invalid="ignore"):
-        rel_data = np.where(np.isfinite(std_data), std_data / arm.scale * arm.effect, np.inf)
+        rel_data = np.where(np.isfinite(std_data), std_data / arm.scale * effect, np.inf)
     return {
         "robot": arm.name, "urdf": str(arm.path), "locked_joints": arm.locked, "joints": J,
         "model": "tau = Y(q, qd, qdd) pi + f_v qd + f_c tanh(qd / w) + f_o",
@@ -971,7 +978,7 @@ def _report(arm, t, t_split, train, test, x, residual, sigma, std_post, std_data
         "solver": rounds,
         "base_parameters": [{"combination": arm.combination(k), "value": float(beta[k]),
                              "std": float(std_beta[k] * arm.scale[arm.indep[k]]),
-                             "relative_std": float(std_beta[k] * arm.effect[arm.indep[k]])}
+                             "relative_std": float(std_beta[k] * effect[arm.indep[k]])}
                             for k in range(len(arm.indep))],
         "parameters": [{"name": arm.names[i], "joint": J[arm.owner[i]], "urdf": float(arm.x_urdf[i]),
                         "value": float(x[i]), "std": float(std_post[i]), "std_data": float(std_data[i]),
