@@ -180,6 +180,31 @@ def sanitize(text):
     return s if not s[0].isdigit() else "t_" + s
 
 
+# Prefixes a generated folder cannot carry: CMake's reserved target names (policy CMP0037: the
+# build tool's own goals, and test/package once CTest/CPack are on, e.g. in a parent project
+# that adds the folder), and the libraries the build links (add_library(m) "links to itself";
+# lib<c>.a beside the objects would shadow the C library).
+RESERVED_PREFIXES = frozenset({"all", "clean", "help", "install", "preinstall", "edit_cache",
+                               "rebuild_cache", "test", "package", "package_source", "m", "c"})
+# The longest prefix: it names the folder, its files and the cache folders, the longest being
+# <prefix>ConfigVersion.cmake (+ 20 characters) and the cache's <prefix>-<16 hex> temporaries,
+# within the 255 bytes a file name may have (NAME_MAX on ext4, xfs, btrfs, tmpfs).
+MAX_PREFIX = 100
+
+
+def check_prefix(prefix):
+    """``prefix`` if a generated folder can carry it, else ValueError naming the fix (too long,
+    or reserved: ``RESERVED_PREFIXES``)."""
+    if len(prefix) > MAX_PREFIX:
+        raise ValueError(f"name {prefix[:20]}... has {len(prefix)} characters, at most {MAX_PREFIX} "
+                         "(it names the folder, its files and the C symbols): choose a shorter --name")
+    if prefix in RESERVED_PREFIXES:
+        why = "a library the build links" if len(prefix) == 1 else "a target name CMake reserves"
+        raise ValueError(f"name {prefix!r} is {why} (the generated CMakeLists.txt's target is "
+                         f"named after it): choose another --name, e.g. {prefix}_observer")
+    return prefix
+
+
 def default_name(robot, family, variant=None, precision="double"):
     """``<robot>_<family>[_<variant>][_float]`` (``_float`` when ``precision`` is "float"),
     sanitized (the default prefix of a Target)."""
@@ -244,6 +269,7 @@ class Target:
             raise ValueError(f"inline must be 'auto', True or False, got {self.inline!r}")
         if self.name is not None:
             object.__setattr__(self, "name", sanitize(self.name))
+        check_prefix(self.prefix)
 
     @property
     def robot_name(self):
