@@ -15,6 +15,7 @@ import tomllib
 from dataclasses import replace
 from pathlib import Path
 
+from .core.atomic import WriteError
 from .pipeline.compile import ToolError, work_dir
 from .pipeline.emit import FolderTaken
 from .core.target import HOLDS, METHODS, PRECISIONS
@@ -23,7 +24,7 @@ from .pipeline.targets_file import DEFAULT_FAMILY, TargetError, check_unique, lo
 TARGETS_FILE = "targets.toml"
 # optional packages -> the extra of pyproject.toml that installs them (tests/test_cli.py checks)
 EXTRAS = {"mujoco": "mujoco", "dask": "sweep", "distributed": "sweep", "pyarrow": "sweep", "pandas": "sweep"}
-USER_ERRORS = (TargetError, FolderTaken, ToolError, ValueError, KeyError, FileNotFoundError)
+USER_ERRORS = (TargetError, FolderTaken, ToolError, WriteError, ValueError, KeyError, FileNotFoundError)
 
 
 class Parser(argparse.ArgumentParser):

@@ -53,16 +53,22 @@ def key_digest(key):
 def cached_json(kind, key, compute):
     """``compute()`` (JSON-able) once per ``key``: read from ``<cache>/<kind>/<digest>.json`` when
     there, else computed and written atomically (a concurrent writer can only replace it by the
-    same content). An unreadable entry is recomputed."""
+    same content). An unreadable entry is recomputed; an entry that cannot be written (no
+    space, no permission) is skipped, nothing half-written left: the value is still returned."""
     path = cache_dir() / kind / f"{key_digest(key)[:32]}.json"
     try:
         return json.loads(path.read_text())["value"]
     except (OSError, ValueError, KeyError):
         pass
     value = json.loads(json.dumps(compute(), allow_nan=True))   # plain JSON data, or TypeError
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".", suffix=".json", dir=path.parent)
-    with os.fdopen(fd, "w") as fh:
-        json.dump({"key": key, "value": value}, fh, default=str)
-    os.replace(tmp, path)
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".", suffix=".json", dir=path.parent)
+        with os.fdopen(fd, "w") as fh:
+            json.dump({"key": key, "value": value}, fh, default=str)
+        os.replace(tmp, path)
+    except OSError:               # a memo only: computed again next time
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
     return value

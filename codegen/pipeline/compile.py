@@ -7,6 +7,7 @@ CompileError carrying the compiler's command line and message.
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
@@ -17,10 +18,12 @@ from collections import namedtuple
 from functools import lru_cache
 from pathlib import Path
 
-from ..core.atomic import replace_dir
+from ..core.atomic import replace_dir, write_error
 from ..core.cache import work_dir, cache_dir, package_data  # noqa: F401  (re-exported: one place for the paths)
 
-C_FLAGS = ["-O3", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Wdouble-promotion"]
+# -ffp-contract=off: never fuse a*b+c into an FMA (gcc's default in ISO C mode, not Clang's; the
+# generated Makefile and CMakeLists.txt pass it too, so every route builds the same bits)
+C_FLAGS = ["-O3", "-std=c99", "-ffp-contract=off", "-Wall", "-Wextra", "-pedantic", "-Wdouble-promotion"]
 # -fno-semantic-interposition: let gcc inline CasADi's non-static helpers (casadi_sq) under -fPIC
 SHARED_FLAGS = ["-fPIC", "-shared", "-fno-semantic-interposition"]
 NATIVE_FLAGS = ["-march=native"]
@@ -93,6 +96,7 @@ def run_tool(cmd, what, error=CompileError, shown=()):
     return proc
 
 
+CACHE_ELSEWHERE = "or set CODEGEN_CACHE to a folder elsewhere"   # the fix of a WriteError of the cache
 MANIFEST = "manifest.json"   # beside the products of a cache folder: name -> size, sha256
 
 
@@ -164,7 +168,8 @@ def cached_compile(name, key, files, products, commands, cache, shown=None, keep
     Path
         The folder (built now, or found complete in the cache: every product and kept file
         with the size and sha256 of its ``manifest.json``; a corrupt one is rebuilt).
-        Raises CompileError.
+        Raises CompileError; ``codegen.core.atomic.WriteError`` when the cache cannot be written
+        (no space, no permission), nothing left of the attempt.
     """
     h = hashlib.sha256(json.dumps(key, sort_keys=True).encode())
     for fname, data in sorted(files.items()):
@@ -173,8 +178,11 @@ def cached_compile(name, key, files, products, commands, cache, shown=None, keep
     names = [*products, *keep]
     if _complete(out_dir, names):
         return out_dir
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=out_dir.parent))
+    try:
+        out_dir.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=out_dir.parent))
+    except OSError as e:
+        raise write_error(e, out_dir, CACHE_ELSEWHERE) from None
     try:
         work = tmp / ".work"
         work.mkdir()
@@ -197,6 +205,12 @@ def cached_compile(name, key, files, products, commands, cache, shown=None, keep
             # right now), or it is corrupt (swap ours in, in one step)
             if not _complete(out_dir, names):
                 replace_dir(tmp, out_dir)
+    except OSError as e:
+        raise write_error(e, out_dir, CACHE_ELSEWHERE) from None
+    except ToolError as e:        # the compiler or linker ran out of space writing the products
+        if os.strerror(errno.ENOSPC) not in e.stderr:
+            raise
+        raise write_error(OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)), out_dir, CACHE_ELSEWHERE) from None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return out_dir

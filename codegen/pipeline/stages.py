@@ -19,7 +19,7 @@ from pathlib import Path
 from ..core.cache import work_dir
 from ..core.target import AUTO, Target
 from .compile import compile_library
-from .emit import check_folder, emit, resolve_substeps, with_params
+from .emit import FolderTaken, check_folder, emit, resolve_substeps, with_params
 from .load import load
 from .targets_file import build_spec
 
@@ -50,7 +50,8 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), che
         The spec ``target`` describes, when already built.
     force : bool
         Replace a folder generated from another target; False: raise FolderTaken, before the
-        (slow) design.
+        (slow) design, and at the swap if another build wrote one meanwhile. Never anything
+        this tool did not generate (``codegen.pipeline.emit.check_folder``).
     native : bool
         Compile with -march=native.
     cflags : sequence of str
@@ -66,15 +67,19 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), che
     Made
     """
     folder = Path(out_dir) / target.prefix
-    if not force:
-        check_folder(folder, _as_recorded(folder, target))
+    check_folder(folder, _as_recorded(folder, target), force=force)
     report("design")
     spec = with_params(spec if spec is not None else build_spec(target), target.params)
     target = resolve_substeps(target, spec)
     report("emit")
-    emit(target, out_dir, spec=spec, force=True, check=check)
+    emit(target, out_dir, spec=spec, force=force, check=check)
     report("compile")
-    return Made(target, spec, folder, compile_library(folder, native=native, extra_flags=cflags))
+    lib = compile_library(folder, native=native, extra_flags=cflags)
+    built = json.loads((lib.parent / f"{target.prefix}.json").read_text())["target"]
+    if built != json.loads(json.dumps(target.to_dict())):       # a concurrent --force build swapped its folder in
+        raise FolderTaken(f"{folder} was replaced by another build while this one compiled it; "
+                          "build again (one build per folder at a time)")
+    return Made(target, spec, folder, lib)
 
 
 def _as_recorded(folder, target):
