@@ -16,7 +16,7 @@ import pytest
 
 
 ROOT = Path(__file__).resolve().parent.parent
-SOURCES = ("pyproject.toml", "README.md", "models", "codegen", "c_harness")
+SOURCES = ("pyproject.toml", "README.md", "LICENSE", "models", "codegen", "c_harness")
 
 
 def _files(folder):
@@ -38,6 +38,17 @@ def test_listed_packages_are_every_package():
     found = {".".join(p.parent.relative_to(ROOT).parts) for pkg in ("models", "codegen")
              for p in (ROOT / pkg).rglob("__init__.py")}
     assert found | {"codegen.c_harness"} == listed
+
+
+def test_the_repository_is_bsd_2_clause_licensed():
+    """Issue 24: a LICENSE at the root (BSD-2-Clause, as pinocchio and acados) and the same
+    licence in the package metadata."""
+    import tomllib
+    text = (ROOT / "LICENSE").read_text()
+    assert text.startswith("BSD 2-Clause License\n") and "the observer-codegen authors" in text
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert project["license"] == {"text": "BSD-2-Clause"}
+    assert "License :: OSI Approved :: BSD License" in project["classifiers"]
 
 
 @pytest.mark.slow
@@ -66,6 +77,9 @@ def test_wheel_in_fresh_venv_writes_nothing_in_site_packages(tmp_path):
                 cwd=work, env=env).split()
     assert all(Path(w).is_relative_to(site) for w in where), where     # the wheel, not this checkout
     assert (site / "codegen" / "c_harness" / "run_csv.c").is_file()
+    [info] = site.glob("observer_codegen-*.dist-info")          # the licence travels with it
+    assert "License: BSD-2-Clause" in (info / "METADATA").read_text()
+    assert (info / "LICENSE").read_text() == (ROOT / "LICENSE").read_text()
     (work / "my.toml").write_text('[[target]]\nrobot = "seed002_2r"\nfamily = "su_nonsmooth"\n'
                                   'name = "two_link"\nout = "c"\n')
     out = _sh(venv / "bin" / "observer-codegen", "generate", "-c", "my.toml", "--T", "0.2", cwd=work, env=env)
