@@ -197,6 +197,24 @@ def test_a_concurrent_writer_between_check_and_swap_is_caught(tmp_path, monkeypa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cas"]
 
 
+def test_a_forced_build_swapped_out_before_its_compile_says_so(tmp_path, monkeypatch):
+    """Two --force builds of different targets into one folder: the last writer wins, and the
+    build whose folder was replaced before it compiled says so rather than return the other
+    target's library as its own."""
+    import codegen.pipeline.stages as stages
+    a, spec_a = cheap(name="swap")
+    b, spec_b = cheap(name="swap", dt=5e-4)
+    real = stages.compile_library
+
+    def other_writer_first(folder, **kw):
+        emit(b, tmp_path, spec=spec_b, force=True)
+        return real(folder, **kw)
+
+    monkeypatch.setattr(stages, "compile_library", other_writer_first)
+    with pytest.raises(FolderTaken, match="replaced by another build"):
+        stages.make(a, tmp_path, spec=spec_a, force=True)
+
+
 # ------------------------------------------------------------------------------------ disk
 def _failing(method, name_part, code):
     """``pathlib.Path.<method>`` raising OSError(code) for a path containing ``name_part``."""
