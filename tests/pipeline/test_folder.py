@@ -16,30 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from codegen import cli
 from codegen.pipeline.compile import compile_library
 from codegen.pipeline.emit import FolderTaken, emit
 from codegen.pipeline.targets_file import build_spec, make_target
+from test_cli import run, workdir  # noqa: F401  (the CLI runner; each test in its own working folder)
 
 CHEAP = ["seed002_2r", "--family", "su_nonsmooth"]        # no design, a small kernel
-
-
-@pytest.fixture
-def workdir(tmp_path, monkeypatch):
-    """A working folder of its own; compiled libraries shared through the tests' cache."""
-    monkeypatch.setenv("CODEGEN_CACHE", str(Path(os.environ["CODEGEN_CACHE"]).resolve()))
-    monkeypatch.chdir(tmp_path)
-    return tmp_path
-
-
-def run(capsys, *argv):
-    """(exit code, stdout, stderr) of the CLI."""
-    try:
-        code = cli.main([str(a) for a in argv])
-    except SystemExit as e:
-        code = e.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def one_line(err, *words):
