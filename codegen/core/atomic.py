@@ -47,10 +47,15 @@ def write_error(exc, path, elsewhere):
 @contextmanager
 def locked(folder):
     """Hold an exclusive advisory lock (flock) on the directory ``folder`` for the with-block:
-    the writers of one parent folder take turns (no lock file is left behind)."""
+    the writers of one parent folder take turns (no lock file is left behind). A filesystem
+    without locks (some network ones) goes unlocked: ``place_dir`` still never overwrites."""
     fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError as e:
+            if e.errno not in (errno.ENOLCK, errno.EINVAL, errno.EBADF, errno.EOPNOTSUPP):
+                raise
         yield
     finally:
         os.close(fd)          # releases the lock

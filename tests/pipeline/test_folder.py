@@ -222,6 +222,28 @@ def test_a_full_disk_or_no_permission_is_one_line_and_nothing_half_written(
     assert sorted(p.name for p in workdir.iterdir()) == []
 
 
+def test_a_full_disk_under_casadi_is_one_line(capsys, workdir, monkeypatch):
+    """F18: CasADi reports no failed write: on a full disk it leaves its kernels truncated. That
+    is one line naming the folder and the fix, not "no casadi_real definition block"."""
+    import casadi as ca
+    real = ca.CodeGenerator.generate
+
+    def truncated(self, prefix):
+        name = real(self, prefix)
+        for f in Path(prefix).glob("*_kernels.[ch]"):
+            f.write_bytes(f.read_bytes()[:4096])
+        return name
+
+    class Full:
+        f_bavail, f_frsize = 0, 4096
+    monkeypatch.setattr(ca.CodeGenerator, "generate", truncated)
+    monkeypatch.setattr(os, "statvfs", lambda path: Full)
+    ret, _, err = run(capsys, "build", *CHEAP, "--out", "out")
+    assert ret == 2
+    one_line(err, str(workdir / "out" / "seed002_2r_su_nonsmooth"), "No space left on device", "free space")
+    assert sorted(p.name for p in workdir.iterdir()) == []
+
+
 def test_a_full_cache_is_one_line_naming_the_cache(capsys, workdir, monkeypatch):
     """F18: the compile cache cannot be written: one line naming the cache folder and
     CODEGEN_CACHE; nothing of the attempt is left in the cache."""
