@@ -254,8 +254,7 @@ def emit(target, out_dir, spec=None, force=True, check=True):
                             "sz_iw": int(named.sz_iw()), "sz_w": int(named.sz_w())}
         cg.generate(str(tmp) + os.sep)       # a directory prefix: no chdir (thread-safe)
         for kfile in (tmp / f"{prefix}_kernels.c", tmp / f"{prefix}_kernels.h"):
-            code = _complete(kfile)
-            code = _bind_real(code, prefix, target.precision)
+            code = _bind_real(_complete(kfile), prefix, target.precision)
             kfile.write_text(_void_unused(code) if kfile.suffix == ".c" else code)
         meta = metadata(spec, target, kernels, stability)
         meta["fingerprint"] = fingerprint(meta)
@@ -298,9 +297,9 @@ def _complete(path):
     if code.endswith("#endif\n"):
         return code
     fs = os.statvfs(path.parent)
-    full = fs.f_bavail * fs.f_frsize < 1 << 16
-    code = errno.ENOSPC if full else errno.EIO
-    raise OSError(code, os.strerror(code) if full else f"CasADi wrote {path.name} incompletely", str(path))
+    if fs.f_bavail * fs.f_frsize < 1 << 16:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+    raise OSError(errno.EIO, f"CasADi wrote {path.name} incompletely", str(path))
 
 
 def _remove_empty(folders):
