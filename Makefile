@@ -8,12 +8,16 @@ PY := $(VENV)/bin/python
 ARM_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm newlib-source
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
-.PHONY: generate test test-fast test-long sanitize c-tools bench clean check embedded arm-toolchain docs
+.PHONY: generate test test-fast test-long sanitize c-tools bench clean check embedded arm-toolchain docs docs-figures
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
+	touch $@
+
+$(VENV)/.installed-docs: $(VENV)/.installed
+	$(PY) -m pip install --quiet -e '.[test,docs]'
 	touch $@
 
 $(VENV)/.installed-bench: $(VENV)/.installed
@@ -63,6 +67,16 @@ arm-toolchain:
 	  $(SUDO) apt-get update -qq && \
 	  $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
+
+# the documentation site (MkDocs + mkdocstrings, mkdocs.yml) into build/site, strict: any warning (a
+# broken internal link or anchor, a page outside the navigation, an unresolved cross-reference)
+# fails it. External links are not checked (no network but the package index).
+docs: $(VENV)/.installed-docs
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict
+
+# the figures of the observer pages and of docs/papers/reproduced.md, from the runs that make them
+docs-figures: $(VENV)/.installed
+	sh tools/docs_figures.sh
 
 bench: $(VENV)/.installed-bench
 	$(PY) -m codegen bench
