@@ -73,6 +73,7 @@ arm-toolchain:
 # fails it. External links are not checked (no network but the package index).
 docs: $(VENV)/.installed-docs
 	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict
+	DOCS_SITE=build/site $(PY) -m pytest -q -p no:xdist tests/test_docs_site.py -k built_site   # an anchor per public name
 
 # the figures of the observer pages and of docs/papers/reproduced.md, from the runs that make them
 docs-figures: $(VENV)/.installed

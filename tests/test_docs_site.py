@@ -11,6 +11,7 @@ with options of its own could hide some and is refused.
 """
 import ast
 import importlib.util
+import os
 import re
 import sys
 from pathlib import Path
@@ -140,3 +141,19 @@ def test_the_c_api_page_names_every_declared_function():
     assert "One sample" in page and "Bumpless" in page
     macros = re.findall(r"^#define[ \t]+(OBS_\w+)[ \t]+\S", header, flags=re.M)
     assert macros and [m for m in macros if f"`{m}`" not in page] == []
+
+
+def test_the_built_site_has_an_anchor_per_public_member():
+    """Run by `make docs` on the site it has just built (``DOCS_SITE=build/site``; skipped
+    without, so that an older site left in build/ is never judged): every public module, function
+    and class has its mkdocstrings anchor (``id="codegen.core.target.Target"``) on a Python API
+    page, and the C API page exists."""
+    if not os.environ.get("DOCS_SITE"):
+        pytest.skip("no freshly built site named (make docs sets DOCS_SITE)")
+    site = ROOT / os.environ["DOCS_SITE"]
+    html = "".join(p.read_text(encoding="utf-8") for p in (site / "reference" / "python").glob("*.html"))
+    ids = set(re.findall(r'id="([\w.]+)"', html))
+    wanted = [m for m in public_modules()] + [f"{m}.{f}" for m in public_modules() for f in public_members(m)]
+    missing = [w for w in wanted if w not in ids]
+    assert not missing, f"{len(missing)} public names without an anchor on the built API pages: {missing[:20]}"
+    assert (site / "reference" / "c-api.html").is_file()
