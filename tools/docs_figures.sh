@@ -17,4 +17,22 @@ cp "$SIM/seed002/fig2_thetahat.png" "$FIG/seed002_fig2_thetahat.png"
 cp "$SIM/seed002/fig3_qd_error.png" "$FIG/seed002_fig3_qd_error.png"
 cp "$SIM/seed003/fig4_error_and_r.png" "$FIG/seed003_fig4_error_and_r.png"
 cp "$SIM/seed004-sim1/fig03_sim1_tomei_errors.png" "$SIM/seed004-sim1/fig04_sim1_o1_errors.png" "$FIG/"
+# reduced_order_switched, extended_state and kalman_model against the tuned filters: compare on a
+# 4 s log of seed 000's arm (built-in trajectory, 1e-4 rad encoder, the truth kept)
+LOG=${CODEGEN_BUILD:-build}/docs_compare
+mkdir -p "$LOG"
+"$PY" - "$LOG/log.csv" <<'PY'
+import sys
+import numpy as np
+from codegen.core.recording import Recording
+from codegen.verify.trajectory import demo_trajectory
+from models import load_robot
+robot = load_robot("seed000_2r")
+t, Q, QD, TAU = demo_trajectory(robot, T=4.0, dt=1e-3, seed=3)
+Recording(t=t, q=1e-4 * np.round(Q / 1e-4), tau=TAU, qd=QD,
+          joint_names=list(robot.joint_names)).write_csv(sys.argv[1])
+PY
+"$PY" -m codegen compare "$LOG/log.csv" --robot seed000_2r --quantization 1e-4 \
+    --observers reduced_order_switched,extended_state,kalman_model --out "$LOG" > "$LOG/compare.txt"
+cp "$LOG/errors.png" "$FIG/compare_seed000_2r_errors.png"
 echo "figures written to $FIG"
