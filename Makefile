@@ -70,10 +70,11 @@ arm-toolchain:
 
 # the documentation site (MkDocs + mkdocstrings, mkdocs.yml) into build/site, strict: any warning (a
 # broken internal link or anchor, a page outside the navigation, an unresolved cross-reference)
-# fails it. External links are not checked (no network but the package index).
+# fails it. External links are not checked (no network but the package index). Then the built
+# site is checked for an anchor per public module, function and class (tests/test_docs_site.py).
 docs: $(VENV)/.installed-docs
 	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict
-	DOCS_SITE=build/site $(PY) -m pytest -q -p no:xdist tests/test_docs_site.py -k built_site   # an anchor per public name
+	DOCS_SITE=build/site $(PY) -m pytest -q -p no:xdist tests/test_docs_site.py -k built_site
 
 # the figures of the observer pages and of docs/papers/reproduced.md, from the runs that make them
 docs-figures: $(VENV)/.installed
