@@ -8,12 +8,16 @@ PY := $(VENV)/bin/python
 ARM_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm newlib-source
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
-.PHONY: generate test test-fast test-long sanitize c-tools bench clean check embedded arm-toolchain docs
+.PHONY: generate test test-fast test-long sanitize c-tools bench clean check embedded arm-toolchain docs docs-figures
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
+	touch $@
+
+$(VENV)/.installed-docs: $(VENV)/.installed
+	$(PY) -m pip install --quiet -e '.[test,docs]'
 	touch $@
 
 $(VENV)/.installed-bench: $(VENV)/.installed
@@ -63,6 +67,18 @@ arm-toolchain:
 	  $(SUDO) apt-get update -qq && \
 	  $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
+
+# the documentation site (MkDocs + mkdocstrings, mkdocs.yml) into build/site, strict: any warning (a
+# broken internal link or anchor, a page outside the navigation, an unresolved cross-reference)
+# fails it. External links are not checked (no network but the package index). Then the built
+# site is checked for an anchor per public module, function and class (tests/test_docs_site.py).
+docs: $(VENV)/.installed-docs
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict
+	DOCS_SITE=build/site $(PY) -m pytest -q -p no:xdist tests/test_docs_site.py -k built_site
+
+# the figures of the observer pages and of docs/papers/reproduced.md, from the runs that make them
+docs-figures: $(VENV)/.installed
+	sh tools/docs_figures.sh
 
 bench: $(VENV)/.installed-bench
 	$(PY) -m codegen bench

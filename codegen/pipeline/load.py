@@ -279,7 +279,7 @@ class CompiledObserver:
 
     @property
     def params(self):
-        """The runtime parameters (np,) in the order of meta["names"]["p"]."""
+        """The runtime parameters (np,) in the order of ``meta["names"]["p"]``."""
         self._check(self._get_params(self._s, self._ptr["p"]), "get_params")
         return self._out("p", self.np)
 

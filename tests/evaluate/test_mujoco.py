@@ -153,7 +153,7 @@ def ur5_quantised():
 
 def test_observer_beats_the_tuned_baselines_on_mujoco(ur5_quantised):
     """The default design for a 1e-4 rad encoder (k0 = ln(200)/0.2 = 26.5, the convergence
-    floor). Asserted with margins on 3 s; the 20 s figures are in the README."""
+    floor). Asserted with margins on 3 s; the 20 s figures are in docs/guide/compare.md."""
     entry = ur5_quantised["reduced_order"]
     assert entry.params["k0"] == pytest.approx(np.log(200) / 0.2)
     obs, best = entry.metrics, ur5_quantised.best_baseline()
@@ -167,7 +167,7 @@ def test_observer_beats_the_tuned_baselines_on_mujoco(ur5_quantised):
 def test_switched_gain_is_a_third_of_the_best_baseline_on_mujoco(ur5_quantised):
     """The time-switched observer designed for the encoder (k0 = 29.4 until 0.23 s, then 2.65):
     the convergence of the fixed gain, and an RMS error at most 1/3 of the best tuned baseline's
-    (0.07 on the 20 s run of the README), unbiased."""
+    (0.07 on the 20 s run of docs/guide/compare.md), unbiased."""
     entry = ur5_quantised["reduced_order_switched"]
     assert entry.params["k0"] == pytest.approx(np.log(200) / 0.18)
     assert entry.params["k0_final"] < entry.params["k0"] / 5

@@ -365,7 +365,7 @@ def test_observe_ur5(tmp_path):
     plant's (measured 0.5-3.6 %) and a held-out torque residual within 2x the sensor's noise
     (measured 0.95-1.07x); the recommended observer (kalman_model), with the identified model
     and with the URDF as shipped, beats the constant-acceleration Kalman filter tuned on the
-    truth (measured 0.73x both; <= 0.5x is not reached: README, On a real arm), is below
+    truth (measured 0.73x both; <= 0.5x is not reached: docs/guide/compare.md, On a real arm), is below
     1e-2 rad/s within 0.3 s of a start from zero at speed and finite on every sample."""
     from codegen.evaluate.scenarios.mujoco_real import observe
     s = observe("ur5", tmp_path, T=12.0, families=["kalman_model"], progress=False)

@@ -37,8 +37,8 @@ def designs(robot):
 
 def example1_both(reference=False, noisy=False, T=S.T_OPEN, dt=S.DT, seed=1, hold="foh"):
     """Example 1's open-loop run (18) with both observers, first-order hold by default (the
-    zero-order hold's O(k dt) bias, README "Sampling", would otherwise set the error level);
-    C or numpy ``reference`` observers, Example 1a's sensor with ``seed`` if ``noisy``, horizon ``T``
+    zero-order hold's O(k dt) bias, docs/guide/sampling.md "Accuracy", would otherwise set the
+    error level); C or numpy ``reference`` observers, Example 1a's sensor with ``seed`` if ``noisy``, horizon ``T``
     and period ``dt`` in s; returns (Result, summary)."""
     from ...families.observers import build
     nominal = S.robot()
@@ -49,7 +49,7 @@ def example1_both(reference=False, noisy=False, T=S.T_OPEN, dt=S.DT, seed=1, hol
 
 
 def section6(reference=False, out=Path("build/sim/seed000-section6"), T=S.T_OPEN):
-    """The comparison table of the README (see the module docstring): C or numpy ``reference``
+    """The comparison table of docs/papers/reproduced.md (see the module docstring): C or numpy ``reference``
     observers, horizon ``T`` s; writes run.csv and error_norms.png to ``out``, returns the summary."""
     from models import load_robot
     out = Path(out)

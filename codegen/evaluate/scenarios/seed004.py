@@ -77,7 +77,7 @@ def observer(robot, kind, eigenvalues=None, reference=False, dt=DT, hold=OBSERVE
 
 def measurement(spec, X):
     """The measurement rows (N, ny) of the observer ``spec`` for true states X (N, 4n),
-    x = [q1; q1'; q2; q2'] [docs/papers/seed004.md §6]."""
+    ``x = [q1; q1'; q2; q2']`` [docs/papers/seed004.md §6]."""
     n = X.shape[1] // 4
     x1, x2, x3 = X[:, :n], X[:, n:2 * n], X[:, 2 * n:3 * n]
     names = spec.y_names

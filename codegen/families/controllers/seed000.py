@@ -9,7 +9,7 @@ torque. So it is emitted, compiled and loaded through ``compile_observer`` like 
     tracking(robot, ...): tau = M(q)(qdd_d + Lambda(qd_d - x2hat))
                                 + C(q, x2hat)(qd_d + Lambda(q_d - q)) + g(q)
                                 + K_P (q_d - q) + K_D (qd_d - x2hat)      [S000 eq. after Fig. 5]
-with q_d a quintic rest-to-rest motion q_start -> q_goal over [0, T_move] [ASSUMPTION docs/papers/experiments.md §12.1].
+with q_d a quintic rest-to-rest motion q_start -> q_goal over ``[0, T_move]`` [ASSUMPTION docs/papers/experiments.md §12.1].
 """
 from __future__ import annotations
 

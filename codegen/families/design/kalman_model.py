@@ -37,7 +37,7 @@ converges in that time):
     omega  = omega_floor(v_max, t_settle)   from t_switch = 1.5 t_conv on: t_settle = 0.5 s gives
                                              32 rad/s
 
-Measured on the MuJoCo real-arm task logs (ur5, panda, kinova; README), the steady error is
+Measured on the MuJoCo real-arm task logs (ur5, panda, kinova; docs/guide/compare.md), the steady error is
 flat within 10 % for omega in 30-45 rad/s and grows fast below 25 (the filter lags the moves'
 jerk steps), hence t_settle = 0.5 s. The switch waits 1.5 t_conv [ASSUMPTION, measured]: at
 t_conv the start-up filter's estimates of a and j still carry its larger noise, and switching

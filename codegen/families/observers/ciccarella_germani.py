@@ -17,8 +17,8 @@ component). The variants of the seed-004 experiments (docs/papers/seed004.md §8
 | O4      | q2                   | h_i = q2_i, r_i = 4         | as O1 (on e_q2_i)                       |
 
 Q^{-1} v is a structured solve when Phi, reordered by derivative level, has a block
-lower-triangular Jacobian in the natural state order (O1, O2: [[I,0,0,0],[0,I,0,0],[*,*,M^-1K,0],
-[*,*,*,M^-1K]] [DERIVED], docs/papers/seed004.md §8.3): forward substitution by blocks, the off-diagonal
+lower-triangular Jacobian in the natural state order (O1, O2: ``[[I,0,0,0],[0,I,0,0],[*,*,M^-1K,0],
+[*,*,*,M^-1K]]`` [DERIVED], docs/papers/seed004.md §8.3): forward substitution by blocks, the off-diagonal
 products as forward-mode directional derivatives of Phi (Q itself is never formed), identity
 pivots skipped, the others (M^-1 K) by a guarded QR solve. Otherwise (O3, O4, whose Q is constant) a general ca.solve.
 
