@@ -74,7 +74,7 @@ def test_the_pages_have_runnable_blocks():
         assert "python" in langs or "sh" in langs, f"{name}: no python or sh block"
 
 
-@pytest.mark.slow
+@pytest.mark.long          # minutes each: make test-long (CI), not make test
 @pytest.mark.parametrize("name", PAGES)
 def test_tutorial_runs(name, tmp_path, monkeypatch, capsys):
     skipped = run_page(TUTORIALS / name, tmp_path, monkeypatch)
