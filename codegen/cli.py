@@ -215,11 +215,16 @@ def cmd_generate(args):
 
 
 def cmd_build(args):
-    """Design, emit and compile each target.
-    ``args``: the parsed argparse namespace; returns the exit status."""
+    """Design, emit and compile each target; print its library, the designed gains and why
+    (``DesignReport.brief``). ``args``: the parsed argparse namespace; returns the exit status."""
     from .jobs import COMPILE
-    rows, failed = _report(_jobs(args, COMPILE), args,
-                           lambda job, row: f"{row['prefix']}: {row['lib']}  ({_times(row, COMPILE)})")
+
+    def line(job, row):
+        report = "".join(f"\n  {text}" for text in row["design"].brief(row["params"]))
+        return (f"{row['prefix']}: {row['lib']}  ({_times(row, COMPILE)}){report}\n"
+                f"  the full design report: print(codegen.load(\"{row['folder']}\").design)")
+
+    rows, failed = _report(_jobs(args, COMPILE), args, line)
     return 2 if failed else 0
 
 

@@ -311,6 +311,12 @@ class CompiledObserver:
                     f"parameters at their defaults)")
         return p
 
+    @property
+    def design(self):
+        """The design report the target was built with (a DesignReport: prints as text)."""
+        from ..core.spec import DesignReport
+        return DesignReport(self.meta.get("design") or {})
+
     def __repr__(self):
         return f"<CompiledObserver {self.prefix} nx={self.nx} dt={self.dt} {self.precision}>"
 
