@@ -218,3 +218,22 @@ def test_every_option_has_help():
     for name, p in sub.choices.items():
         for action in p._actions:
             assert action.help, f"{name} {action.option_strings or action.dest} has no help"
+
+
+def test_build_prints_the_designed_gains_and_why(capsys, workdir):
+    """`build` prints each target's gains, the design's choice and reason and the stability check,
+    and how to print the whole report; ``print(spec.design)`` is that report as text, not a dict."""
+    from codegen import load, observers
+    from models import load_robot
+    code, out, err = run(capsys, "build", "seed000_2r")
+    assert code == 0, err
+    spec = observers.build("reduced_order", load_robot("seed000_2r"))
+    k0, report = spec.params["k0"], spec.design
+    assert f"k0 = {k0:.6g}: {report['choice']}: {report['why']}" in out
+    assert "discrete stability at dt 0.001 s (etdrk4, foh, 1 substeps): stable" in out
+    assert 'print(codegen.load("' in out
+    text = str(report)
+    assert not text.startswith("{") and f"why: {report['why']}" in text and "stability:\n" in text
+    loaded = load(workdir / "generated" / "seed000_2r_reduced_order").design    # the folder's JSON
+    assert loaded == json.loads(json.dumps(report)) and f"why: {report['why']}" in str(loaded)
+    assert json.loads(json.dumps(report)) == dict(report)     # still plain JSON data
