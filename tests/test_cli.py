@@ -237,3 +237,37 @@ def test_build_prints_the_designed_gains_and_why(capsys, workdir):
     loaded = load(workdir / "generated" / "seed000_2r_reduced_order").design    # the folder's JSON
     assert loaded == json.loads(json.dumps(report)) and f"why: {report['why']}" in str(loaded)
     assert json.loads(json.dumps(report)) == dict(report)     # still plain JSON data
+
+
+def test_simulate_list_has_a_line_per_scenario(capsys):
+    """`simulate list`: one line per scenario, its name then the paper (or "beyond the paper")
+    and the experiment."""
+    from codegen.evaluate import scenarios
+    code, out, err = run(capsys, "simulate", "list")
+    assert code == 0, err
+    lines = out.strip().splitlines()
+    assert [line.split()[0] for line in lines] == sorted(scenarios.registry(), key=scenarios._natural)
+    for line in lines:
+        name, text = line.split(maxsplit=1)
+        assert len(text) > 20 and "\n" not in text, line
+        if name.startswith("seed"):
+            assert text.startswith(f"seed {name[4:7]} ("), line
+    assert any("Sim 3: 3R" in line and "Fig. 8" in line for line in lines)
+
+
+def test_simulate_prints_the_summary_readably_and_its_stages(capsys, monkeypatch, workdir):
+    """A scenario's summary as indented name: value lines (no Python dict), and a line per stage
+    on stderr while it runs (a long scenario is not silent)."""
+    from codegen.evaluate import scenarios
+    from codegen.evaluate.sim.blocks import stage
+
+    def fake(reference=False, out=None):
+        stage("closed loop of seed004_2r: 10 s at dt 0.0001 s")
+        return {"dt": 1e-4, "errors": {"O1": {"t_2pct_s": 0.0312345678}}, "table": "\na b\n1 2"}
+    monkeypatch.setattr(scenarios, "registry", lambda: {"fake-sim": fake})
+    code, out, err = run(capsys, "simulate", "fake-sim", "--out", workdir)
+    assert code == 0, err
+    assert "{" not in out and "  errors:\n    O1:\n      t_2pct_s: 0.0312346\n" in out
+    assert "  table:\n    a b\n    1 2\n" in out
+    assert re.search(r"\[\s*\d+\.\d s\] closed loop of seed004_2r", err)
+    assert json.loads((workdir / "fake-sim" / "summary.json").read_text())["errors"]["O1"]["t_2pct_s"] == 0.0312345678

@@ -29,7 +29,7 @@ class DesignReport(dict):
         for k in self.FIRST[1:]:
             if k in self:
                 lines.append(f"{k}: {self[k]}")
-        lines += _report_lines({k: v for k, v in self.items() if k not in self.FIRST}, "")
+        lines += report_lines({k: v for k, v in self.items() if k not in self.FIRST}, "")
         return "\n".join(lines)
 
     def brief(self, params):
@@ -67,13 +67,17 @@ def _report_value(v):
     return str(v)
 
 
-def _report_lines(d, indent):
-    """``d``'s entries as ``name: value`` lines, nested dicts as indented sections."""
+def report_lines(d, indent=""):
+    """``d``'s entries as ``name: value`` lines (numbers to 6 significant digits), nested dicts
+    and text of several lines as indented sections (a design report, a scenario's summary)."""
     lines = []
     for k, v in d.items():
         if isinstance(v, dict) and v:
             lines.append(f"{indent}{k}:")
-            lines += _report_lines(v, indent + "  ")
+            lines += report_lines(v, indent + "  ")
+        elif isinstance(v, str) and "\n" in v.strip():
+            lines.append(f"{indent}{k}:")
+            lines += [f"{indent}  {line}" for line in v.strip("\n").splitlines()]
         else:
             lines.append(f"{indent}{k}: {_report_value(v)}")
     return lines

@@ -31,8 +31,10 @@ DT = 1e-3
 def _true_run(robot_name, T, mismatch, seed):
     from models import load_robot
 
+    from ..sim.blocks import stage
     from ..sim.mujoco_plant import MujocoPlant, sinusoids
     robot = load_robot(robot_name)
+    stage(f"MuJoCo {robot_name}: {T:g} s of computed-torque tracking")
     return MujocoPlant(robot, mismatch=mismatch).track(sinusoids(robot, seed=seed), T, dt=DT)
 
 
@@ -89,9 +91,11 @@ def experiment(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.
     from models import load_robot
 
     from ..compare import compare, design_inputs
+    from ..sim.blocks import staged
     rec = recording(robot_name, T, quantization, noise, mismatch, seed)
     cmp = compare(rec, load_robot(robot_name), design=design_inputs(quantization, noise, mismatch),
-                  reference=reference, title=title(robot_name, quantization, noise, mismatch))
+                  reference=reference, title=title(robot_name, quantization, noise, mismatch),
+                  progress=staged())
     if out is not None:
         out = Path(out)
         rec.write_csv(out / "run.csv")
@@ -113,3 +117,5 @@ def _scenario(robot_name):
 
 
 SCENARIOS = {f"mujoco-{name}": _scenario(name) for name in ROBOTS}
+DESCRIPTIONS = {f"mujoco-{name}": f"beyond the papers: observers vs tuned filters on MuJoCo's {name} "
+                "(errors.png, joint0.png)" for name in ROBOTS}

@@ -331,3 +331,11 @@ SCENARIOS = {
     "seed002-ur5": _scenario("seed002-ur5", robot_name="ur5", T=20.0, dt=1e-3, su=False,
                              substeps=2, T_ss=2.0),
 }
+# one line each for `simulate list` (docs/papers/experiments.md §12.2)
+DESCRIPTIONS = {
+    "seed002": "seed 002 (Lotfi & Namvar; Su): adaptive observer vs Su's (35), noise-free (Figs. 1-2)",
+    "seed002-noisy": "seed 002 (Lotfi & Namvar; Su): the same, noise std 0.3 RMS(q_i) (Figs. 3-4)",
+    "seed002-noise-3mrad": "seed 002 (Lotfi & Namvar; Su): the same, noise std 0.003 rad",
+    "seed002-claims": "seed 002 (Lotfi & Namvar; Su): the paper's claims checked (transient, the noise level where they flip)",
+    "seed002-ur5": "seed 002 (Lotfi & Namvar; Su), beyond the paper: the adaptive observer on ur5 (20 s)",
+}

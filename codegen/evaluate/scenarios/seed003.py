@@ -279,3 +279,5 @@ def seed003_ur5(reference=False, out=None, T=2.0, dt=1e-3, substeps=4, N=8):
 
 
 SCENARIOS = {"seed003": seed003, "seed003-ur5": seed003_ur5}
+DESCRIPTIONS = {"seed003": "seed 003 (Arbo et al.): I&I speed observer vs AOV on the 2R arm (Figs. 2-5)",
+                "seed003-ur5": "seed 003 (Arbo et al.), beyond the paper: the I&I speed observer on ur5 (2 s)"}
