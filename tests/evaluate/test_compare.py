@@ -260,3 +260,97 @@ def test_extras_named_are_those_of_pyproject():
         "project"]["optional-dependencies"]
     for module, extra in EXTRAS.items():
         assert any(module in re.split(r"[\[\]<>=,; ]", req) for req in extras[extra]), (module, extra)
+
+
+# ------------------------------------------------------------------------------ any robot, the table, figures
+def test_settling_time_is_the_transients_not_the_noises():
+    """A decaying error plus noise whose samples cross the level now and then (norm of two
+    N(0, 0.004) joints: 4 % of samples above 0.01) but whose RMS (0.0057) is below it: the
+    sample-wise convergence time is the last crossing, near the end; the settling time (moving
+    RMS over WINDOW) is the transient's, ln(1 / 0.01) 0.1 s = 0.46 s plus the window at most."""
+    from codegen.evaluate import metrics
+    rng = np.random.default_rng(0)
+    t = np.arange(0, 20, 1e-3)
+    err = np.exp(-t / 0.1)[:, None] * np.array([1.0, 0.0]) + rng.normal(0, 0.004, (len(t), 2))
+    assert metrics.convergence_time(t, err, 1e-2) > 19
+    assert 0.3 < metrics.settling_time(t, err, 1e-2) < 0.46 + metrics.WINDOW
+    assert metrics.settling_time(t, 3 * err, 1e-2) == np.inf          # RMS 0.017: never settles
+    assert metrics.summarize(t, err, np.zeros_like(err), 10.0)["t_settle"] == metrics.settling_time(t, err, 1e-2)
+
+
+def _synthetic():
+    """A Comparison of five synthetic methods on a 2-joint run, RMS 1e-3 .. 1."""
+    t = np.arange(0, 2, 1e-3)
+    truth = np.column_stack([np.sin(t), np.cos(t)])
+    entries = []
+    for name, kind, scale in (("obs_a", "observer", 1e-3), ("obs_b", "observer", 3e-2), ("obs_c", "observer", 1e-2),
+                              ("kalman", "baseline", 5e-3), ("butterworth", "baseline", 2e-2),
+                              ("backward", "baseline", 1.0)):
+        est = truth + scale * np.random.default_rng(len(name)).normal(size=truth.shape)
+        from codegen.evaluate import metrics
+        entries.append(Entry(name, kind, {}, est, metrics.summarize(t, est, truth, 1.0)))
+    return Comparison(t=t, truth=truth, entries=entries, t_ss=1.0, level=1e-2, title="synthetic",
+                      info={"joint_names": ["shoulder", "elbow"]})
+
+
+def test_figures_highlight_the_best_and_leave_the_worst_baseline_out(tmp_path, monkeypatch):
+    """errors.png and joint<j>.png: the three best and the best filter coloured, the rest gray,
+    the worst baseline left out; the joint index of the file is the title's (0-based, with the
+    joint's name)."""
+    from codegen.evaluate.sim import plots
+    cmp = _synthetic()
+    best, muted, left = cmp.shown()
+    assert best == ["obs_a", "kalman", "obs_c"] and muted == ["butterworth", "obs_b"] and left == ["backward"]
+    seen = []
+    real = plots.panels
+
+    def spy(path, x, rows, title="", **kw):
+        seen.append((Path(path).name, title, [set(r.curves) for r in rows], [set(r.muted or {}) for r in rows]))
+        return real(path, x, rows, title=title, **kw)
+    monkeypatch.setattr(plots, "panels", spy)
+    paths = cmp.figures(tmp_path, joint=1)
+    assert [p.name for p in paths] == ["errors.png", "joint1.png"] and all(p.is_file() for p in paths)
+    (_, etitle, ecurves, emuted), (_, jtitle, jcurves, jmuted) = seen
+    assert ecurves == [set(best)] and emuted == [set(muted)] and "backward left out" in etitle
+    assert jcurves == [{"true", *best}] and "joint 1 (elbow)" in jtitle
+
+
+def test_table_says_what_settle_is():
+    table = _synthetic().table()
+    assert "settle s" in table and "t<0.01" not in table
+    assert "RMS over the last 0.1 s stays below 0.01 rad/s" in table
+
+
+GRIPPER_URDF = Path(__file__).resolve().parents[1] / "data" / "gripper_arm.urdf"
+GRIPPER_LOCK = ["--lock", "finger_left=0.01", "--lock", "finger_right=0.01"]
+
+
+@pytest.mark.slow
+def test_compare_any_urdf_robot_on_a_mujoco_plant(tmp_path, capsys):
+    """`compare --urdf arm.urdf --lock ...` with no source: a MuJoCo run of that robot (fingers
+    held apart), a line per stage, the table and the verdict; the stepping options reach the
+    observers (plain RK4 at one sub-step refuses a gain beyond its limit, in the CLI's words)."""
+    from codegen.cli import main
+    argv = ["compare", "--urdf", str(GRIPPER_URDF), *GRIPPER_LOCK, "--T", "1", "--quantization", "1e-4",
+            "--baselines", "kalman,backward", "--out", str(tmp_path)]
+    assert main([*argv, "--observers", "reduced_order"]) == 0
+    out, err = capsys.readouterr()
+    assert "MuJoCo gripper_arm: quantisation 0.0001 rad" in out and "settle s" in out
+    assert re.search(r"^(use reduced_order: [\d.]+ x better than the best tuned filter \(kalman\)|"
+                     r"no observer beats the best tuned filter here)", out.splitlines()[-2], re.M)
+    assert "MuJoCo gripper_arm: 1 s of computed-torque tracking" in err
+    data = json.loads((tmp_path / "compare.json").read_text())
+    assert [r["name"] for r in data["rows"]] == ["reduced_order", "kalman", "backward"]
+    assert main([*argv, "--observers", "reduced_order:k0=5000", "--method", "rk4", "--substeps", "1"]) == 2
+    [line] = [e for e in capsys.readouterr().err.splitlines() if e.startswith("error: ")]
+    assert "k0 = 5000 at dt = 0.001 with rk4" in line and "--substeps" in line and "Traceback" not in line
+
+
+def test_compare_refuses_what_it_cannot_run(capsys):
+    from codegen.cli import main
+    assert main(["compare", "--robot", "seed004_2r", "--elastic"]) == 2
+    assert "--elastic: compare runs the rigid observers" in capsys.readouterr().err
+    assert main(["compare"]) == 2
+    assert "give a source (a CSV, mujoco-ur5, mujoco-panda) or --robot NAME or --urdf PATH" in capsys.readouterr().err
+    assert main(["compare", "--robot", "seed000_2r"]) == 2          # not a URDF robot
+    assert "the MuJoCo plant needs a URDF robot" in capsys.readouterr().err
