@@ -84,7 +84,9 @@ def run(name, reference=False, out="build/sim", **options):
     out = Path(out) / name
     out.mkdir(parents=True, exist_ok=True)
     print(f"{name}: {descriptions()[name]}", flush=True)
-    with stage_lines():                      # a line per compile, closed loop and run (stderr)
+    from ..sim.plots import citing
+    # a line per compile, closed loop and run (stderr); every figure cites the paper it reproduces
+    with stage_lines(), citing(f"{name}: {descriptions()[name]}"):
         summary = reg[name](reference=reference, out=out, **options)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
     print("\n".join(report_lines(json.loads(json.dumps(summary, default=float)), "  ")))
