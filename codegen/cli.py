@@ -404,6 +404,10 @@ def cmd_sweep(args):
     from .evaluate.sweep import maps, plan
     try:
         spec = plan.load(args.file)
+        # every optional package the sweep needs, named before any cell runs
+        for module in ("pyarrow", "pandas", *(("dask", "distributed") if args.workers != 0 else ()),
+                       *(("mujoco",) if spec.plant == "mujoco" else ())):
+            _require(module, f"sweep {spec.name}")
         res = sweep.run(args.file, workers=args.workers, scheduler=args.scheduler, out=args.out)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)

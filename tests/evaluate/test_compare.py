@@ -354,3 +354,54 @@ def test_compare_refuses_what_it_cannot_run(capsys):
     assert "give a source (a CSV, mujoco-ur5, mujoco-panda) or --robot NAME or --urdf PATH" in capsys.readouterr().err
     assert main(["compare", "--robot", "seed000_2r"]) == 2          # not a URDF robot
     assert "the MuJoCo plant needs a URDF robot" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("module, extra", [("pandas", "sweep"), ("pyarrow", "sweep"), ("mujoco", "mujoco")])
+def test_a_sweep_names_every_missing_package_before_it_runs(monkeypatch, capsys, module, extra):
+    """`sweep` on a MuJoCo plant without pandas, pyarrow or mujoco: one line naming the extra,
+    before any cell (pandas used to end in pyarrow's AttributeError traceback, mujoco in a
+    traceback naming the [test] extra)."""
+    import importlib.util
+
+    from codegen import cli
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == module else real(name, *a))
+    sweep = Path(__file__).resolve().parents[2] / "sweeps" / "ur5_quantisation.toml"
+    assert cli.main(["sweep", str(sweep), "--workers", "0", "--out", "unused"]) == 2
+    assert capsys.readouterr().err == (f"error: sweep ur5_quantisation needs the optional package {module}: "
+                                       f"pip install 'observer-codegen[{extra}]'\n")
+    assert not Path("unused").exists()
+
+
+def test_the_mujoco_plant_names_its_extra(monkeypatch, capsys):
+    """The plant's own ImportError (reached without the CLI's check) is one line naming [mujoco]."""
+    import sys
+
+    from codegen import cli
+    from codegen.evaluate.sim import mujoco_plant
+    monkeypatch.setitem(sys.modules, "mujoco", None)
+    with pytest.raises(ImportError, match=r"pip install 'observer-codegen\[mujoco\]'") as e:
+        mujoco_plant._mujoco()
+    assert e.value.name == "mujoco"
+
+    def plant(args):
+        mujoco_plant._mujoco()
+    monkeypatch.setitem(cli.COMMANDS, "list", plant)
+    assert cli.main(["list"]) == 2
+    assert capsys.readouterr().err == ("error: `list` needs the optional package mujoco: "
+                                       "pip install 'observer-codegen[mujoco]'\n")
+
+
+def test_an_exact_sensor_leaves_the_kalman_filter_its_default_encoder():
+    """A simulation's exact q (quantisation and noise 0) gives the Kalman design no noise to
+    divide by: compare designs kalman_model for the default encoder and says so in its row
+    (it used to stop `compare mujoco-ur5` without sensor options with a ValueError)."""
+    from codegen.evaluate.compare import compare, design_inputs
+    from codegen.verify.trajectory import demo_trajectory
+    robot = load_robot(ROBOT)
+    t, Q, QD, TAU = demo_trajectory(robot, T=1.0, dt=1e-3)
+    rec = Recording(t=t, q=Q, tau=TAU, qd=QD, joint_names=list(robot.joint_names))
+    cmp = compare(rec, robot, families=["kalman_model"], design=design_inputs(0.0, 0.0), baseline_names=["kalman"])
+    row = cmp.rows()[0]
+    assert row["name"] == "kalman_model" and "designed for the default encoder" in row["note"]
+    assert np.isfinite(row["rms"]) and row["rms"] < 0.05

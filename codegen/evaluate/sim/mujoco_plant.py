@@ -40,8 +40,8 @@ def _mujoco():
     try:
         import mujoco
     except ImportError:  # pragma: no cover
-        raise ImportError("the MuJoCo plant needs the `mujoco` package: "
-                          "pip install 'observer-codegen[test]' (or pip install mujoco)") from None
+        raise ImportError("the MuJoCo plant needs the optional package mujoco: "
+                          "pip install 'observer-codegen[mujoco]'", name="mujoco") from None
     return mujoco
 
 
