@@ -142,7 +142,7 @@ def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=N
     title : str, optional
         Figure title (default: method, metric and axes).
     note : str, optional
-        A line under the axes (the run, the window of the metric, what the sweep reproduces).
+        A second title line (the run, the window of the metric, the paper of the observer).
 
     Returns
     -------
@@ -174,9 +174,7 @@ def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=N
         if pos:
             ax.plot(*zip(*pos), "o", color="darkorange", mfc="none", ms=10, mew=2.5, label=f"designed {x}")
     ax.legend(loc="upper left", bbox_to_anchor=(0, -0.25), ncol=2, fontsize=8, frameon=False)
-    ax.set_title(title or f"{method}: {metric} over {x} x {y}", fontsize=9)
-    if note:
-        fig.text(0.01, -0.02, note, fontsize=7, color="0.35", ha="left", va="top", wrap=True)
+    ax.set_title((title or f"{method}: {metric} over {x} x {y}") + (f"\n{note}" if note else ""), fontsize=9)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110, bbox_inches="tight")
