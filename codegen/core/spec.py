@@ -69,7 +69,8 @@ def _report_value(v):
 
 def report_lines(d, indent=""):
     """``d``'s entries as ``name: value`` lines (numbers to 6 significant digits), nested dicts
-    and text of several lines as indented sections (a design report, a scenario's summary)."""
+    and text of several lines as indented sections (a design report, a scenario's summary);
+    every line starts with ``indent`` (a string of spaces)."""
     lines = []
     for k, v in d.items():
         if isinstance(v, dict) and v:

@@ -27,7 +27,8 @@ _caption = None                                    # the source every figure cit
 
 
 def legend(ax, **kw):
-    """The axes' legend beside it, right of the plot (never over the data)."""
+    """The legend of the axes ``ax`` beside it, right of the plot (never over the data); ``kw``
+    go to ``Axes.legend``."""
     return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, **kw)
 
 
