@@ -358,8 +358,11 @@ def _compare_source(args):
         rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
         return rec, load_robot(name), mujoco.title(name, args.quantization, args.noise, args.mismatch)
     if not str(args.source).endswith(".csv"):
+        from models import names
+        hint = (f"; a MuJoCo run of {args.source} is `compare --robot {args.source}`"
+                if args.source in names() else "")
         raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}) or a .csv file, "
-                         f"got {args.source!r}")
+                         f"got {args.source!r}{hint}")
     robot = _compare_robot(args)
     return read_csv(args.source, robot.joint_names), robot, f"{Path(args.source).name} ({robot.name})"
 

@@ -352,6 +352,8 @@ def test_compare_refuses_what_it_cannot_run(capsys):
     assert "--elastic: compare runs the rigid observers" in capsys.readouterr().err
     assert main(["compare"]) == 2
     assert "give a source (a CSV, mujoco-ur5, mujoco-panda) or --robot NAME or --urdf PATH" in capsys.readouterr().err
+    assert main(["compare", "ur5"]) == 2
+    assert "a MuJoCo run of ur5 is `compare --robot ur5`" in capsys.readouterr().err
     assert main(["compare", "--robot", "seed000_2r"]) == 2          # not a URDF robot
     assert "the MuJoCo plant needs a URDF robot" in capsys.readouterr().err
 
