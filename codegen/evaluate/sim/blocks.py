@@ -32,8 +32,9 @@ def stage_lines():
 
 def stage(text):
     """One progress line ``[  12.3 s] text`` on stderr inside ``stage_lines``, else nothing."""
-    if _started is not None:
-        print(f"  [{time.perf_counter() - _started:6.1f} s] {text}", file=sys.stderr, flush=True)
+    if _started is not None:          # through tqdm: a progress bar on the terminal stays whole
+        from tqdm import tqdm
+        tqdm.write(f"  [{time.perf_counter() - _started:6.1f} s] {text}", file=sys.stderr)
 
 
 def staged():
