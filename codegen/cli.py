@@ -317,18 +317,20 @@ def cmd_simulate(args):
 def _compare_robot(args):
     """The robot of ``compare``: ``--robot NAME`` or ``--urdf PATH [--lock JOINT=VALUE ...]``, read
     as ``build`` reads them (``targets_file.robot_source``). ``--elastic`` is refused: compare
-    measures q̇̂ from q and tau against tuned filters on a rigid plant."""
+    builds an elastic robot for a CSV (its link q and motor torque; the MuJoCo plant is rigid)."""
     from models import from_source
 
     from .pipeline.targets_file import robot_source
     if args.robot is None and args.urdf is None:
         what = "a CSV needs" if args.source else "give a source (a CSV, mujoco-ur5, mujoco-panda) or"
         raise ValueError(f"robot: {what} --robot NAME or --urdf PATH (the robot it was recorded on)")
-    if args.elastic or args.J or args.K:
-        raise ValueError("--elastic: compare runs the rigid observers (q̇̂ from q and tau) against tuned "
-                         "filters on a rigid plant; an elastic robot's observers run in `simulate "
-                         "seed004-sim1` (and `generate ROBOT --elastic --family tomei`)")
-    return from_source(robot_source(args.robot, urdf=args.urdf, lock=_pairs(args.lock, "--lock", _number)))
+    elastic = bool(args.elastic or args.J or args.K)
+    if elastic and not str(args.source or "").endswith(".csv"):
+        raise ValueError("--elastic: the MuJoCo plant has rigid joints; compare an elastic robot on its log "
+                         "(a CSV of link q_<joint> and motor tau_<joint>), or run seed 004's in `simulate "
+                         "seed004-sim1`")
+    return from_source(robot_source(args.robot, urdf=args.urdf, lock=_pairs(args.lock, "--lock", _number),
+                                    elastic=elastic, J=_numbers(args.J, "--J"), K=_numbers(args.K, "--K")))
 
 
 def _compare_source(args):

@@ -411,7 +411,9 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     robot : models.RobotModel
         The nominal model the observers are built on.
     families : sequence of str
-        Observer families (``codegen.families.observers.FAMILIES``) with y = q, u = tau, est = qd_hat,
+        Observer families (``codegen.families.observers.FAMILIES``) with y = q, u = tau, est = qd_hat
+        (an elastic robot: y = link q, u = motor torque, the link velocity of its state estimate;
+        default ELASTIC_FAMILIES),
         each optionally with given build arguments, ``"reduced_order:k0=25"`` (see
         ``parse_observer``).
     design : dict, optional
@@ -440,6 +442,8 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     from tqdm import tqdm
 
     from ..families import observers
+    if families is DEFAULT_FAMILIES and hasattr(robot, "state_names"):
+        families = ELASTIC_FAMILIES                   # an elastic robot's log
     if list(rec.joint_names) != list(robot.joint_names):
         raise ValueError(f"rec: joints {rec.joint_names} differ from the robot's {robot.joint_names}")
     t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
@@ -473,10 +477,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
                     designed_for = "designed for the default encoder: the exact sensor gives it no noise"
             except TypeError as e:
                 raise ValueError(f"observers: {item!r}: {e}") from None
-            try:                            # q̇̂ by name: extended_state appends tau_d_hat
-                slots = velocity_slots(spec.est_names, robot.joint_names)
-            except ValueError:
-                slots = None
+            slots = _link_velocity_slots(spec, robot)
             if slots is None or spec.ny != robot.n:
                 raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
                                  f"est = {', '.join(spec.est_names)})")
@@ -499,6 +500,21 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
             bar.update()
     return Comparison(t=t, truth=ref.qd, entries=entries, t_ss=t_ss, level=level, title=title,
                       info={"recording": rec.describe(), "joint_names": list(robot.joint_names)}, ref=ref)
+
+
+ELASTIC_FAMILIES = ("ciccarella_germani",)      # the default of an elastic robot: y = link q, u = tau
+
+
+def _link_velocity_slots(spec, robot):
+    """The estimate's slots of the link velocities, in joint order, by name: ``qd_hat_<joint>``
+    (extended_state appends tau_d_hat), or an elastic observer's ``q1d_<joint>_hat`` (its state
+    estimate x = [q1; q1'; q2; q2'], docs/papers/seed004.md §6); None when it has none."""
+    try:
+        return velocity_slots(spec.est_names, robot.joint_names)
+    except ValueError:
+        names = list(spec.est_names)
+        link = [f"q1d_{j}_hat" for j in robot.joint_names]
+        return [names.index(s) for s in link] if all(s in names for s in link) else None
 
 
 def robot_by_name(name):

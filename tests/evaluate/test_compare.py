@@ -349,7 +349,7 @@ def test_compare_any_urdf_robot_on_a_mujoco_plant(tmp_path, capsys):
 def test_compare_refuses_what_it_cannot_run(capsys):
     from codegen.cli import main
     assert main(["compare", "--robot", "seed004_2r", "--elastic"]) == 2
-    assert "--elastic: compare runs the rigid observers" in capsys.readouterr().err
+    assert "--elastic: the MuJoCo plant has rigid joints; compare an elastic robot on its log" in capsys.readouterr().err
     assert main(["compare"]) == 2
     assert "give a source (a CSV, mujoco-ur5, mujoco-panda) or --robot NAME or --urdf PATH" in capsys.readouterr().err
     assert main(["compare", "ur5"]) == 2
@@ -407,3 +407,26 @@ def test_an_exact_sensor_leaves_the_kalman_filter_its_default_encoder():
     row = cmp.rows()[0]
     assert row["name"] == "kalman_model" and "designed for the default encoder" in row["note"]
     assert np.isfinite(row["rms"]) and row["rms"] < 0.05
+
+
+@pytest.mark.slow
+def test_compare_an_elastic_robots_log(tmp_path, capsys):
+    """`compare log.csv --robot seed004_2r --elastic` (build's elastic options): the log of seed
+    004's 2R (link q, motor torque, link velocity as the truth; true-state FL at 10 kHz) against
+    Ciccarella-Germani's observer, its link velocity estimate q1d_<joint>_hat measured."""
+    from codegen.cli import main
+    from codegen.evaluate.scenarios import seed004 as S
+    from models.catalog import load_elastic
+    robot = load_elastic("seed004_2r")
+    t, X, U = S.closed_loop(robot, S.controller(robot, "fl"), S.SIM1_X0, S.QF_2R, T=0.5, dt=1e-4)
+    n = robot.n
+    Recording(t=t, q=X[:, :n], tau=U, qd=X[:, n:2 * n], joint_names=list(robot.joint_names)).write_csv(
+        tmp_path / "elastic.csv")
+    capsys.readouterr()
+    assert main(["compare", str(tmp_path / "elastic.csv"), "--robot", "seed004_2r", "--elastic",
+                 "--baselines", "kalman,backward", "--out", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    rows = {r["name"]: r for r in json.loads((tmp_path / "out" / "compare.json").read_text())["rows"]}
+    assert set(rows) == {"ciccarella_germani", "kalman", "backward"}
+    assert rows["ciccarella_germani"]["rms"] < 1e-3 and abs(rows["ciccarella_germani"]["gain"] - 1) < 1e-3
+    assert re.search(r"^(use ciccarella_germani|no observer beats)", out.splitlines()[-2], re.M)
