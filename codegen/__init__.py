@@ -1,8 +1,9 @@
 """Observers generated as fast, verified C (docs/architecture.md §1).
 
-    from codegen import observers, compile_observer
+    from codegen import observers, compile_observer, load
     spec = observers.build("reduced_order", robot, quantization=1e-4)   # noise-aware k0
     obs = compile_observer(spec, dt=1e-3)          # ETD-RK4, first-order hold: unbiased, checked stable
+    obs = load("generated/ur5_reduced_order")      # a folder `build` or `generate` wrote
 
 Imports are lazy so that ``codegen.reference`` (numpy + pin only) never loads CasADi.
 """
@@ -12,14 +13,15 @@ from .core.version import __version__  # noqa: F401
 _LAZY = {"observers": ("codegen.families.observers", None),
          "controllers": ("codegen.families.controllers", None),
          "compile_observer": ("codegen.pipeline.stages", "compile_observer"),
+         "load": ("codegen.pipeline.load", "load"),
          "build_spec": ("codegen.pipeline.targets_file", "build_spec")}
 __all__ = ["__version__", *_LAZY]
 
 
 def __getattr__(name):
     """``codegen.observers``, ``codegen.controllers`` (the family packages), ``compile_observer``
-    (codegen.pipeline.stages) and ``build_spec`` (codegen.pipeline.targets_file), imported on
-    first use."""
+    (codegen.pipeline.stages), ``load`` (codegen.pipeline.load) and ``build_spec``
+    (codegen.pipeline.targets_file), imported on first use."""
     if name not in _LAZY:
         raise AttributeError(f"module 'codegen' has no attribute {name!r}")
     import importlib

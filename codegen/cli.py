@@ -216,11 +216,16 @@ def cmd_generate(args):
 
 
 def cmd_build(args):
-    """Design, emit and compile each target.
-    ``args``: the parsed argparse namespace; returns the exit status."""
+    """Design, emit and compile each target; print its library, the designed gains and why
+    (``DesignReport.brief``). ``args``: the parsed argparse namespace; returns the exit status."""
     from .jobs import COMPILE
-    rows, failed = _report(_jobs(args, COMPILE), args,
-                           lambda job, row: f"{row['prefix']}: {row['lib']}  ({_times(row, COMPILE)})")
+
+    def line(job, row):
+        report = "".join(f"\n  {text}" for text in row["design"].brief(row["params"]))
+        return (f"{row['prefix']}: {row['lib']}  ({_times(row, COMPILE)}){report}\n"
+                f"  the full design report: print(codegen.load(\"{row['folder']}\").design)")
+
+    rows, failed = _report(_jobs(args, COMPILE), args, line)
     return 2 if failed else 0
 
 
@@ -311,21 +316,37 @@ def cmd_simulate(args):
 
 
 def _compare_robot(args):
-    """The robot of ``compare``'s CSV: ``--robot NAME`` or ``--urdf PATH [--lock JOINT=VALUE ...]``,
-    read as ``build`` reads them (``targets_file.robot_source``)."""
+    """The robot of ``compare``: ``--robot NAME`` or ``--urdf PATH [--lock JOINT=VALUE ...]``, read
+    as ``build`` reads them (``targets_file.robot_source``). ``--elastic`` is refused: compare
+    builds an elastic robot for a CSV (its link q and motor torque; the MuJoCo plant is rigid)."""
     from models import from_source
 
     from .pipeline.targets_file import robot_source
     if args.robot is None and args.urdf is None:
-        raise ValueError("robot: a CSV needs --robot NAME or --urdf PATH (the robot it was recorded on)")
-    return from_source(robot_source(args.robot, urdf=args.urdf, lock=_pairs(args.lock, "--lock", _number)))
+        what = "a CSV needs" if args.source else "give a source (a CSV, mujoco-ur5, mujoco-panda) or"
+        raise ValueError(f"robot: {what} --robot NAME or --urdf PATH (the robot it was recorded on)")
+    elastic = bool(args.elastic or args.J or args.K)
+    if elastic and not str(args.source or "").endswith(".csv"):
+        raise ValueError("--elastic: the MuJoCo plant has rigid joints; compare an elastic robot on its log "
+                         "(a CSV of link q_<joint> and motor tau_<joint>), or run seed 004's in `simulate "
+                         "seed004-sim1`")
+    return from_source(robot_source(args.robot, urdf=args.urdf, lock=_pairs(args.lock, "--lock", _number),
+                                    elastic=elastic, J=_numbers(args.J, "--J"), K=_numbers(args.K, "--K")))
 
 
 def _compare_source(args):
     """(Recording, robot, title) of ``compare``'s source: a mujoco-* scenario run with the
-    sensor and mismatch options, or a recorded CSV of ``--robot`` / ``--urdf``."""
+    sensor and mismatch options, a MuJoCo run of the robot of ``--robot`` / ``--urdf`` (no
+    source), or a recorded CSV of that robot."""
     from .core.recording import read_csv
     from .evaluate.scenarios.mujoco import SCENARIOS
+    if args.source is None:              # a MuJoCo plant from the robot's URDF
+        from .evaluate.scenarios import mujoco
+        robot = _compare_robot(args)
+        _require("mujoco", f"a MuJoCo run of {robot.name}")
+        args.quantization, args.noise = args.quantization or 0.0, args.noise or 0.0
+        rec = mujoco.recording(robot, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
+        return rec, robot, mujoco.title(robot.name, args.quantization, args.noise, args.mismatch)
     if args.source in SCENARIOS:
         from models import load_robot
 
@@ -340,8 +361,11 @@ def _compare_source(args):
         rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
         return rec, load_robot(name), mujoco.title(name, args.quantization, args.noise, args.mismatch)
     if not str(args.source).endswith(".csv"):
+        from models import names
+        hint = (f"; a MuJoCo run of {args.source} is `compare --robot {args.source}`"
+                if args.source in names() else "")
         raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}) or a .csv file, "
-                         f"got {args.source!r}")
+                         f"got {args.source!r}{hint}")
     robot = _compare_robot(args)
     return read_csv(args.source, robot.joint_names), robot, f"{Path(args.source).name} ({robot.name})"
 
@@ -351,18 +375,21 @@ def cmd_compare(args):
     (every parameter, the reference and its uncertainty, the verdict line), figures, JSON.
     ``args``: the parsed argparse namespace; returns the exit status."""
     from .evaluate.compare import DEFAULT_FAMILIES, compare, design_inputs
+    from .evaluate.sim.blocks import stage_lines
     from .evaluate.smoothing import DEFAULT_CUTOFF
     from .core.recording import RecordingError
+    stepping = {k: getattr(args, k) for k in ("method", "hold", "substeps") if getattr(args, k) is not None}
     try:
-        rec, robot, title = _compare_source(args)
-        families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
-        bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
-        cmp = compare(rec, robot, families=families, t_ss=args.t_ss, level=args.level,
-                      design=design_inputs(args.quantization, args.noise, args.mismatch),
-                      baseline_names=bl, reference=args.reference, title=title,
-                      ref_cutoff=args.ref_cutoff or DEFAULT_CUTOFF, progress=True)
+        with stage_lines():              # a line per stage on stderr (the MuJoCo run), then a bar
+            rec, robot, title = _compare_source(args)
+            families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
+            bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
+            cmp = compare(rec, robot, families=families, t_ss=args.t_ss, level=args.level,
+                          design=design_inputs(args.quantization, args.noise, args.mismatch),
+                          baseline_names=bl, reference=args.reference, title=title,
+                          ref_cutoff=args.ref_cutoff or DEFAULT_CUTOFF, progress=True, stepping=stepping)
     except (RecordingError, ValueError, KeyError) as e:
-        print(f"error: {e.args[0] if isinstance(e, KeyError) else e}", file=sys.stderr)
+        print(f"error: {_message(e)}", file=sys.stderr)
         return 2
     print(cmp.table())
     out = Path(args.out or work_dir() / "compare")
@@ -383,6 +410,10 @@ def cmd_sweep(args):
     from .evaluate.sweep import maps, plan
     try:
         spec = plan.load(args.file)
+        # every optional package the sweep needs, named before any cell runs
+        for module in ("pyarrow", "pandas", *(("dask", "distributed") if args.workers != 0 else ()),
+                       *(("mujoco",) if spec.plant == "mujoco" else ())):
+            _require(module, f"sweep {spec.name}")
         res = sweep.run(args.file, workers=args.workers, scheduler=args.scheduler, out=args.out)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
@@ -458,17 +489,32 @@ COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "che
 
 
 # ------------------------------------------------------------------------------------ parser
-def _target_options(p, out_help):
+def _robot_options(p):
+    """The robot options of `build` (and of `compare`): --urdf, --lock, --elastic, --J, --K."""
     a = p.add_argument
-    a("robots", nargs="*", metavar="ROBOT", help="catalog robot names (see `list`); none: the targets "
-      f"of -c FILE or ./{TARGETS_FILE}")
-    a("-c", "--config", metavar="FILE", help="a targets file (TOML, [[target]] tables; see codegen/pipeline/targets_file.py)")
     a("--urdf", metavar="PATH", help="a robot from a URDF file (revolute, continuous, prismatic joints)")
     a("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint at VALUE (rad or m); repeatable")
     a("--elastic", action="store_true", help="elastic joints on the robot (tomei, ciccarella_germani, spong_*)")
     a("--J", metavar="J", help="motor inertias (kg m^2): one number or one per joint, comma-separated "
       "(default: the catalog's for seed004_2r, seed004_3r, ur5)")
     a("--K", metavar="K", help="joint stiffness (N m/rad): one number or one per joint, comma-separated")
+
+
+def _stepping_options(p):
+    """How the observers step, as `build` takes it (and `compare`): --method, --hold, --substeps."""
+    a = p.add_argument
+    a("--method", choices=METHODS, help="integrator (default etdrk4: RK4 with the gain term integrated exactly)")
+    a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discrete.discretize)")
+    a("--substeps", type=_substeps, help='integrator sub-steps per sample, or "auto" (the default): the '
+      "fewest that make the discrete observer stable")
+
+
+def _target_options(p, out_help):
+    a = p.add_argument
+    a("robots", nargs="*", metavar="ROBOT", help="catalog robot names (see `list`); none: the targets "
+      f"of -c FILE or ./{TARGETS_FILE}")
+    a("-c", "--config", metavar="FILE", help="a targets file (TOML, [[target]] tables; see codegen/pipeline/targets_file.py)")
+    _robot_options(p)
     a("--family", help=f"observer family or control law (see `list`; default {DEFAULT_FAMILY})")
     a("--variant", help="family variant, e.g. O2 of ciccarella_germani (default: the family's)")
     a("--design", action="append", metavar="NAME=VALUE", help="design input or gain passed to the family's "
@@ -480,10 +526,7 @@ def _target_options(p, out_help):
       "(default dt/4)")
     a("--dt-max", type=float, help="longest elapsed time one step integrates, s (default 2 dt); a longer "
       "one is split into sub-intervals of at most this")
-    a("--method", choices=METHODS, help="integrator (default etdrk4: RK4 with the gain term integrated exactly)")
-    a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discrete.discretize)")
-    a("--substeps", type=_substeps, help='integrator sub-steps per sample, or "auto" (the default): the '
-      "fewest that make the discrete observer stable")
+    _stepping_options(p)
     a("--precision", choices=PRECISIONS, help="real type of the C (default double)")
     a("--name", help="symbol prefix and folder name (default <robot>_<family>[_<variant>])")
     a("--out", metavar="DIR", help=out_help)
@@ -529,13 +572,14 @@ def parser():
     s.add_argument("--noise", type=float, help="Gaussian noise std (rad; mujoco-* scenarios)")
     s.add_argument("--mismatch", type=float, help="plant masses and inertias x (1 + mismatch) (mujoco-*)")
     s.add_argument("--T", type=float, help="length (s; mujoco-* scenarios)")
-    cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a scenario or a CSV")
-    cp.add_argument("source", help="mujoco-ur5, mujoco-panda, or a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>]"
-                    "[, qdm_<joint>]; jittered stamps and gaps allowed)")
-    cp.add_argument("--robot", help="robot of a CSV: a catalog name (see `list`)")
-    cp.add_argument("--urdf", metavar="PATH", help="robot of a CSV: a URDF file")
-    cp.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint at VALUE "
-                    "(rad or m); repeatable")
+    cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a MuJoCo "
+                        "run of any URDF robot, a scenario or a CSV")
+    cp.add_argument("source", nargs="?", help="a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>][, qdm_<joint>]; "
+                    "jittered stamps and gaps allowed), mujoco-ur5 or mujoco-panda; none: a MuJoCo run of "
+                    "the robot of --robot or --urdf (computed-torque tracking of sinusoids, --T s)")
+    cp.add_argument("--robot", help="the robot: a catalog name (see `list`)")
+    _robot_options(cp)
+    _stepping_options(cp)
     cp.add_argument("--ref-cutoff", type=float, metavar="HZ",
                     help="CSV without qd_<joint>: cut-off of the zero-phase reference velocity the methods "
                          "are measured and tuned against (Hz, default 10)")
@@ -549,7 +593,7 @@ def parser():
     cp.add_argument("--noise", type=float, help="Gaussian noise std (rad; scenario default 0)")
     cp.add_argument("--mismatch", type=float, default=0.0,
                     help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
-    cp.add_argument("--T", type=float, help="scenario length (s, default 20)")
+    cp.add_argument("--T", type=float, help="length of a MuJoCo run (s, default 20)")
     cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, on the log's clock; "
                     "default the middle of the run)")
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")

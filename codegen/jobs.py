@@ -58,7 +58,7 @@ def make(job, report=lambda stage: None):
     Returns
     -------
     dict
-        prefix, folder, lib, params, seconds per stage ("<stage>_s") and the stage results:
+        prefix, folder, lib, params, design (the spec's DesignReport), seconds per stage ("<stage>_s") and the stage results:
         "harness_equal" (the C harness and ctypes give identical estimates over the run), "T",
         "error" (|truth - estimate| at the first and last sample, when the run has a truth: qd
         or an elastic robot's state x, named by "error_of"), or "check" (worst relative errors
@@ -79,7 +79,7 @@ def make(job, report=lambda stage: None):
 
     made = make_target(target, job.out, force=job.force, native=job.native, report=stage)
     spec, folder = made.spec, made.folder
-    row["params"], row["lib"] = spec.params, str(made.lib)
+    row["params"], row["lib"], row["design"] = spec.params, str(made.lib), spec.design
     if "run" in job.stages:
         stage("run")
         row.update(_run(spec, target, folder, Path(row["lib"]), job.options.get("T", 2.0)))

@@ -16,6 +16,74 @@ from .options import DEFAULT_INPUTS, InputRanges, Options
 from .target import Target, default_name, discretization, sanitize  # noqa: F401  (sanitize re-exported)
 
 
+class DesignReport(dict):
+    """A family's design report: a plain dict (JSON-able; the metadata JSON records it), printed
+    as text: the report's own ``summary`` when the design wrote one, its choice and why, the
+    designed values, then each section (the guarantee, the stability check) indented."""
+
+    FIRST = ("summary", "choice", "why")
+    WIDTH = 12          # numbers of a longer list are elided after this many
+
+    def __str__(self):
+        lines = [*str(self["summary"]).splitlines()] if "summary" in self else []
+        for k in self.FIRST[1:]:
+            if k in self:
+                lines.append(f"{k}: {self[k]}")
+        lines += report_lines({k: v for k, v in self.items() if k not in self.FIRST}, "")
+        return "\n".join(lines)
+
+    def brief(self, params):
+        """A few lines for ``build``: the gains ``params`` (name -> value) and why (the design's
+        choice and reason, or that they were given), then what the stability check found."""
+        why = ("given (no design)" if self.get("given") else
+               ": ".join(str(self[k]) for k in ("choice", "why") if k in self) or
+               (str(self["summary"]).splitlines()[0] if "summary" in self else "the family's defaults"))
+        gains = ", ".join(f"{k} = {_report_value(v)}" for k, v in params.items()) or "no parameters"
+        lines = [f"{gains}: {why}"]
+        st = self.get("stability")
+        if isinstance(st, dict) and "stable" in st:
+            top = "; ".join(f"{g} stable up to {_report_value(r['max_stable'])}"
+                            for g, r in (st.get("gains") or {}).items() if isinstance(r, dict)
+                            and r.get("max_stable") is not None)
+            lines.append(f"discrete stability at dt {_report_value(st.get('dt'))} s ({st.get('method')}, "
+                         f"{st.get('hold')}, {st.get('substeps')} substeps): "
+                         f"{'stable' if st['stable'] else 'UNSTABLE'}, spectral radius "
+                         f"{_report_value(st.get('spectral_radius'))}" + (f"; {top}" if top else ""))
+        if "lowered_to_stable" in self:
+            lines.append(f"lowered into the stable region: {_report_value(self['lowered_to_stable'])}")
+        return lines
+
+
+def _report_value(v):
+    """One value of a design report as short text (numbers to 6 significant digits)."""
+    if isinstance(v, bool) or v is None or isinstance(v, str):
+        return str(v)
+    if isinstance(v, numbers.Real):
+        return f"{float(v):.6g}"
+    if isinstance(v, (list, tuple)):
+        items = [_report_value(x) for x in v[:DesignReport.WIDTH]]
+        more = f", ... ({len(v)} values)" if len(v) > DesignReport.WIDTH else ""
+        return "[" + ", ".join(items) + more + "]"
+    return str(v)
+
+
+def report_lines(d, indent=""):
+    """``d``'s entries as ``name: value`` lines (numbers to 6 significant digits), nested dicts
+    and text of several lines as indented sections (a design report, a scenario's summary);
+    every line starts with ``indent`` (a string of spaces)."""
+    lines = []
+    for k, v in d.items():
+        if isinstance(v, dict) and v:
+            lines.append(f"{indent}{k}:")
+            lines += report_lines(v, indent + "  ")
+        elif isinstance(v, str) and "\n" in v.strip():
+            lines.append(f"{indent}{k}:")
+            lines += [f"{indent}  {line}" for line in v.strip("\n").splitlines()]
+        else:
+            lines.append(f"{indent}{k}: {_report_value(v)}")
+    return lines
+
+
 @dataclass
 class ObserverSpec:
     """A continuous-time observer (optionally hybrid).
@@ -49,7 +117,8 @@ class ObserverSpec:
       variant     the family's variant (None if it has none)
       options     typed generation options (codegen.core.options), e.g. the quadrature order
       inputs      where the cross-check draws random inputs (codegen.core.options.InputRanges)
-      design      the design report (JSON-able dict: why the default gains are what they are)
+      design      the design report (a DesignReport: a JSON-able dict of why the default gains
+                  are what they are, printed as text)
       build_args  the keyword arguments ``observers.build`` received (plain data, for Target)
       rate_states names of the states the linear gain term acts on (with ``rate``)
       gains       gain name -> the parameter slots it scales together (non-negative gains the
@@ -75,10 +144,16 @@ class ObserverSpec:
     variant: str | None = None
     options: Options = field(default_factory=Options)
     inputs: InputRanges = DEFAULT_INPUTS
-    design: dict = field(default_factory=dict)
+    design: dict = field(default_factory=dict)     # a DesignReport once set (__setattr__)
     build_args: dict = field(default_factory=dict)
     rate_states: tuple = ()
     gains: dict = field(default_factory=dict)
+
+    def __setattr__(self, name, value):
+        """Every design report assigned (at construction or later) is a DesignReport."""
+        if name == "design" and not isinstance(value, DesignReport):
+            value = DesignReport(value or {})
+        super().__setattr__(name, value)
 
     def __post_init__(self):
         self.p_default = np.asarray(self.p_default, dtype=float).reshape(-1)

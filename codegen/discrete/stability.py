@@ -179,6 +179,8 @@ class StabilityReport:
             j = stiff["lock"]
             fixes.append(f"or lock {j}: --lock {j}=0" if cli else
                          f"or lock {j}: load_robot(urdf=..., locked_joints={{{j!r}: 0.0}})")
+        if fixes:                             # the first fix is not an alternative to another
+            fixes[0] = fixes[0].removeprefix("or ")
         return f"{gains} {where}: {why}; " + ", ".join(fixes)
 
 

@@ -230,41 +230,72 @@ class Comparison:
         rows = self.rows()
         w = max([16] + [len(r["name"]) for r in rows])
         head = (f"{'method':{w}s} {'RMS t>=' + format(self.t_ss, 'g') + 's':>12s} "
-                f"{'max':>9s} {'t<' + format(self.level, 'g'):>9s} {'gain':>8s} {'lag ms':>8s} "
+                f"{'max':>9s} {'settle s':>9s} {'gain':>8s} {'lag ms':>8s} "
                 f"{'/best bl':>8s}  parameters")
-        lines = self.header() + [head]
+        lines = self.header() + [
+            f"errors in rad/s; settle: the time after which the error's RMS over the last "
+            f"{metrics.WINDOW:g} s stays below {self.level:g} rad/s (inf: its noise or bias stays above); "
+            f"gain, lag: the fit est(t) = gain qd(t - lag) for t >= {self.t_ss:g} s", head]
         for r in rows:
             par = ", ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
                             for k, v in r["params"].items())
             notes = [n for n in (r.get("note"), UNRANKED if r["within_uncertainty"] else "") if n]
             lines.append(
                 f"{r['name']:{w}s} {r['rms']:12.3e} {r['max']:9.2e} "
-                f"{r['t_conv']:9.3f} {r['gain']:8.4f} {1e3 * r['lag']:8.3f} "
+                f"{r['t_settle']:9.3f} {r['gain']:8.4f} {1e3 * r['lag']:8.3f} "
                 f"{r['rms_over_best_baseline']:8.3f}  {par or '-'}" + ("  DIVERGED" if r["diverged"] else "")
                 + "".join(f"  ({n})" for n in notes))
         lines.append(self.verdict())
         return "\n".join(lines)
 
+    HIGHLIGHT = 3          # the figures' coloured methods: the best few (and the best filter)
+
+    def shown(self):
+        """(highlighted, muted, left out) method names of the figures: the HIGHLIGHT lowest RMS
+        (finite, not diverged) and the best tuned filter, coloured; the others thin and gray,
+        but the worst baseline (the backward difference, as a rule), which would hide the rest
+        on a log axis, and the diverged ones, left out."""
+        ok = sorted((e for e in self.entries if np.isfinite(e.metrics["rms"]) and not e.metrics["diverged"]),
+                    key=lambda e: e.metrics["rms"])
+        best = [e.name for e in ok[:self.HIGHLIGHT]]
+        bl = self.best_baseline()
+        if bl is not None and bl.name not in best:
+            best.append(bl.name)
+        baselines_ok = [e for e in ok if e.kind == "baseline"]
+        out = [e.name for e in self.entries if e not in ok]
+        if len(baselines_ok) > 1:
+            out.append(baselines_ok[-1].name)
+        return best, [e.name for e in ok if e.name not in best and e.name not in out], out
+
     def figures(self, out, joint=0, zoom=None):
-        """Write to the folder ``out`` ``errors.png`` (||qd - qd_hat|| on a log axis, every method)
-        and ``joint<j>.png`` (estimates of ``joint`` j (0-based) against the truth or the
-        reference over ``zoom`` = (t0, t1) s, default the first 0.5 s after t_ss). Against a
-        reference, only its valid samples are drawn. Returns the paths."""
+        """Write to the folder ``out`` ``errors.png`` (||qd - qd_hat|| on a log axis) and
+        ``joint<j>.png`` (estimates of ``joint`` j, 0-based as in the file name and the title,
+        against the truth or the reference over ``zoom`` = (t0, t1) s, default the first 0.5 s
+        after t_ss), the methods as ``shown`` says (the best few highlighted, the worst baseline
+        left out), legends beside the axes. Against a reference, only its valid samples are
+        drawn. Returns the paths."""
         from .sim import plots
         out = Path(out)
         v = np.ones(len(self.t), bool) if self.ref is None else self.ref.valid
         t, truth = self.t[v], self.truth[v]
-        errs = {e.name: e.est[v] - truth for e in self.entries}
+        best, muted, left = self.shown()
+        est = {e.name: e.est[v] for e in self.entries}
         zoom = zoom or (self.t_ss, min(t[-1], self.t_ss + 0.5))
         m = (t >= zoom[0]) & (t <= zoom[1])
         label = "true" if self.ref is None or self.ref.is_truth else "reference"
-        curves = {label: truth[m, joint], **{e.name: e.est[v][m, joint] for e in self.entries}}
+        note = f"\n{', '.join(left)} left out" if left else ""
         ylabel = "||qd - qd_hat|| [rad/s]" if label == "true" else "||qd_ref - qd_hat|| [rad/s]"
-        return [plots.error_norms(out / "errors.png", t, errs, levels=(self.level,), ylabel=ylabel,
-                                  title=self.title),
+        name = self.info.get("joint_names", [None] * (joint + 1))[joint]
+        return [plots.error_norms(out / "errors.png", t, {k: est[k] - truth for k in best},
+                                  levels=(self.level,), ylabel=ylabel, title=self.title + note,
+                                  muted={k: est[k] - truth for k in muted}),
                 plots.panels(out / f"joint{joint}.png", t[m],
-                             [plots.Panel(curves, ylabel=f"qd{joint + 1} [rad/s]")],
-                             title=f"{self.title}, joint {joint + 1}", cell=(8, 3.4))]
+                             [plots.Panel({label: truth[m, joint], **{k: est[k][m, joint] for k in best}},
+                                          ylabel=f"qd_{joint} [rad/s]",
+                                          muted={k: est[k][m, joint] for k in muted})],
+                             title=f"{self.title}\njoint {joint}" + (f" ({name})" if name else "")
+                             + note.replace("\n", ", "),
+                             cell=(8, 3.4))]
 
 
 def parse_observer(text):
@@ -286,7 +317,7 @@ def parse_observer(text):
     return family.strip(), given
 
 
-def run_observer(spec, Y, U, dt, reference=False, t=None):
+def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None):
     """Estimate (N, nest) of an observer spec over samples Y, U with the default discretisation
     at dt: compiled C (the loop in C) or the numpy reference; (estimate of NaN, message) when
     the observer fails.
@@ -304,6 +335,9 @@ def run_observer(spec, Y, U, dt, reference=False, t=None):
         The samples' time stamps (s): each step covers the elapsed time since the last sample
         (``run(Y, U, t=t)``; the C splits a gap beyond the declared dt_max); None: every sample
         advances by ``dt``.
+    stepping : dict, optional
+        ``method``, ``hold``, ``substeps`` of the discretisation (``build``'s options; default
+        the default one with substeps "auto").
 
     Returns
     -------
@@ -314,7 +348,8 @@ def run_observer(spec, Y, U, dt, reference=False, t=None):
     from ..core.target import discretization
     try:
         # the fewest stable sub-steps (xarm7 at 1 kHz needs 6)
-        obs = block(spec, discretization(None, dt=dt, substeps="auto"), reference=reference)
+        obs = block(spec, discretization(None, **{"substeps": "auto", **(stepping or {}), "dt": dt}),
+                    reference=reference)
         obs.reset(Y[0])
         # each step over the log's own elapsed time (a gap beyond dt_max split inside the C)
         return (obs.run(Y, U) if t is None else obs.run(Y, U, t=t)), ""
@@ -365,7 +400,7 @@ def tune(name, Y, t, truth, t_ss, dt, grid=None, valid=None):
 
 def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level=1e-2,
             baseline_names=None, reference=False, title="", ref_cutoff=smoothing.DEFAULT_CUTOFF,
-            progress=False):
+            progress=False, stepping=None):
     """Observers, tuned baselines and the robot's own velocity signal on one recorded run.
 
     Parameters
@@ -376,7 +411,9 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     robot : models.RobotModel
         The nominal model the observers are built on.
     families : sequence of str
-        Observer families (``codegen.families.observers.FAMILIES``) with y = q, u = tau, est = qd_hat,
+        Observer families (``codegen.families.observers.FAMILIES``) with y = q, u = tau, est = qd_hat
+        (an elastic robot: y = link q, u = motor torque, the link velocity of its state estimate;
+        default ELASTIC_FAMILIES),
         each optionally with given build arguments, ``"reduced_order:k0=25"`` (see
         ``parse_observer``).
     design : dict, optional
@@ -395,6 +432,8 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         Cut-off (Hz) of the zero-phase reference used when ``rec`` has no true velocity.
     progress : bool
         A progress bar over the methods on stderr (tqdm).
+    stepping : dict, optional
+        ``method``, ``hold``, ``substeps`` the observers step with (``run_observer``).
 
     Returns
     -------
@@ -403,6 +442,8 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     from tqdm import tqdm
 
     from ..families import observers
+    if families is DEFAULT_FAMILIES and hasattr(robot, "state_names"):
+        families = ELASTIC_FAMILIES                   # an elastic robot's log
     if list(rec.joint_names) != list(robot.joint_names):
         raise ValueError(f"rec: joints {rec.joint_names} differ from the robot's {robot.joint_names}")
     t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
@@ -422,22 +463,28 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     with bar:
         for item, fam, given in parsed:
             bar.set_postfix_str(item)
+            inputs, designed_for = {**design_for(fam, design), **given}, ""
             try:
-                spec = observers.build(fam, robot, **{**design_for(fam, design), **given})
+                try:
+                    spec = observers.build(fam, robot, **inputs)
+                except ValueError:
+                    # an exact sensor (a simulation's q) that a family cannot design for (the
+                    # Kalman gains divide by the noise): its default encoder, said in the row
+                    if inputs.get("quantization") != 0.0 or inputs.get("noise") != 0.0:
+                        raise
+                    spec = observers.build(fam, robot, **{k: v for k, v in inputs.items()
+                                                          if k not in ("quantization", "noise")})
+                    designed_for = "designed for the default encoder: the exact sensor gives it no noise"
             except TypeError as e:
                 raise ValueError(f"observers: {item!r}: {e}") from None
-            try:                            # q̇̂ by name: extended_state appends tau_d_hat
-                slots = velocity_slots(spec.est_names, robot.joint_names)
-            except ValueError:
-                slots = None
+            slots = _link_velocity_slots(spec, robot)
             if slots is None or spec.ny != robot.n:
                 raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
                                  f"est = {', '.join(spec.est_names)})")
-            full, note = run_observer(spec, Y, U, dt, reference, t=t)
+            full, note = run_observer(spec, Y, U, dt, reference, t=t, stepping=stepping)
             est = full[:, slots]
             hits = saturated_samples(full, spec)        # samples with q̇̂ beyond the model's bound
-            if hits:
-                note = "; ".join(filter(None, [note, f"{hits} samples at the velocity bound"]))
+            note = "; ".join(filter(None, [designed_for, note, hits and f"{hits} samples at the velocity bound"]))
             params = {k: float(v) for k, v in zip(spec.p_names, spec.p_default)}
             entries.append(Entry(item, "observer", params, est, ref.measure(t, est, t_ss, level), note))
             bar.update()
@@ -452,7 +499,22 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
                                  ref.measure(t, rec.qdm, t_ss, level)))
             bar.update()
     return Comparison(t=t, truth=ref.qd, entries=entries, t_ss=t_ss, level=level, title=title,
-                      info={"recording": rec.describe()}, ref=ref)
+                      info={"recording": rec.describe(), "joint_names": list(robot.joint_names)}, ref=ref)
+
+
+ELASTIC_FAMILIES = ("ciccarella_germani",)      # the default of an elastic robot: y = link q, u = tau
+
+
+def _link_velocity_slots(spec, robot):
+    """The estimate's slots of the link velocities, in joint order, by name: ``qd_hat_<joint>``
+    (extended_state appends tau_d_hat), or an elastic observer's ``q1d_<joint>_hat`` (its state
+    estimate x = [q1; q1'; q2; q2'], docs/papers/seed004.md §6); None when it has none."""
+    try:
+        return velocity_slots(spec.est_names, robot.joint_names)
+    except ValueError:
+        names = list(spec.est_names)
+        link = [f"q1d_{j}_hat" for j in robot.joint_names]
+        return [names.index(s) for s in link] if all(s in names for s in link) else None
 
 
 def robot_by_name(name):

@@ -5,6 +5,8 @@ and work on the error norm ||est_k - qd_k|| (rad/s) per sample unless said other
 
     rms_after(t, err, t0)              RMS of ||err|| over t >= t0
     convergence_time(t, err, level)    first time after which ||err|| stays below level
+    settling_time(t, err, level)       first time after which the RMS of ||err|| over the last
+                                       WINDOW s stays below level (a noisy estimate's own time)
     max_error(t, err, t0)              max ||err|| over t >= t0
     diverged(est, truth)               non-finite, or ||err|| beyond BLOWUP x (1 + max ||qd||)
     gain_lag(t, est, truth, t0)        least squares of est(t) = g qd(t - lag) over t >= t0
@@ -15,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 BLOWUP = 1e3
+WINDOW = 0.1            # s: the window of settling_time's moving RMS
 
 
 def _rows(a):
@@ -56,6 +59,22 @@ def convergence_time(t, err, level):
     if len(above) == 0:
         return float(t[0])
     return float(t[above[-1] + 1]) if above[-1] + 1 < len(t) else float("inf")
+
+
+def settling_time(t, err, level, window=WINDOW):
+    """First t_k after which the moving RMS r_k = sqrt(mean ||err_j||^2 over t_k - window < t_j
+    <= t_k) stays below ``level`` to the end (s); inf if the last one is not.
+
+    Unlike ``convergence_time`` (every sample below the level), a noisy estimate whose samples
+    cross the level now and then but whose RMS is below it has settled: the time measures the
+    transient, not the noise's last excursion. ``t`` (N,) s, ``err`` (N, n) or (N,) rad/s,
+    ``window`` s."""
+    t = np.asarray(t, dtype=float)
+    sq = np.concatenate([[0.0], np.cumsum(error_norm(err) ** 2)])
+    first = np.searchsorted(t, t - window, side="right")          # oldest sample in the window
+    k = np.arange(len(t))
+    r = np.sqrt((sq[k + 1] - sq[first]) / (k + 1 - first))
+    return convergence_time(t, r, level)
 
 
 def diverged(est, truth):
@@ -136,11 +155,12 @@ def summarize(t, est, truth, t_ss, level=1e-2):
     Returns
     -------
     dict
-        rms, max (over t >= t_ss), t_conv (s), gain, lag (s), diverged (bool).
+        rms, max (over t >= t_ss), t_conv and t_settle (s; ``convergence_time`` and
+        ``settling_time`` at ``level``), gain, lag (s), diverged (bool).
     """
     est, truth = _rows(est), _rows(truth)
     err = est - truth
     bad = diverged(est, truth)
     g, lag = (float("nan"), float("nan")) if bad else gain_lag(t, est, truth, t_ss)
     return {"rms": rms_after(t, err, t_ss), "max": max_error(t, err, t_ss),
-            "t_conv": convergence_time(t, err, level), "gain": g, "lag": lag, "diverged": bad}
+            "t_conv": convergence_time(t, err, level), "t_settle": settling_time(t, err, level), "gain": g, "lag": lag, "diverged": bad}

@@ -137,7 +137,7 @@ def verify(path):
     return path
 
 
-def cached_compile(name, key, files, products, commands, cache, shown=None, keep=()):
+def cached_compile(name, key, files, products, commands, cache, shown=None, keep=(), beside=None):
     """Compile once per content: ``<cache>/<name>-<hash>/`` holding ``products``.
 
     Parameters
@@ -161,7 +161,11 @@ def cached_compile(name, key, files, products, commands, cache, shown=None, keep
     shown : path, optional
         Where ``files`` came from; shown instead of ``work`` in error messages.
     keep : sequence of str
-        Names of ``files`` copied into the folder beside the products (e.g. the metadata).
+        Names of ``files`` (or of ``beside``) copied into the folder beside the products (e.g. the
+        metadata).
+    beside : dict, optional
+        File name -> bytes kept beside the products but not hashed (what of them the products
+        depend on goes into ``key``); the first build of a content keeps its own.
 
     Returns
     -------
@@ -192,7 +196,7 @@ def cached_compile(name, key, files, products, commands, cache, shown=None, keep
             run_tool(cmd, what, shown=[(work, shown)] if shown is not None else ())
         shutil.rmtree(work)
         for fname in keep:
-            (tmp / fname).write_bytes(files[fname])
+            (tmp / fname).write_bytes({**files, **(beside or {})}[fname])
         record = {}
         for n in names:
             data = (tmp / n).read_bytes()
@@ -246,18 +250,26 @@ def compile_library(target_dir, native=False, strict=False, cc=None, extra_flags
     prefix = json.loads(files[meta_file])["prefix"]
     tool = compiler(cc)
     flags = c_flags(native, strict, shared=True, extra=extra_flags)
-    files = {n: b for n, b in files.items() if n.endswith((".c", ".h")) or n == f"{prefix}.json"}
     missing = {f"{prefix}.c", f"{prefix}_kernels.c", f"{prefix}.json"} - set(files)
     if missing:
         raise CompileError(f"target_dir: {target_dir} misses {', '.join(sorted(missing))}")
+    # The library is the C and its headers; of the metadata, everything but the "target" record
+    # (how the target was named: a catalog name or the URDF behind it, the folder's name) goes
+    # into the key, so `build ur5` and compile_observer(observers.build(..., load_robot("ur5")))
+    # share one library (one cache for the CLI and Python).
+    meta_name = f"{prefix}.json"
+    meta = {k: v for k, v in json.loads(files[meta_name]).items() if k != "target"}
+    beside = {meta_name: files[meta_name]}
+    files = {n: b for n, b in files.items() if n.endswith((".c", ".h"))}
     lib = f"lib{prefix}.so"
 
     def commands(work, out):
         yield ([tool.path, *flags, "-I", work, "-o", out / lib, work / f"{prefix}.c",
                 work / f"{prefix}_kernels.c", "-lm"], f"compiling {prefix}")
 
-    out = cached_compile(prefix, [tool, flags], files, [lib], commands, cache or cache_dir(),
-                       shown=target_dir, keep=[f"{prefix}.json"])
+    key = [tool, flags, digest(json.dumps(meta, sort_keys=True).encode())]
+    out = cached_compile(prefix, key, files, [lib], commands, cache or cache_dir(),
+                         shown=target_dir, keep=[meta_name], beside=beside)
     return out.resolve() / lib
 
 

@@ -311,14 +311,25 @@ class CompiledObserver:
                     f"parameters at their defaults)")
         return p
 
+    @property
+    def design(self):
+        """The design report the target was built with (a DesignReport: prints as text)."""
+        from ..core.spec import DesignReport
+        return DesignReport(self.meta.get("design") or {})
+
     def __repr__(self):
         return f"<CompiledObserver {self.prefix} nx={self.nx} dt={self.dt} {self.precision}>"
 
 
-def load(target_dir, lib_path):
-    """CompiledObserver from the generated folder ``target_dir`` and its built library ``lib_path``,
-    with the metadata the library was built from (kept beside it by ``codegen.pipeline.compile.build``; else
-    the folder's)."""
+def load(target_dir, lib_path=None):
+    """CompiledObserver from the generated folder ``target_dir`` (e.g. ``generated/ur5_reduced_order``
+    written by ``build`` or ``generate``) and its built library ``lib_path``, with the metadata the
+    library was built from (kept beside it by ``codegen.pipeline.compile.compile_library``; else the
+    folder's). ``lib_path`` None: the folder's library from the compile cache (compiled now if the
+    cache does not hold it)."""
+    if lib_path is None:
+        from .compile import compile_library
+        lib_path = compile_library(target_dir)
     lib_path = Path(lib_path)
     meta = lib_path.parent / f"{lib_path.stem.removeprefix('lib')}.json"
     if not meta.is_file():

@@ -225,9 +225,9 @@ def pin_bench_missing():
     if not all((pre / "lib" / f"lib{lib}.so").exists() for lib in PIN_LIBS):
         return f"pinocchio libraries {PIN_LIBS} not found in {pre / 'lib'}"
     if find_eigen_include(pre) is None:
-        return "Eigen headers not found: pip install cmeel-eigen"
+        return "Eigen headers not found: pip install 'observer-codegen[bench]' (cmeel-eigen)"
     if find_urdfdom_headers(pre) is None:
-        return "urdfdom headers not found: pip install cmeel-urdfdom-headers"
+        return "urdfdom headers not found: pip install 'observer-codegen[bench]' (cmeel-urdfdom-headers)"
     return None
 
 

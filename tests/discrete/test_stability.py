@@ -160,3 +160,18 @@ def test_auto_substeps_keeps_a_stable_discretisation():
     assert auto_substeps(spec, RK4) is RK4
     with pytest.raises(UnstableDiscretization, match="k0 must be >= 0"):
         auto_substeps(spec, RK4, p=[-1.0])
+
+
+def test_refusal_without_a_gain_limit_starts_with_its_first_fix():
+    """An unstable family with no bisected gain (or none limited): the fixes start with the first
+    one, not with a stray "or"; the unlocked gripper joint is named with the --lock to run."""
+    from codegen.discrete.stability import StabilityReport
+    stiff = {"rate": 5e4, "rate_dt": 50.0, "state": "z_finger_left", "joint": "finger_left",
+             "cause": "the stiff mode (rate 5e+04 1/s = 50 / dt) is the small inertia of finger_left "
+                      "(1e-06 kg m^2 seen from it), a gripper joint", "lock": "finger_left"}
+    report = StabilityReport(stable=False, spectral_radius=3.0, flow_radius=1.0, step_error=0.0, dt=1e-3,
+                             method="rk4", hold="foh", substeps=1, substeps_needed=2, stiff_mode=stiff)
+    for form, first in (("python", "use substeps >= 2"), ("cli", "use --substeps 2 (or more)")):
+        msg = report.message("su_nonsmooth", form=form)
+        assert "; or" not in msg and f"a gripper joint; {first}" in msg, msg
+    assert "or lock finger_left: --lock finger_left=0" in report.message("su_nonsmooth", form="cli")

@@ -129,7 +129,7 @@ def test_error_measures():
     assert metrics.diverged(truth + 1e4, truth)
     assert metrics.diverged(np.where(t[:, None] > 0.5, np.nan, truth), truth)
     row = metrics.summarize(t, truth + err, truth, t_ss=0.5)
-    assert set(row) == {"rms", "max", "t_conv", "gain", "lag", "diverged"}
+    assert set(row) == {"rms", "max", "t_conv", "t_settle", "gain", "lag", "diverged"}
     with pytest.raises(ValueError, match="t0 = 2 s is after the last sample"):
         metrics.rms_after(t, err, 2.0)
 

@@ -260,3 +260,173 @@ def test_extras_named_are_those_of_pyproject():
         "project"]["optional-dependencies"]
     for module, extra in EXTRAS.items():
         assert any(module in re.split(r"[\[\]<>=,; ]", req) for req in extras[extra]), (module, extra)
+
+
+# ------------------------------------------------------------------------------ any robot, the table, figures
+def test_settling_time_is_the_transients_not_the_noises():
+    """A decaying error plus noise whose samples cross the level now and then (norm of two
+    N(0, 0.004) joints: 4 % of samples above 0.01) but whose RMS (0.0057) is below it: the
+    sample-wise convergence time is the last crossing, near the end; the settling time (moving
+    RMS over WINDOW) is the transient's, ln(1 / 0.01) 0.1 s = 0.46 s plus the window at most."""
+    from codegen.evaluate import metrics
+    rng = np.random.default_rng(0)
+    t = np.arange(0, 20, 1e-3)
+    err = np.exp(-t / 0.1)[:, None] * np.array([1.0, 0.0]) + rng.normal(0, 0.004, (len(t), 2))
+    assert metrics.convergence_time(t, err, 1e-2) > 19
+    assert 0.3 < metrics.settling_time(t, err, 1e-2) < 0.46 + metrics.WINDOW
+    assert metrics.settling_time(t, 3 * err, 1e-2) == np.inf          # RMS 0.017: never settles
+    assert metrics.summarize(t, err, np.zeros_like(err), 10.0)["t_settle"] == metrics.settling_time(t, err, 1e-2)
+
+
+def _synthetic():
+    """A Comparison of five synthetic methods on a 2-joint run, RMS 1e-3 .. 1."""
+    t = np.arange(0, 2, 1e-3)
+    truth = np.column_stack([np.sin(t), np.cos(t)])
+    entries = []
+    for name, kind, scale in (("obs_a", "observer", 1e-3), ("obs_b", "observer", 3e-2), ("obs_c", "observer", 1e-2),
+                              ("kalman", "baseline", 5e-3), ("butterworth", "baseline", 2e-2),
+                              ("backward", "baseline", 1.0)):
+        est = truth + scale * np.random.default_rng(len(name)).normal(size=truth.shape)
+        from codegen.evaluate import metrics
+        entries.append(Entry(name, kind, {}, est, metrics.summarize(t, est, truth, 1.0)))
+    return Comparison(t=t, truth=truth, entries=entries, t_ss=1.0, level=1e-2, title="synthetic",
+                      info={"joint_names": ["shoulder", "elbow"]})
+
+
+def test_figures_highlight_the_best_and_leave_the_worst_baseline_out(tmp_path, monkeypatch):
+    """errors.png and joint<j>.png: the three best and the best filter coloured, the rest gray,
+    the worst baseline left out; the joint index of the file is the title's (0-based, with the
+    joint's name)."""
+    from codegen.evaluate.sim import plots
+    cmp = _synthetic()
+    best, muted, left = cmp.shown()
+    assert best == ["obs_a", "kalman", "obs_c"] and muted == ["butterworth", "obs_b"] and left == ["backward"]
+    seen = []
+    real = plots.panels
+
+    def spy(path, x, rows, title="", **kw):
+        seen.append((Path(path).name, title, [set(r.curves) for r in rows], [set(r.muted or {}) for r in rows]))
+        return real(path, x, rows, title=title, **kw)
+    monkeypatch.setattr(plots, "panels", spy)
+    paths = cmp.figures(tmp_path, joint=1)
+    assert [p.name for p in paths] == ["errors.png", "joint1.png"] and all(p.is_file() for p in paths)
+    (_, etitle, ecurves, emuted), (_, jtitle, jcurves, jmuted) = seen
+    assert ecurves == [set(best)] and emuted == [set(muted)] and "backward left out" in etitle
+    assert jcurves == [{"true", *best}] and "joint 1 (elbow)" in jtitle
+
+
+def test_table_says_what_settle_is():
+    table = _synthetic().table()
+    assert "settle s" in table and "t<0.01" not in table
+    assert "RMS over the last 0.1 s stays below 0.01 rad/s" in table
+
+
+GRIPPER_URDF = Path(__file__).resolve().parents[1] / "data" / "gripper_arm.urdf"
+GRIPPER_LOCK = ["--lock", "finger_left=0.01", "--lock", "finger_right=0.01"]
+
+
+@pytest.mark.slow
+def test_compare_any_urdf_robot_on_a_mujoco_plant(tmp_path, capsys):
+    """`compare --urdf arm.urdf --lock ...` with no source: a MuJoCo run of that robot (fingers
+    held apart), a line per stage, the table and the verdict; the stepping options reach the
+    observers (plain RK4 at one sub-step refuses a gain beyond its limit, in the CLI's words)."""
+    from codegen.cli import main
+    argv = ["compare", "--urdf", str(GRIPPER_URDF), *GRIPPER_LOCK, "--T", "1", "--quantization", "1e-4",
+            "--baselines", "kalman,backward", "--out", str(tmp_path)]
+    assert main([*argv, "--observers", "reduced_order"]) == 0
+    out, err = capsys.readouterr()
+    assert "MuJoCo gripper_arm: quantisation 0.0001 rad" in out and "settle s" in out
+    assert re.search(r"^(use reduced_order: [\d.]+ x better than the best tuned filter \(kalman\)|"
+                     r"no observer beats the best tuned filter here)", out.splitlines()[-2], re.M)
+    assert "MuJoCo gripper_arm: 1 s of computed-torque tracking" in err
+    data = json.loads((tmp_path / "compare.json").read_text())
+    assert [r["name"] for r in data["rows"]] == ["reduced_order", "kalman", "backward"]
+    assert main([*argv, "--observers", "reduced_order:k0=5000", "--method", "rk4", "--substeps", "1"]) == 2
+    [line] = [e for e in capsys.readouterr().err.splitlines() if e.startswith("error: ")]
+    assert "k0 = 5000 at dt = 0.001 with rk4" in line and "--substeps" in line and "Traceback" not in line
+
+
+def test_compare_refuses_what_it_cannot_run(capsys):
+    from codegen.cli import main
+    assert main(["compare", "--robot", "seed004_2r", "--elastic"]) == 2
+    assert "--elastic: the MuJoCo plant has rigid joints; compare an elastic robot on its log" in capsys.readouterr().err
+    assert main(["compare"]) == 2
+    assert "give a source (a CSV, mujoco-ur5, mujoco-panda) or --robot NAME or --urdf PATH" in capsys.readouterr().err
+    assert main(["compare", "ur5"]) == 2
+    assert "a MuJoCo run of ur5 is `compare --robot ur5`" in capsys.readouterr().err
+    assert main(["compare", "--robot", "seed000_2r"]) == 2          # not a URDF robot
+    assert "the MuJoCo plant needs a URDF robot" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("module, extra", [("pandas", "sweep"), ("pyarrow", "sweep"), ("mujoco", "mujoco")])
+def test_a_sweep_names_every_missing_package_before_it_runs(monkeypatch, capsys, module, extra):
+    """`sweep` on a MuJoCo plant without pandas, pyarrow or mujoco: one line naming the extra,
+    before any cell (pandas used to end in pyarrow's AttributeError traceback, mujoco in a
+    traceback naming the [test] extra)."""
+    import importlib.util
+
+    from codegen import cli
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == module else real(name, *a))
+    sweep = Path(__file__).resolve().parents[2] / "sweeps" / "ur5_quantisation.toml"
+    assert cli.main(["sweep", str(sweep), "--workers", "0", "--out", "unused"]) == 2
+    assert capsys.readouterr().err == (f"error: sweep ur5_quantisation needs the optional package {module}: "
+                                       f"pip install 'observer-codegen[{extra}]'\n")
+    assert not Path("unused").exists()
+
+
+def test_the_mujoco_plant_names_its_extra(monkeypatch, capsys):
+    """The plant's own ImportError (reached without the CLI's check) is one line naming [mujoco]."""
+    import sys
+
+    from codegen import cli
+    from codegen.evaluate.sim import mujoco_plant
+    monkeypatch.setitem(sys.modules, "mujoco", None)
+    with pytest.raises(ImportError, match=r"pip install 'observer-codegen\[mujoco\]'") as e:
+        mujoco_plant._mujoco()
+    assert e.value.name == "mujoco"
+
+    def plant(args):
+        mujoco_plant._mujoco()
+    monkeypatch.setitem(cli.COMMANDS, "list", plant)
+    assert cli.main(["list"]) == 2
+    assert capsys.readouterr().err == ("error: `list` needs the optional package mujoco: "
+                                       "pip install 'observer-codegen[mujoco]'\n")
+
+
+def test_an_exact_sensor_leaves_the_kalman_filter_its_default_encoder():
+    """A simulation's exact q (quantisation and noise 0) gives the Kalman design no noise to
+    divide by: compare designs kalman_model for the default encoder and says so in its row
+    (it used to stop `compare mujoco-ur5` without sensor options with a ValueError)."""
+    from codegen.evaluate.compare import compare, design_inputs
+    from codegen.verify.trajectory import demo_trajectory
+    robot = load_robot(ROBOT)
+    t, Q, QD, TAU = demo_trajectory(robot, T=1.0, dt=1e-3)
+    rec = Recording(t=t, q=Q, tau=TAU, qd=QD, joint_names=list(robot.joint_names))
+    cmp = compare(rec, robot, families=["kalman_model"], design=design_inputs(0.0, 0.0), baseline_names=["kalman"])
+    row = cmp.rows()[0]
+    assert row["name"] == "kalman_model" and "designed for the default encoder" in row["note"]
+    assert np.isfinite(row["rms"]) and row["rms"] < 0.05
+
+
+@pytest.mark.slow
+def test_compare_an_elastic_robots_log(tmp_path, capsys):
+    """`compare log.csv --robot seed004_2r --elastic` (build's elastic options): the log of seed
+    004's 2R (link q, motor torque, link velocity as the truth; true-state FL at 10 kHz) against
+    Ciccarella-Germani's observer, its link velocity estimate q1d_<joint>_hat measured."""
+    from codegen.cli import main
+    from codegen.evaluate.scenarios import seed004 as S
+    from models.catalog import load_elastic
+    robot = load_elastic("seed004_2r")
+    t, X, U = S.closed_loop(robot, S.controller(robot, "fl"), S.SIM1_X0, S.QF_2R, T=0.5, dt=1e-4)
+    n = robot.n
+    Recording(t=t, q=X[:, :n], tau=U, qd=X[:, n:2 * n], joint_names=list(robot.joint_names)).write_csv(
+        tmp_path / "elastic.csv")
+    capsys.readouterr()
+    assert main(["compare", str(tmp_path / "elastic.csv"), "--robot", "seed004_2r", "--elastic",
+                 "--baselines", "kalman,backward", "--out", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    rows = {r["name"]: r for r in json.loads((tmp_path / "out" / "compare.json").read_text())["rows"]}
+    assert set(rows) == {"ciccarella_germani", "kalman", "backward"}
+    assert rows["ciccarella_germani"]["rms"] < 1e-3 and abs(rows["ciccarella_germani"]["gain"] - 1) < 1e-3
+    assert re.search(r"^(use ciccarella_germani|no observer beats)", out.splitlines()[-2], re.M)

@@ -69,8 +69,6 @@ def test_tracking_run_is_consistent(plant):
 
 def test_import_refuses_what_it_cannot_represent(tmp_path):
     src = load_robot("panda").source
-    with pytest.raises(ValueError, match="locks joints at 0 only"):
-        mujoco_urdf(src["path"], {"panda_finger_joint1": 0.01})
     with pytest.raises(ValueError, match="'nope' is not a joint"):
         mujoco_urdf(src["path"], {"nope": 0.0})
     assert "<visual" not in mujoco_urdf(src["path"], src["locked_joints"])
@@ -252,3 +250,23 @@ def test_design_inputs_describe_the_sensor():
     assert design_inputs(1e-4, None) == {"quantization": 1e-4, "noise": 0.0, "uncertainty": 0.0}
     assert set(design_for("nicosia_tomei", design_inputs(1e-4))) == {"quantization", "noise", "uncertainty"}
     assert design_for("ii_speed", design_inputs(1e-4)) == {}
+
+
+@pytest.mark.parametrize("lock", [{"finger_left": 0.01, "finger_right": 0.02},
+                                  {"elbow": 0.7, "finger_left": 0.0, "finger_right": 0.0},
+                                  {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.03}])
+def test_joints_locked_anywhere_are_the_models_robot(lock):
+    """A joint locked at any value (prismatic fingers apart, a revolute elbow bent) is the same
+    robot in MuJoCo and in our model (pinocchio): M, C qd + g to 1e-9."""
+    from pathlib import Path
+    if "panda_finger_joint1" in lock:
+        robot = load_robot(urdf=load_robot("panda").source["path"], locked_joints=lock)
+    else:
+        robot = load_robot(urdf=Path(__file__).parents[1] / "data" / "gripper_arm.urdf", locked_joints=lock)
+    plant = MujocoPlant(robot)
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        q, v = rng.uniform(robot.q_lower, robot.q_upper), rng.uniform(-2, 2, robot.n)
+        M, nle, _ = _pin(robot, q, v)
+        assert np.max(np.abs(plant.mass_matrix(q) - M)) <= TOL * np.max(np.abs(M))
+        assert np.max(np.abs(plant.bias(q, v) - nle)) <= TOL * np.max(np.abs(nle))

@@ -153,3 +153,27 @@ def test_closed_loop_with_compiled_law(robot):
     for k in (0, 1000, 2000):
         t, q = res.t[k], res.q[k]
         assert np.allclose(res.u[k], ref.g(q) + [np.cos(t / 2), -np.cos(t)], rtol=1e-12, atol=1e-12)
+
+
+def test_figures_have_every_line_in_the_legend_units_and_the_paper(tmp_path, monkeypatch):
+    """Seed 000's positions figure: each joint's target q_i,d in the legend (q2's had none), every
+    axis with a unit, the legend beside the axes; inside ``plots.citing`` the figure carries
+    the paper and experiment it reproduces."""
+    import matplotlib.pyplot as plt
+
+    from codegen.evaluate.sim import plots
+    figs = []
+    monkeypatch.setattr(plt, "close", figs.append)
+    t = np.linspace(0, 1, 101)
+    q = np.column_stack([np.sin(t), np.cos(t)])
+    with plots.citing("seed000-ex3: seed 000 (Cristofaro & De Luca), Example 3"):
+        plots.positions_and_bound(tmp_path / "f.png", t, q, q, q, np.ones_like(t), 2.0, q_ref=q)
+    [fig] = figs
+    top, bottom = fig.axes
+    labels = top.get_legend_handles_labels()[1]
+    assert {"q1,d (target)", "q2,d (target)"} <= set(labels)
+    for ax in fig.axes:
+        assert "[" in ax.get_ylabel()
+        assert ax.get_legend() is not None and ax.get_legend().get_bbox_to_anchor().x0 > ax.bbox.x1 - 1
+    assert bottom.get_xlabel() == "t [s]"
+    assert [t.get_text() for t in fig.texts] == ["seed000-ex3: seed 000 (Cristofaro & De Luca), Example 3"]

@@ -170,3 +170,29 @@ def test_a_cell_measures_the_velocity_slots_by_name(tmp_path):
     row = work.run_cell(cell, rec, work.payload(folder), t_ss=0.25, level=1e-2)
     assert not row["note"] and not row["diverged"]
     assert row["max"] < 1e-2 and row["t_conv"] < 0.25
+
+
+def test_map_axes_carry_units_the_window_and_the_paper(tmp_path, monkeypatch):
+    """map.png: every axis with its unit, the RMS window and the paper of the observer's
+    equations on the figure."""
+    import itertools
+
+    import matplotlib.pyplot as plt
+    import pandas as pd
+    rows = [{"cell": f"{k}-{q}-{s}", "method": "reduced_order", "kind": "observer", "family": "reduced_order",
+             "k0": k, "quantization": q, "seed": s, "rms": 1e-3 * (k / 50 + 50 / k) * (1 + q * 1e3),
+             "diverged": False}
+            for k, q, s in itertools.product([5.0, 50.0, 500.0], [0.0, 1e-4], [0, 1])]
+    figs = []
+    monkeypatch.setattr(plt, "close", figs.append)
+    spec = plan.load({"name": "q", "robot": "ur5", "plant": "mujoco", "T": 4.0, "observers": ["reduced_order"],
+                      "axes": {"k0": [5.0, 50.0, 500.0], "quantization": [0.0, 1e-4], "seed": [0, 1]}})
+    monkeypatch.setattr(Store, "read", lambda self: pd.DataFrame(rows))
+    monkeypatch.setattr(Store, "get", lambda self, name: None)
+    maps.write(tmp_path, spec)
+    [fig] = figs
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "k0 [1/s]" and ax.get_ylabel() == "quantization [rad]"
+    assert fig.axes[1].get_ylabel() == "log10 median rms [rad/s]"
+    text = ax.get_title()
+    assert "over t >= 2 s of each 4 s run" in text and "reduced_order: docs/papers/seed000.md §1.1" in text

@@ -81,3 +81,18 @@ def test_build_is_cached_by_content(spec_of, tmp_path):
     mtime = lib.stat().st_mtime_ns
     assert compile_library(target, cache=tmp_path / "cache") == lib and lib.stat().st_mtime_ns == mtime
     assert compile_library(target, cache=tmp_path / "cache", extra_flags=["-O1"]) != lib
+
+
+def test_cli_and_python_share_one_library(tmp_path):
+    """`build seed000_2r` (a catalog target) and compile_observer of the same observer designed in
+    Python differ only in how the target is named (the metadata's "target" record): one library,
+    not a second compile."""
+    from codegen import compile_observer, observers
+    from codegen.pipeline.stages import make
+    from codegen.pipeline.targets_file import make_target
+    from models import load_robot
+    target, _ = make_target({"robot": "seed000_2r", "family": "reduced_order"})
+    made = make(target, tmp_path / "generated")
+    obs = compile_observer(observers.build("reduced_order", load_robot("seed000_2r")), dt=1e-3,
+                           out_dir=tmp_path / "python")
+    assert obs.lib_path == made.lib.resolve()

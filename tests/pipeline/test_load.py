@@ -159,3 +159,15 @@ def test_retuning_is_bumpless_in_c_and_reference(family, tmp_path):
         o.reset(q, est0=est0)                       # right after init: the last y is y0
         o.params = p_new
         assert np.abs(o.estimate(q, g) - est0).max() <= 1e-12
+
+
+def test_load_a_folder_the_cli_built(tmp_path, capsys):
+    """`build` then ``codegen.load("<out>/<target>")``: the observer of that folder, its library
+    from the compile cache (no library path to find)."""
+    import codegen
+    from codegen import cli
+    assert cli.main(["build", "seed000_2r", "--out", str(tmp_path)]) == 0
+    obs = codegen.load(tmp_path / "seed000_2r_reduced_order")
+    assert obs.prefix == "seed000_2r_reduced_order" and obs.nest == 2
+    obs.reset(np.zeros(2))
+    assert np.all(np.isfinite(obs.step(np.full(2, 1e-3), np.zeros(2))))

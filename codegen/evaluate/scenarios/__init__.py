@@ -1,6 +1,7 @@
 """Scenarios of the seed papers: `python -m codegen simulate NAME`.
 
-Each module of this package defines ``SCENARIOS = {name: function}``; a function takes
+Each module of this package defines ``SCENARIOS = {name: function}`` (and ``DESCRIPTIONS =
+{name: one line}``: the paper, the experiment, its figures, for `simulate list`); a function takes
 ``reference`` (bool: run observers with the numpy reference instead of the C) and ``out``
 (a folder for the CSV and PNGs), and its own options if it has any (the mujoco-* scenarios:
 quantization, noise, mismatch, T), and returns a summary dict (also printed). Scenarios only
@@ -26,8 +27,28 @@ def registry():
     return reg
 
 
+def descriptions():
+    """{name: one line}: each module's ``DESCRIPTIONS``, else the first clause of the scenario
+    function's docstring."""
+    out = {}
+    for name, f in registry().items():
+        module = importlib.import_module(f.__module__)
+        text = getattr(module, "DESCRIPTIONS", {}).get(name)
+        if text is None:
+            first = " ".join((f.__doc__ or "").split()).replace("``", "")
+            text = re.split(r"(?<=[a-z)]): |\. ", first)[0].rstrip(".")
+        out[name] = text
+    return out
+
+
+def _natural(s):
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]
+
+
 def run(name, reference=False, out="build/sim", **options):
-    """Run scenario ``name`` (or print the list for "list") and write its summary.json.
+    """Run scenario ``name`` (or print the list for "list", one line each) and write its
+    summary.json; the summary is printed as indented ``name: value`` lines, a line per stage on
+    stderr while it runs.
 
     Parameters
     ----------
@@ -46,10 +67,13 @@ def run(name, reference=False, out="build/sim", **options):
     int
         0 (the CLI's exit code).
     """
+    from ...core.spec import report_lines
+    from ..sim.blocks import stage_lines
     reg = registry()
     if name == "list":
-        natural = lambda s: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]  # noqa: E731
-        print("\n".join(sorted(reg, key=natural)))
+        lines = descriptions()
+        w = max(map(len, lines))
+        print("\n".join(f"{k:{w}s}  {lines[k]}" for k in sorted(lines, key=_natural)))
         return 0
     if name not in reg:
         raise SystemExit(f"unknown scenario {name!r}; known: {', '.join(sorted(reg)) or '(none)'}")
@@ -59,10 +83,12 @@ def run(name, reference=False, out="build/sim", **options):
         raise SystemExit(f"scenario {name!r} takes no option {', '.join('--' + k for k in extra)}")
     out = Path(out) / name
     out.mkdir(parents=True, exist_ok=True)
-    summary = reg[name](reference=reference, out=out, **options)
+    print(f"{name}: {descriptions()[name]}", flush=True)
+    from ..sim.plots import citing
+    # a line per compile, closed loop and run (stderr); every figure cites the paper it reproduces
+    with stage_lines(), citing(f"{name}: {descriptions()[name]}"):
+        summary = reg[name](reference=reference, out=out, **options)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
-    print(f"{name}:")
-    for k, v in summary.items():
-        print(f"  {k}: {v}")
-    print(f"  files in {out}")
+    print("\n".join(report_lines(json.loads(json.dumps(summary, default=float)), "  ")))
+    print(f"  files in {out} (summary.json: every number in full)")
     return 0

@@ -27,13 +27,20 @@ T_DEFAULT = 20.0
 DT = 1e-3
 
 
+def plant_run(robot, T, mismatch=0.0, seed=0):
+    """The true run of the module docstring on any URDF ``robot`` (models.RobotModel; locked
+    joints held where the robot holds them): T s, masses and inertias x (1 + mismatch), phases
+    drawn with ``seed``."""
+    from ..sim.blocks import stage
+    from ..sim.mujoco_plant import MujocoPlant, sinusoids
+    stage(f"MuJoCo {robot.name}: {T:g} s of computed-torque tracking at {1 / DT:g} Hz")
+    return MujocoPlant(robot, mismatch=mismatch).track(sinusoids(robot, seed=seed), T, dt=DT)
+
+
 @lru_cache(maxsize=8)
 def _true_run(robot_name, T, mismatch, seed):
     from models import load_robot
-
-    from ..sim.mujoco_plant import MujocoPlant, sinusoids
-    robot = load_robot(robot_name)
-    return MujocoPlant(robot, mismatch=mismatch).track(sinusoids(robot, seed=seed), T, dt=DT)
+    return plant_run(load_robot(robot_name), T, mismatch, seed)
 
 
 def recording(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0, seed=0):
@@ -41,7 +48,8 @@ def recording(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0
 
     Parameters
     ----------
-    robot_name : {"ur5", "panda"}
+    robot_name : {"ur5", "panda"} or models.RobotModel
+        A catalog robot of the scenarios, or any URDF robot (``plant_run``).
     T : float
         Length (s).
     quantization, noise : float
@@ -56,6 +64,8 @@ def recording(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0
     codegen.core.recording.Recording
     """
     from ..sim.sensors import measured
+    if not isinstance(robot_name, str):
+        return measured(plant_run(robot_name, float(T), float(mismatch), int(seed)), quantization, noise, seed)
     if robot_name not in ROBOTS:
         raise ValueError(f"robot: the MuJoCo scenarios have {', '.join(ROBOTS)}, got {robot_name!r}")
     return measured(_true_run(robot_name, float(T), float(mismatch), int(seed)), quantization, noise, seed)
@@ -89,9 +99,11 @@ def experiment(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.
     from models import load_robot
 
     from ..compare import compare, design_inputs
+    from ..sim.blocks import staged
     rec = recording(robot_name, T, quantization, noise, mismatch, seed)
     cmp = compare(rec, load_robot(robot_name), design=design_inputs(quantization, noise, mismatch),
-                  reference=reference, title=title(robot_name, quantization, noise, mismatch))
+                  reference=reference, title=title(robot_name, quantization, noise, mismatch),
+                  progress=staged())
     if out is not None:
         out = Path(out)
         rec.write_csv(out / "run.csv")
@@ -113,3 +125,5 @@ def _scenario(robot_name):
 
 
 SCENARIOS = {f"mujoco-{name}": _scenario(name) for name in ROBOTS}
+DESCRIPTIONS = {f"mujoco-{name}": f"beyond the papers: observers vs tuned filters on MuJoCo's {name} "
+                "(errors.png, joint0.png)" for name in ROBOTS}

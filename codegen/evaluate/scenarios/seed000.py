@@ -314,3 +314,10 @@ def ex3(reference=False, out=Path("build/sim/seed000-ex3"), T=T_CLOSED):
 
 
 SCENARIOS = {"seed000-ex1a": ex1a, "seed000-ex1b": ex1b, "seed000-ex2": ex2, "seed000-ex3": ex3}
+# one line each for `simulate list`: the paper, the experiment, the figures (docs/papers/experiments.md §12.1)
+DESCRIPTIONS = {
+    "seed000-ex1a": "seed 000 (Cristofaro & De Luca), Example 1a: reduced-order vs Nicosia-Tomei, noisy quantised q",
+    "seed000-ex1b": "seed 000 (Cristofaro & De Luca), Example 1b: reduced-order vs Nicosia-Tomei, plant masses +10 %",
+    "seed000-ex2": "seed 000 (Cristofaro & De Luca), Example 2: hybrid gains vs a fixed high gain under high noise",
+    "seed000-ex3": "seed 000 (Cristofaro & De Luca), Example 3: output feedback with the hybrid observer (Figs. 6-7)",
+}

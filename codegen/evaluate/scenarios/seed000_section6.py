@@ -71,3 +71,4 @@ def section6(reference=False, out=Path("build/sim/seed000-section6"), T=S.T_OPEN
 
 
 SCENARIOS = {"seed000-section6": section6}
+DESCRIPTIONS = {"seed000-section6": "seed 000 (Cristofaro & De Luca) §VI, beyond the paper: nonlinear gain k0 K1(y) vs (12)'s constant gain"}

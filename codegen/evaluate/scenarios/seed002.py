@@ -293,10 +293,12 @@ def plot(d, out, tag):
     e_nu = d["nu_hat"] - d["nu"]
     r = e_nu.shape[1]
     plots.panels(out / "fig1_nu_error.png", t,
-                 [plots.Panel({"": e_nu[:, j]}, title=f"nu~ {names[j]}", legend=False) for j in range(r)],
+                 [plots.Panel({"": e_nu[:, j]}, title=f"nu~ {names[j]}", legend=False,
+                              ylabel="nu_hat - nu [m/s]") for j in range(r)],
                  title=f"{tag}: link velocity estimation error (cf. Fig. 1)", cols=min(r, 4), cell=(3.2, 2.4))
     theta = plots.Panel({f"thetahat {names[j]}": d["theta_hat"][:, j] for j in range(r)}, legend=r <= 6,
-                        hlines=np.unique(np.round(d["theta"], 12)))
+                        hlines=np.unique(np.round(d["theta"], 12)),
+                        ylabel="thetahat = 1/m [1/kg]")
     plots.panels(out / "fig2_thetahat.png", t, [theta], title=f"{tag}: parameter estimates (cf. Fig. 2)",
                  cell=(6, 3.5))
     errors = [("adaptive observer (13)", d["qd_hat"] - d["qd"][:, J], J)]
@@ -305,7 +307,8 @@ def plot(d, out, tag):
     ss = _window(t, d["T_ss"])
     for name, sel, title in (("fig3_qd_error.png", slice(None), "joint velocity error (cf. Fig. 3)"),
                              ("fig4_qd_error_steady.png", ss, "steady state (cf. Fig. 4)")):
-        rows = [plots.Panel({f"qd~_{j + 1}": e[sel, k] for k, j in enumerate(joints)}, title=which)
+        rows = [plots.Panel({f"qd~_{j + 1}": e[sel, k] for k, j in enumerate(joints)}, title=which,
+                            ylabel="qd_hat - qd [rad/s]")
                 for which, e, joints in errors]
         plots.panels(out / name, t[sel], rows, title=f"{tag}: {title}", cell=(7, 2.6))
 
@@ -330,4 +333,12 @@ SCENARIOS = {
     "seed002-claims": claims,
     "seed002-ur5": _scenario("seed002-ur5", robot_name="ur5", T=20.0, dt=1e-3, su=False,
                              substeps=2, T_ss=2.0),
+}
+# one line each for `simulate list` (docs/papers/experiments.md §12.2)
+DESCRIPTIONS = {
+    "seed002": "seed 002 (Lotfi & Namvar; Su): adaptive observer vs Su's (35), noise-free (Figs. 1-2)",
+    "seed002-noisy": "seed 002 (Lotfi & Namvar; Su): the same, noise std 0.3 RMS(q_i) (Figs. 3-4)",
+    "seed002-noise-3mrad": "seed 002 (Lotfi & Namvar; Su): the same, noise std 0.003 rad",
+    "seed002-claims": "seed 002 (Lotfi & Namvar; Su): the paper's claims checked (transient, the noise level where they flip)",
+    "seed002-ur5": "seed 002 (Lotfi & Namvar; Su), beyond the paper: the adaptive observer on ur5 (20 s)",
 }

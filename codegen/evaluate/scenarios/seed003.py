@@ -181,12 +181,13 @@ def figures(tr, sweep, out, n):
     sq = {"I&I ||s_x - x||^2": np.sum((Ei[:, :n] - X[:, n:]) ** 2, axis=1),
           "AOV": np.sum((Ea[:, :n] - X[:, n:]) ** 2, axis=1)}
     plots.panels(out / "fig4_error_and_r.png", t,
-                 [plots.Panel(sq, title="Fig. 4: ||s_x - x||^2", log="y"),
-                  plots.Panel({"r (I&I)": Si[:, -1], "r (AOV)": Sa[:, -1]}, title="dynamic scaling r(t)")],
+                 [plots.Panel(sq, title="Fig. 4: ||s_x - x||^2", log="y", ylabel="||s_x - x||^2 [(rad/s)^2]"),
+                  plots.Panel({"r (I&I)": Si[:, -1], "r (AOV)": Sa[:, -1]}, title="dynamic scaling r(t)",
+                              ylabel="r [1] (dimensionless)")],
                  cols=2, cell=(5, 4))
     plots.panels(out / "fig5_stiffness.png", sweep[0],
                  [plots.Panel({"": sweep[1]}, ylabel="||[xi'; s_y'; s_x'; r']||", log="xy", legend=False)],
-                 title="Fig. 5: RHS norm at the Table-I state", cell=(6, 4), xlabel="r")
+                 title="Fig. 5: RHS norm at the Table-I state", cell=(6, 4), xlabel="r [1] (dimensionless)")
 
 
 def seed003(reference, out):
@@ -279,3 +280,5 @@ def seed003_ur5(reference=False, out=None, T=2.0, dt=1e-3, substeps=4, N=8):
 
 
 SCENARIOS = {"seed003": seed003, "seed003-ur5": seed003_ur5}
+DESCRIPTIONS = {"seed003": "seed 003 (Arbo et al.): I&I speed observer vs AOV on the 2R arm (Figs. 2-5)",
+                "seed003-ur5": "seed 003 (Arbo et al.), beyond the paper: the I&I speed observer on ur5 (2 s)"}

@@ -38,7 +38,7 @@ import numpy as np
 
 from ...core.target import Discretization
 from ..sim import plots
-from ..sim.blocks import bind, block
+from ..sim.blocks import bind, block, stage
 from ..sim.elastic_plant import ElasticPlant
 from ..sim.engine import write_columns
 
@@ -127,6 +127,8 @@ def closed_loop(robot, ctrl, x0, qf, T=T_SIM, dt=DT, est_observer=None, est0=Non
 
     x0 (4n,) initial state; qf (n,) final link position (rad) of reference_table; T, dt in s;
     est_observer: (spec, block) of :func:`observer` whose estimate, from ``est0``, replaces x."""
+    stage(f"closed loop of {robot.name}: {T:g} s at dt {dt:g} s"
+          + (" with the estimated state" if est_observer else ""))
     plant = ElasticPlant(robot, dt, substeps=PLANT_SUBSTEPS)
     x0 = np.asarray(x0, dtype=float)
     plant.reset(x0)
@@ -167,6 +169,7 @@ def closed_loop(robot, ctrl, x0, qf, T=T_SIM, dt=DT, est_observer=None, est0=Non
 def run_observer(spec, obs, X, U, est0):
     """Observer ``obs`` (of ``spec``) over recorded true states ``X`` (N, 4n) and inputs ``U`` (N, n),
     from the initial estimate ``est0`` (4n,): EST (N, 4n), the estimate at each sample."""
+    stage(f"running {spec.family}{'' if spec.variant is None else ' ' + spec.variant} over {len(X)} samples")
     Y = measurement(spec, X)
     obs.reset(Y[0], est0)
     return obs.run(Y, U)
@@ -450,3 +453,12 @@ def _study(k):
 
 SCENARIOS = {"seed004-sim1": sim1, "seed004-sim2": sim2,
              **{f"seed004-sim{k}": _study(k) for k in STUDIES}}
+# one line each for `simulate list` (docs/papers/experiments.md §12.4)
+PAPER = "seed 004 (Caciolai & Pustina)"
+DESCRIPTIONS = {
+    "seed004-sim1": f"{PAPER}, Sim 1: 2R, Tomei vs Ciccarella-Germani O1 (Figs. 2-4)",
+    "seed004-sim2": f"{PAPER}, Sim 2: 2R, feedback linearisation vs integral manifold (Figs. 5-6)",
+    **{f"seed004-sim{k}": f"{PAPER}, Sim {k}: 3R, manifold controller, observer "
+       + ", ".join(f"{o} (Fig. {f})" for o, f in obs) + f", eigenvalues in [{lo:g}, {hi:g}]"
+       for k, (obs, _, _, (lo, hi)) in STUDIES.items()},
+}

@@ -7,8 +7,39 @@ Every observer, control law and plant of a scenario is a spec stepped under a st
 """
 from __future__ import annotations
 
+import contextlib
+import sys
+import time
+
 HUGE_KERNEL = 50_000        # RHS instructions above which a kernel is compiled with HUGE_FLAGS
 HUGE_FLAGS = ("-O1",)       # ~100k instructions (I&I on ur5): -O3 takes > 8 min, -O1 about one
+
+
+_started = None            # perf_counter() at the start of stage_lines, None outside
+
+
+@contextlib.contextmanager
+def stage_lines():
+    """While inside, ``stage(text)`` prints a line on stderr with the seconds since entering (what
+    `simulate` shows of a long scenario: each compile, closed loop and observer run)."""
+    global _started
+    outer, _started = _started, time.perf_counter()
+    try:
+        yield
+    finally:
+        _started = outer
+
+
+def stage(text):
+    """One progress line ``[  12.3 s] text`` on stderr inside ``stage_lines``, else nothing."""
+    if _started is not None:          # through tqdm: a progress bar on the terminal stays whole
+        from tqdm import tqdm
+        tqdm.write(f"  [{time.perf_counter() - _started:6.1f} s] {text}", file=sys.stderr)
+
+
+def staged():
+    """True inside ``stage_lines`` (loops then show a progress bar too)."""
+    return _started is not None
 
 
 def compiler_flags(spec):
@@ -52,6 +83,8 @@ def block(spec, disc, *, reference=False, prefix=None, inline="auto", out_dir=No
     from ...core.target import Discretization
     if not isinstance(disc, Discretization):
         raise TypeError(f"disc must be a codegen.core.target.Discretization, got {type(disc).__name__}")
+    stage(f"{'numpy reference of' if reference else 'compiling'} {prefix or spec.family} on "
+          f"{spec.robot.name} (dt {disc.dt:g} s)")
     if disc.substeps == "auto":
         from ...discrete.stability import auto_substeps
         disc = auto_substeps(spec, disc)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core.recording import write_columns
-from .blocks import bind
+from .blocks import bind, stage, staged
 
 
 @dataclass
@@ -126,7 +126,8 @@ def simulate(plant, q0, qd0, T, dt, controller, observers=None, sensor=None, est
     est0        dict name -> initial estimate of that observer (default: zeros)
     log_states  names of observers whose state is recorded each sample (before its step);
                 the state after the last step is in ``extra[name + "_state_final"]``
-    progress    show a tqdm progress bar on stderr (if tqdm is installed)
+    progress    show a tqdm progress bar on stderr (if tqdm is installed); also inside
+                blocks.stage_lines (`simulate`)
 
     ``est`` passed to the controller holds buffers that are overwritten at the next sample.
     """
@@ -157,11 +158,12 @@ def simulate(plant, q0, qd0, T, dt, controller, observers=None, sensor=None, est
     logged = [(S[name], ports[name]) for name in log_states]
     stepped = [(E[name], port) for name, port in ports.items()]
     steps = range(N)
-    if progress:
+    stage(f"simulating {T:g} s at dt {dt:g} s ({N} samples, {len(observers)} observers)")
+    if progress or staged():
         try:
             from tqdm import tqdm
             steps = tqdm(steps, desc="simulate", unit="step", file=sys.stderr, leave=False,
-                         miniters=max(1, N // 100))
+                         miniters=max(1, N // 100), disable=None if not progress else False)
         except ImportError:  # pragma: no cover
             pass
     measure = sensor.measure

@@ -2,7 +2,8 @@
 
 Import. The URDF of ``robot.source`` is copied with its visuals, collisions, transmissions and
 gazebo tags removed (MuJoCo cannot read .dae meshes and we need no geometry), locked joints
-turned into fixed joints (at 0, as the catalog locks panda's fingers), and a
+turned into fixed joints at their value (the joint's origin times its motion there: a rotation
+about the axis, or a translation along it), and a
 ``<mujoco><compiler inertiafromgeom="false" .../></mujoco>`` element added, so MuJoCo keeps
 the URDF's inertials, joints, limits and damping and fuses fixed links like pinocchio does.
 Contacts are disabled (there are no geoms). ``MujocoPlant.mass_matrix`` and ``bias`` (mj_fullM,
@@ -39,8 +40,8 @@ def _mujoco():
     try:
         import mujoco
     except ImportError:  # pragma: no cover
-        raise ImportError("the MuJoCo plant needs the `mujoco` package: "
-                          "pip install 'observer-codegen[test]' (or pip install mujoco)") from None
+        raise ImportError("the MuJoCo plant needs the optional package mujoco: "
+                          "pip install 'observer-codegen[mujoco]'", name="mujoco") from None
     return mujoco
 
 
@@ -52,17 +53,15 @@ def mujoco_urdf(path, locked_joints=None):
     path : path-like
         URDF file.
     locked_joints : dict, optional
-        Joint name -> value; only 0 is supported (the joint becomes a fixed joint in place).
+        Joint name -> value (rad or m): the joint becomes a fixed joint whose origin is the
+        joint's origin followed by its motion at that value (``_locked_origin``).
 
     Returns
     -------
     str
     """
     root = ET.parse(Path(path)).getroot()
-    locked = dict(locked_joints or {})
-    bad = {k: v for k, v in locked.items() if float(v) != 0.0}
-    if bad:
-        raise ValueError(f"locked_joints: the MuJoCo import locks joints at 0 only, got {bad}")
+    locked = {k: float(v) for k, v in (locked_joints or {}).items()}
     for link in root.iter("link"):
         for tag in ("visual", "collision"):
             for e in link.findall(tag):
@@ -75,6 +74,7 @@ def mujoco_urdf(path, locked_joints=None):
         if name not in joints:
             raise ValueError(f"locked_joints: {name!r} is not a joint of {path}")
         j = joints[name]
+        _locked_origin(j, locked[name])
         j.set("type", "fixed")
         for tag in ("limit", "axis", "dynamics", "mimic", "safety_controller", "calibration"):
             for e in j.findall(tag):
@@ -83,6 +83,33 @@ def mujoco_urdf(path, locked_joints=None):
     compiler.attrib.update(discardvisual="true", fusestatic="true", inertiafromgeom="false",
                            balanceinertia="false", angle="radian")
     return ET.tostring(root, encoding="unicode")
+
+
+def _locked_origin(joint, value):
+    """Set the <origin> of the URDF ``joint`` element to T_origin T_motion(value): a rotation by
+    ``value`` rad about its axis (revolute, continuous) or a translation by ``value`` m along it
+    (prismatic); the child's pose with the joint held there."""
+    from scipy.spatial.transform import Rotation
+    if value == 0.0:
+        return
+    kind = joint.get("type")
+    if kind not in ("revolute", "continuous", "prismatic"):
+        raise ValueError(f"locked_joints: {joint.get('name')!r} is a {kind} joint; only revolute, "
+                         "continuous and prismatic joints are locked")
+    origin = joint.find("origin")
+    if origin is None:
+        origin = ET.SubElement(joint, "origin")
+    xyz = np.array([float(v) for v in (origin.get("xyz") or "0 0 0").split()])
+    R = Rotation.from_euler("xyz", [float(v) for v in (origin.get("rpy") or "0 0 0").split()])
+    axis = joint.find("axis")
+    a = np.array([float(v) for v in (axis.get("xyz") if axis is not None else "1 0 0").split()])
+    a = a / np.linalg.norm(a)
+    if kind == "prismatic":
+        xyz = xyz + R.apply(a * value)
+    else:
+        R = R * Rotation.from_rotvec(a * value)
+    origin.set("xyz", " ".join(repr(float(v)) for v in xyz))
+    origin.set("rpy", " ".join(repr(float(v)) for v in R.as_euler("xyz")))
 
 
 class MujocoPlant:
@@ -277,7 +304,8 @@ class MujocoPlant:
 def sinusoids(robot, f_min=0.15, f_max=0.35, amplitude=0.6, seed=0):
     """q_d,i(t) = c_i + a_i sin(2 pi f_i t + phi_i), f_i evenly spread over [f_min, f_max] Hz,
     c_i the middle of joint i's range, a_i = min(amplitude, 0.4 x range) (rad), random phases
-    drawn with ``seed``; n and the ranges from ``robot`` (q_lower, q_upper).
+    drawn with ``seed`` (c_i = 0 for a joint without finite limits); n and the ranges from
+    ``robot`` (q_lower, q_upper).
 
     Returns
     -------
@@ -286,7 +314,7 @@ def sinusoids(robot, f_min=0.15, f_max=0.35, amplitude=0.6, seed=0):
     """
     rng = np.random.default_rng(seed)
     lo, hi = robot.q_lower, robot.q_upper
-    c = 0.5 * (lo + hi)
+    c = np.where(np.isfinite(lo + hi), 0.5 * (lo + hi), 0.0)     # a continuous joint: about 0
     a = np.minimum(amplitude, 0.4 * (hi - lo))
     w = 2 * np.pi * np.linspace(f_min, f_max, robot.n)
     phi = rng.uniform(0, 2 * np.pi, robot.n)

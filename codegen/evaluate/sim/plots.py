@@ -13,6 +13,7 @@ PNG and returns the path:
 """
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 from itertools import cycle
 from pathlib import Path
@@ -21,6 +22,26 @@ import numpy as np
 
 STYLES = ["--", "-.", ":", (0, (5, 1)), (0, (3, 1, 1, 1))]
 LINES = ["-", *STYLES]
+MUTED = {"color": "0.72", "lw": 0.6, "ls": "-"}     # the curves a figure keeps but does not highlight
+_caption = None                                    # the source every figure cites (``citing``)
+
+
+def legend(ax, **kw):
+    """The legend of the axes ``ax`` beside it, right of the plot (never over the data); ``kw``
+    go to ``Axes.legend``."""
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, **kw)
+
+
+@contextlib.contextmanager
+def citing(text):
+    """While inside, every figure written carries ``text`` (the paper and experiment it
+    reproduces, e.g. a scenario's line of `simulate list`) at its bottom left."""
+    global _caption
+    outer, _caption = _caption, text
+    try:
+        yield
+    finally:
+        _caption = outer
 
 
 def _plt():
@@ -33,7 +54,9 @@ def _plt():
 def _save(fig, path):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
+    if _caption:
+        fig.text(0.005, 0.003, _caption, fontsize=7, color="0.35", ha="left", va="bottom")
+    fig.tight_layout(rect=(0, 0.03 if _caption else 0, 1, 1))
     fig.savefig(path, dpi=110)
     _plt().close(fig)
     return path
@@ -53,7 +76,9 @@ class Panel:
     hlines : sequence of float
         Horizontal reference lines (dotted gray).
     legend : bool
-        Show the curves' labels.
+        Show the curves' labels (beside the axes).
+    muted : dict
+        label -> samples drawn thin and gray under the curves (one legend entry, "others: ...").
     """
 
     curves: dict
@@ -62,6 +87,7 @@ class Panel:
     log: str = ""
     hlines: tuple = ()
     legend: bool = True
+    muted: dict = None
 
 
 def panels(path, x, rows, title="", cols=1, cell=(8.0, 2.6), xlabel="t [s]"):
@@ -80,6 +106,8 @@ def panels(path, x, rows, title="", cols=1, cell=(8.0, 2.6), xlabel="t [s]"):
     fig, axes = plt.subplots(nrows, cols, figsize=(cell[0] * cols, cell[1] * nrows), squeeze=False,
                              sharex=True)
     for ax, p in zip(axes.flat, rows):
+        for i, y in enumerate((p.muted or {}).values()):
+            ax.plot(x[:len(y)], y, **MUTED, label=f"others: {', '.join(p.muted)}" if i == 0 else None)
         for (label, y), ls in zip(p.curves.items(), cycle(LINES)):
             ax.plot(x[:len(y)], y, linestyle=ls, lw=1.0, label=label)
         if "y" in p.log:
@@ -92,7 +120,7 @@ def panels(path, x, rows, title="", cols=1, cell=(8.0, 2.6), xlabel="t [s]"):
         ax.set_title(p.title, fontsize=9)
         ax.grid(alpha=0.3, which="both")
         if p.legend:
-            ax.legend(loc="best", fontsize=8)
+            legend(ax)
     for ax in axes.flat[len(rows):]:
         ax.set_visible(False)
     for ax in axes[-1]:
@@ -134,13 +162,13 @@ def per_joint(path, t, truth, estimates, ylabel="qd{} [rad/s]", truth_label="tru
                 a.plot(t[sel], E[sel, i], linestyle=ls, lw=1.1, label=name)
         ax.set_ylabel(ylabel.format(i + 1))
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(loc="lower left", fontsize=8)
+    legend(axes[0, 0])
     axes[0, 0].set_title(title)
     axes[-1, 0].set_xlabel("t [s]")
     return _save(fig, path)
 
 
-def error_norms(path, t, errors, levels=(1e-2, 1e-3), ylabel="||qd - qd_hat|| [rad/s]", title=""):
+def error_norms(path, t, errors, levels=(1e-2, 1e-3), ylabel="||qd - qd_hat|| [rad/s]", title="", muted=None):
     """||e(t)|| (row norms, floored at 1e-12) of each error on a log axis, with reference levels.
 
     Parameters
@@ -150,11 +178,14 @@ def error_norms(path, t, errors, levels=(1e-2, 1e-3), ylabel="||qd - qd_hat|| [r
         is drawn as far as it went)
     levels : horizontal lines (e.g. the settling levels)
     ylabel, title : axis label and figure title
+    muted : dict, optional
+        label -> errors drawn thin and gray under the others (kept, not highlighted)
     """
-    norms = {k: np.maximum(np.linalg.norm(np.reshape(e, (len(e), -1)), axis=1), 1e-12)
-             for k, e in errors.items()}
-    return panels(path, t, [Panel(norms, ylabel=ylabel, log="y", hlines=levels)], title=title,
-                  cell=(8, 3.4))
+    def norm(e):
+        return np.maximum(np.linalg.norm(np.reshape(e, (len(e), -1)), axis=1), 1e-12)
+    return panels(path, t, [Panel({k: norm(e) for k, e in errors.items()}, ylabel=ylabel, log="y",
+                                  hlines=levels, muted={k: norm(e) for k, e in (muted or {}).items()})],
+                  title=title, cell=(8, 3.4))
 
 
 def tracking(path, t, e, tau, title=""):
@@ -183,18 +214,18 @@ def positions_and_bound(path, t, q, qd, est, r, vbar, q_ref=None, title=""):
     for i in range(q.shape[1]):
         a1.plot(t, q[:, i], lw=1.2, label=f"q{i + 1}")
         if q_ref is not None:
-            a1.plot(t, q_ref[:, i], "k:", lw=1.0, label=f"q{i + 1},d" if i == 0 else None)
+            a1.plot(t, q_ref[:, i], ":", color=a1.lines[-1].get_color(), lw=1.0, label=f"q{i + 1},d (target)")
     a1.set_ylabel("q [rad]")
     a1.grid(alpha=0.3)
-    a1.legend(loc="best", fontsize=8)
+    legend(a1)
     a1.set_title(title)
     a2.plot(t, np.linalg.norm(qd, axis=1), "k-", lw=1.3, label="||qd||")
     a2.plot(t, np.linalg.norm(est, axis=1), "--", lw=1.1, label="||qd_hat||")
     a2.step(t, r * vbar, where="post", lw=1.1, label="bound r vbar")
-    a2.set_ylabel("[rad/s]")
+    a2.set_ylabel("speed [rad/s]")
     a2.set_xlabel("t [s]")
     a2.grid(alpha=0.3)
-    a2.legend(loc="best", fontsize=8)
+    legend(a2)
     return _save(fig, path)
 
 

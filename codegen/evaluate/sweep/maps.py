@@ -96,7 +96,31 @@ def best_gain(frame, gain, by="noise", metric="rms", method=None, designed=None)
     return pd.DataFrame(rows)
 
 
-def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=None):
+# units of the swept axes and the metrics (a gain not listed is labelled by its name alone)
+UNITS = {"noise": "rad", "quantization": "rad", "mismatch": "relative", "dt": "s", "k0": "1/s",
+         "k0_final": "1/s", "kd": "1/s", "kp": "1/s^2", "omega": "rad/s", "omega0": "rad/s",
+         "rms": "rad/s", "max": "rad/s", "t_conv": "s", "lag": "s", "gain": "1"}
+
+
+def label(name):
+    """An axis label with its unit, ``"k0 [1/s]"``; a name without a known unit as it is."""
+    return f"{name} [{UNITS[name]}]" if name in UNITS else name
+
+
+def cites(family):
+    """Where ``family``'s equations are: the first ``docs/papers/<page>.md §n`` its module's
+    docstring names, else "beyond the papers" (a family of our own, its docstring says which)."""
+    import importlib
+    import re
+    try:
+        doc = importlib.import_module(f"codegen.families.observers.{family}").__doc__ or ""
+    except ImportError:
+        return f"{family}: a baseline of codegen/evaluate/baselines.py"
+    found = re.search(r"docs/papers/\w+\.md §[\d.]+", " ".join(doc.split()))
+    return f"{family}: {found.group(0)}" if found else f"{family}: beyond the papers (its module docstring)"
+
+
+def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=None, note=None):
     """A map of log10(median ``metric``) over the swept values of x (columns) and y (rows),
     each cell a grid point (equal spacing, ticks the values), the best x per row marked (x)
     and the designed value of x per row (o, placed between the swept values in log).
@@ -117,6 +141,8 @@ def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=N
         Rows of designed.json (no designed markers without them).
     title : str, optional
         Figure title (default: method, metric and axes).
+    note : str, optional
+        A second title line (the run, the window of the metric, the paper of the observer).
 
     Returns
     -------
@@ -132,11 +158,11 @@ def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=N
     xs, ys = np.asarray(piv.columns, dtype=float), np.asarray(piv.index, dtype=float)
     fig, ax = plt.subplots(figsize=(1.2 + 0.55 * len(xs), 1.4 + 0.4 * len(ys)))
     im = ax.imshow(np.where(np.isfinite(Z), Z, np.nan), origin="lower", aspect="auto", cmap="viridis")
-    fig.colorbar(im, ax=ax, label=f"log10 median {metric}")
+    fig.colorbar(im, ax=ax, label=f"log10 median {label(metric)}")
     ax.set_xticks(range(len(xs)), [f"{v:.3g}" for v in xs], rotation=60)
     ax.set_yticks(range(len(ys)), [f"{v:.3g}" for v in ys])
-    ax.set_xlabel(x)
-    ax.set_ylabel(y)
+    ax.set_xlabel(label(x))
+    ax.set_ylabel(label(y))
     for r, row in enumerate(piv.to_numpy(dtype=float)):
         if np.any(np.isfinite(row)):
             ax.plot(int(np.nanargmin(np.where(np.isnan(row), np.inf, row))), r, "rx", ms=9, mew=2,
@@ -148,7 +174,7 @@ def heatmap(frame, x, y, path, metric="rms", method=None, designed=None, title=N
         if pos:
             ax.plot(*zip(*pos), "o", color="darkorange", mfc="none", ms=10, mew=2.5, label=f"designed {x}")
     ax.legend(loc="upper left", bbox_to_anchor=(0, -0.25), ncol=2, fontsize=8, frameon=False)
-    ax.set_title(title or f"{method}: {metric} over {x} x {y}", fontsize=9)
+    ax.set_title((title or f"{method}: {metric} over {x} x {y}") + (f"\n{note}" if note else ""), fontsize=9)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110, bbox_inches="tight")
@@ -190,8 +216,12 @@ def write(out, sweep):
     frame, designed = store.read(), store.get("designed.json")
     metric, method = sweep.map.get("metric", "rms"), sweep.map.get("method")
     x, y = axes
+    window = (f"{metric} of ||qd - qd_hat|| over t >= {sweep.steady:g} s of each {sweep.T:g} s run"
+              if metric in ("rms", "max") else f"{metric} at level {sweep.level:g} rad/s")
     fig = heatmap(frame, x, y, store.out / "map.png", metric, method, designed,
-                  title=f"{sweep.name}: {sweep.robot} ({sweep.plant} plant), median {metric} (rad/s)")
+                  title=f"{sweep.name}: {sweep.robot} ({sweep.plant} plant), median {label(metric)}",
+                  note=f"{window}, median over the seeds; x: the best swept {x} per row, o: the designed "
+                       f"one; {cites(_observer(frame, method)[1]['family'].iloc[0])}")
     text = best_gain(frame, x, y, metric, method, designed).to_string(index=False, float_format="%.4g")
     (store.out / "best.txt").write_text(text + "\n")
     return [fig, store.out / "best.txt"]
