@@ -175,10 +175,12 @@ def metadata(spec, target, kernels, stability=None):
 
 def fingerprint(meta):
     """The fingerprint of a build: the first 16 hex digits of the sha256 of its metadata ``meta``
-    (dict; JSON with sorted keys, without the "fingerprint" entry itself). It covers the target,
-    the robot's model data, the parameters, the design and the generator's versions: what the
-    folder's bytes are made from."""
-    body = {k: v for k, v in meta.items() if k != "fingerprint"}
+    (dict; JSON with sorted keys, without the "fingerprint" entry itself and the "target" record
+    of how the target was named). It covers the family, the robot's model data, the parameters,
+    the design, the discretisation and the generator's versions: what the folder's C is made of,
+    so the same observer named by a catalog name or by its URDF has one fingerprint (and one
+    compiled library in the cache, pipeline/compile.py)."""
+    body = {k: v for k, v in meta.items() if k not in ("fingerprint", "target")}
     return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()[:16]
 
 

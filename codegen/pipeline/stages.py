@@ -75,7 +75,9 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), che
     emit(target, out_dir, spec=spec, force=force, check=check)
     report("compile")
     lib = compile_library(folder, native=native, extra_flags=cflags)
-    built = json.loads((lib.parent / f"{target.prefix}.json").read_text())["target"]
+    # the folder's own record (the cache's copy may name the same C differently: a catalog name,
+    # a URDF path; pipeline/compile.py keys the library by what it is made of)
+    built = json.loads((folder / f"{target.prefix}.json").read_text())["target"]
     if built != json.loads(json.dumps(target.to_dict())):       # a concurrent --force build swapped its folder in
         raise FolderTaken(f"{folder} was replaced by another build while this one compiled it; "
                           "build again (one build per folder at a time)")
