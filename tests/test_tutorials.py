@@ -5,9 +5,13 @@ Each page's fenced blocks are taken in order, in an empty folder: a block with a
 page (the folder as working directory); an ``sh`` block runs in bash (``set -euo pipefail``) with
 ``python`` this interpreter and the repository importable. A ``sh`` block whose first line is
 ``# needs: TOOL ...`` is skipped, and said so, when a tool is missing (the Cortex-M flow of
-``make embedded``). Blocks of other languages without a title (``text``: printed output) are
-not run.
+``make embedded``). A ``text`` block is what the runnable block before it prints (stdout):
+each of its lines, in order, is one of the printed lines, ``…`` in a line standing for any text
+(a path of your machine) and a line ``...`` marking where printed lines are left out. Blocks of
+other languages without a title are not run.
 """
+import contextlib
+import io
 import os
 import re
 import shutil
@@ -32,6 +36,25 @@ def blocks(page):
     return out
 
 
+def shown_in(shown, printed):
+    """The lines of ``shown`` (a ``text`` block) that are not among the lines of ``printed`` in
+    order: ``…`` in a shown line matches any text, a shown line ``...`` is left out (it marks
+    elided output); trailing blanks are ignored. Empty: the block shows what was printed."""
+    lines = [line.rstrip() for line in printed.splitlines()]
+    missing, at = [], 0
+    for want in shown.splitlines():
+        want = want.rstrip()
+        if want.strip() in ("", "..."):
+            continue
+        pattern = re.compile(".*".join(map(re.escape, want.split("…"))))
+        hit = next((i for i in range(at, len(lines)) if pattern.fullmatch(lines[i])), None)
+        if hit is None:
+            missing.append(want)
+        else:
+            at = hit + 1
+    return missing
+
+
 def run_page(page, folder, monkeypatch):
     """Run the blocks of ``page`` in ``folder``; returns the names of the skipped sh blocks."""
     bin_dir = folder / ".bin"
@@ -45,15 +68,25 @@ def run_page(page, folder, monkeypatch):
     monkeypatch.chdir(folder)
     monkeypatch.setenv("CODEGEN_BUILD", env["CODEGEN_BUILD"])
     monkeypatch.setenv("MPLBACKEND", "Agg")
-    namespace, skipped = {"__name__": "__tutorial__"}, []
+    namespace, skipped, printed = {"__name__": "__tutorial__"}, [], None
     for i, (lang, title, body) in enumerate(blocks(page)):
         where = f"{page.name}, block {i + 1} ({lang or 'text'})"
+        if lang == "text" and not title:
+            if printed is not None:         # None: the block before it was skipped
+                missing = shown_in(body, printed)
+                assert not missing, (f"{where} shows lines its block did not print:\n"
+                                     + "\n".join(missing) + f"\n--- printed\n{printed[-4000:]}")
+            continue
+        printed = None
         if title:
             path = folder / title
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(body)
         elif lang == "python":
-            exec(compile(body, where, "exec"), namespace)          # noqa: S102 (the page's own code)
+            out = io.StringIO()
+            with contextlib.redirect_stdout(out):
+                exec(compile(body, where, "exec"), namespace)      # noqa: S102 (the page's own code)
+            printed = out.getvalue()
         elif lang == "sh":
             needs = re.match(r"#\s*needs:\s*(.*)", body)
             missing = [t for t in (needs.group(1).split() if needs else []) if shutil.which(t) is None]
@@ -64,6 +97,7 @@ def run_page(page, folder, monkeypatch):
                                  capture_output=True, text=True)
             assert run.returncode == 0, (f"{where} exited {run.returncode}:\n{body}\n--- stdout\n"
                                          f"{run.stdout[-4000:]}\n--- stderr\n{run.stderr[-4000:]}")
+            printed = run.stdout
     return skipped
 
 
@@ -72,6 +106,36 @@ def test_the_pages_have_runnable_blocks():
     for name in PAGES:
         langs = [lang for lang, title, _ in blocks(TUTORIALS / name) if not title]
         assert "python" in langs or "sh" in langs, f"{name}: no python or sh block"
+
+
+def test_shown_in_matches_printed_lines_in_order():
+    printed = "a: 1\nb: /tmp/x/lib.so (2 s)\nc: 3\n"
+    assert shown_in("a: 1\n...\nc: 3\n", printed) == []
+    assert shown_in("b: … (2 s)", printed) == []
+    assert shown_in("c: 3\na: 1", printed) == ["a: 1"]           # out of order
+    assert shown_in("a: 2", printed) == ["a: 2"]                  # a number the code no longer prints
+
+
+def test_a_page_showing_what_its_code_does_not_print_fails(tmp_path, monkeypatch):
+    page = tmp_path / "page.md"
+    shown = "```python\nprint('k0 =', 2 * 13)\n```\n\n```text\nk0 = {}\n```\n"
+    (tmp_path / "run").mkdir()
+    page.write_text(shown.format(26))
+    assert run_page(page, tmp_path / "run", monkeypatch) == []
+    (tmp_path / "run2").mkdir()
+    page.write_text(shown.format(27))
+    with pytest.raises(AssertionError, match="shows lines its block did not print"):
+        run_page(page, tmp_path / "run2", monkeypatch)
+
+
+def test_every_output_block_follows_a_runnable_block():
+    """A ``text`` block shows what the block before it printed: that block runs (python or sh)."""
+    for name in PAGES:
+        previous = None
+        for lang, title, _ in blocks(TUTORIALS / name):
+            if lang == "text" and not title:
+                assert previous in ("python", "sh"), f"{name}: a text block after a {previous} block"
+            previous = None if title else lang
 
 
 @pytest.mark.long          # minutes each: make test-long (CI), not make test
