@@ -171,7 +171,7 @@ class StabilityReport:
         late = {t: c for t, c in self.clocks.items() if not c["value"] <= c["max"]}
         reasons = [f"{', '.join(self.negative)} must be >= 0"] if self.negative else []
         if not self.evaluable:
-            reasons.append(f"the step is not finite (it overflows) at the working points{at}")
+            reasons.append(f"the step is not finite (an overflow, a NaN) at the working points{at}")
         elif grows or not (imprecise or late or self.negative):
             reasons.append(f"spectral radius {self.spectral_radius:.4g} > 1{at} (the continuous-time observer: "
                            f"{self.flow_radius:.4g})")

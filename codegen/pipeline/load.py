@@ -208,6 +208,11 @@ class CompiledObserver:
             self._stepped(self.dt if dt is None else dt)
         return st, self._out("est", self.nest)
 
+    def c_set_params(self, p):
+        """The raw C set_params with ``p`` (np,), no stability check (a step that is not
+        finite, to see the C's status): for tests of the C."""
+        self._check(self._set_params(self._s, self._load("p", "p", p, self.np)), "set_params")
+
     def run(self, Y, U, t=None):
         """Many samples at once (rows of Y, U); the loop runs in C. Returns EST (N, nest).
 
