@@ -377,7 +377,8 @@ def _joint_of(spec, state):
 def stiff_mode(spec, lin, p, dt):
     """The stiffest mode of the flow at the working points: the eigenvalue of (J(x) + J(x+))/2 of
     largest modulus, the state slot its eigenvector lives on most, that slot's joint, and why it
-    is stiff, from the robot at that point's configuration y: for joint j with M^-1 (kg m^2)^-1 and
+    is stiff: the gain, when the slot is a rate state whose gain rate a (``spec.rate``) is at
+    least half the mode's; else from the robot at that point's configuration y: for joint j with M^-1 (kg m^2)^-1 and
     the friction's slope at rest d_j = viscous_j + coulomb_j / width (N m s/rad; the smooth
     Coulomb sign tanh(v / width) is steepest there), the rate d_j (M^-1)_jj when it explains the
     mode (>= half of it: "friction on a small inertia"), else the small inertia 1 / (M^-1)_jj
@@ -412,6 +413,13 @@ def stiff_mode(spec, lin, p, dt):
     out = {"rate": rate, "rate_dt": rate * dt, "state": spec.x_names[state], "joint": joint,
            "cause": None, "lock": None}
     robot = spec.robot
+    if spec.rate is not None and spec.x_names[state] in spec.rate_states:
+        # the output injection's own rate a (rhs = N - a x on the rate states): a gain too large
+        gain = float(np.max(np.abs(np.asarray(spec.rate(lin.states(p)[:, i], p), dtype=float))))
+        if gain >= 0.5 * rate:
+            out["cause"] = (f"the stiff mode (rate {rate:.3g} 1/s = {rate * dt:.3g} / dt) is the gain's "
+                            f"own rate {gain:.3g} 1/s on {spec.x_names[state]}")
+            return out
     if joint is None or not hasattr(robot, "M"):
         return out
     j = robot.joint_names.index(joint)

@@ -276,3 +276,17 @@ def test_float_clock_that_cannot_reach_t_switch_is_refused(tmp_path):
         s = np.float32(s + h)
     assert abs(float(s) - int(bound / 2.5e-4) * float(h)) <= 1e-3
     assert np.float32(np.float32(39999.9) + h) == np.float32(39999.9)   # the stall of the issue
+
+
+def test_every_scheduled_gain_of_the_hybrid_is_checked():
+    """The hybrid observer switches among k_1 .. k_r_max: each one, set alone to 5000 with RK4
+    (5000 dt_max = 10 > 2.785), is refused (the check linearises at every logic state, the
+    estimate in its band), the cause named as the gain's rate, not the robot's inertia."""
+    spec = observers.build("reduced_order_hybrid", load_robot("seed000_2r"))
+    assert check(spec, RK4).stable
+    for r in (2, 6):
+        p = spec.p_default.copy()
+        p[spec.p_names.index(f"k_{r}")] = 5000.0
+        report = check(spec, RK4, p=p)
+        assert not report.stable and report.spectral_radius > 100
+        assert "the gain's own rate 5e+03 1/s" in report.message(spec.family)
