@@ -9,9 +9,24 @@ points: sampled configurations y (``spec.inputs``), each at rest (estimate 0) an
     rho_c,i = rho(expm(dt (J(x_i) + J(x_i+)) / 2)),  J = d rhs/dx   (the exact linearised flow
               over the step, to O(dt^3): J at both ends, so a moving point compares like with like)
 
+The working points are taken at every phase a spec declares (``spec.phases``: a switched gain
+after its switch, each logic state of a hybrid), so every gain the observer can switch to is
+linearised, all of them jointly at the parameters p.
+
 The discretisation is *stable* when rho_i <= max(1, rho_c,i) (1 + 1e-6) at every point (it adds
-no growth the continuous-time observer does not have) and every declared gain (``spec.gains``)
-is >= 0 (a negative output-injection gain makes the continuous observer itself unstable).
+no growth the continuous-time observer does not have; a step that is not finite there, an
+overflow or a NaN, is unstable), every declared gain (``spec.gains``) is >= 0 (a negative
+output-injection gain makes the continuous observer itself unstable), the precision carries the
+gains, and every clock reaches its time (below).
+
+Precision (``precision`` "double" or "float", unit roundoff u = 2^-53 or 2^-24): the C stores the
+state to within u |x_k|; the estimate's error from it is u e, e = max_i max_j sum_k
+|d est_j/d x_k| |x_k| at the working points (reduced_order: z = x2hat - k0 y, so e ~ k0 |y|).
+It must keep at least half the estimate's significand: u e <= sqrt(u) m, m the estimate's size
+there (max |est|). k0 = 1e17 on seed000_2r: u e = 35 rad/s, refused; the bound is k0 <= 4.2e7
+in double, 1.8e3 in float. Clocks (``spec.clocks``: a state s' = 1 counting up to a time
+parameter): each step adds the elapsed time h >= dt_min rounded, so the time t is reached within
+one sample when (t / dt_min) ulp(t) / 2 <= dt (``clock_limit``: 2.1 s in float at dt = 1 ms).
 
 The step takes the elapsed time as an input, so this must hold at every sample time of the
 declared range [dt_min, dt_max] (``Discretization.dt_range``): it is checked on ``sample_times``,
@@ -21,8 +36,8 @@ sub-intervals of at most dt_max by the C, so any dt_max >= dt that is stable is 
 the worst point: an explicit step's amplification R(lambda h) leaves the stability region as h
 grows, so dt_max decides for the gain terms (RK4 on z' = -k0 z: k0 dt_max <= 2.785); the grid
 also covers a non-monotone case, and the accuracy figure below is taken at dt.
-Reported with it: the largest value of each gain stable over the whole range (bisection, the
-other parameters fixed), the largest stable sample time and the substeps that would make the
+Reported with it: the largest value of each gain stable over the whole range and within the
+precision (bisection, the other parameters fixed), the largest stable sample time and the substeps that would make the
 range stable, and the accuracy of the step at dt, max_i ||dPhi/dx - expm(dt (J(x_i) + J(x_i+)) / 2)||_2.
 
     report = check(spec, disc)               # StabilityReport; cached on disk
@@ -377,11 +392,11 @@ def _joint_of(spec, state):
 def stiff_mode(spec, lin, p, dt):
     """The stiffest mode of the flow at the working points: the eigenvalue of (J(x) + J(x+))/2 of
     largest modulus, the state slot its eigenvector lives on most, that slot's joint, and why it
-    is stiff: the gain, when the slot is a rate state whose gain rate a (``spec.rate``) is at
-    least half the mode's; else from the robot at that point's configuration y: for joint j with M^-1 (kg m^2)^-1 and
+    is stiff, from the robot at that point's configuration y: for joint j with M^-1 (kg m^2)^-1 and
     the friction's slope at rest d_j = viscous_j + coulomb_j / width (N m s/rad; the smooth
     Coulomb sign tanh(v / width) is steepest there), the rate d_j (M^-1)_jj when it explains the
-    mode (>= half of it: "friction on a small inertia"), else the small inertia 1 / (M^-1)_jj
+    mode (>= half of it: "friction on a small inertia"), else the gain when the slot is a rate
+    state whose gain rate a (``spec.rate``) is >= half of it, else the small inertia 1 / (M^-1)_jj
     alone.
 
     Parameters
@@ -413,14 +428,14 @@ def stiff_mode(spec, lin, p, dt):
     out = {"rate": rate, "rate_dt": rate * dt, "state": spec.x_names[state], "joint": joint,
            "cause": None, "lock": None}
     robot = spec.robot
+    gain = 0.0
     if spec.rate is not None and spec.x_names[state] in spec.rate_states:
-        # the output injection's own rate a (rhs = N - a x on the rate states): a gain too large
+        # the output injection's own rate a (rhs = N - a x on the rate states)
         gain = float(np.max(np.abs(np.asarray(spec.rate(lin.states(p)[:, i], p), dtype=float))))
-        if gain >= 0.5 * rate:
-            out["cause"] = (f"the stiff mode (rate {rate:.3g} 1/s = {rate * dt:.3g} / dt) is the gain's "
-                            f"own rate {gain:.3g} 1/s on {spec.x_names[state]}")
-            return out
+    head = f"the stiff mode (rate {rate:.3g} 1/s = {rate * dt:.3g} / dt) is "
+    by_gain = f"{head}the gain's own rate {gain:.3g} 1/s on {spec.x_names[state]}"
     if joint is None or not hasattr(robot, "M"):
+        out["cause"] = by_gain if gain >= 0.5 * rate else None
         return out
     j = robot.joint_names.index(joint)
     y = lin.Y[i][:robot.n]
@@ -433,12 +448,14 @@ def stiff_mode(spec, lin, p, dt):
     friction = (f"viscous friction {viscous:.3g} N m s/rad" if coulomb == 0 else
                 f"friction of slope {damping:.3g} N m s/rad at rest (viscous {viscous:.3g} + Coulomb "
                 f"{coulomb:.3g} N m / width {width:.3g} rad/s)")
+    if damping * minv[j, j] < 0.5 * rate <= gain:
+        out["cause"] = by_gain
+        return out
     what = (f"{friction} on the small inertia of {joint} ({inertia:.2g} kg m^2 seen from it: rate "
             f"{damping * minv[j, j]:.3g} 1/s)" if damping * minv[j, j] >= 0.5 * rate
             else f"the small inertia of {joint} ({inertia:.2g} kg m^2 seen from it)")
     gripper = bool(GRIPPER.search(joint))
-    out["cause"] = (f"the stiff mode (rate {rate:.3g} 1/s = {rate * dt:.3g} / dt) is {what}"
-                    + (", a gripper joint" if gripper else ""))
+    out["cause"] = f"{head}{what}" + (", a gripper joint" if gripper else "")
     out["lock"] = joint if gripper else None
     return out
 
