@@ -167,6 +167,16 @@ class StabilityReport:
             del d["stiff_mode"]
         return d
 
+    @property
+    def imprecise(self):
+        """True when the estimate's rounding error is above its bound (module docstring: precision)."""
+        return self.rounding is not None and not self.rounding <= self.rounding_limit
+
+    @property
+    def late(self):
+        """{time parameter: {"value", "max"}} of the clocks that do not reach their time."""
+        return {t: c for t, c in self.clocks.items() if not c["value"] <= c["max"]}
+
     def message(self, family, form="python"):
         """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius,
         the cause (the stiff mode's joint and why it is stiff) and the fixes, as Python arguments
@@ -182,8 +192,7 @@ class StabilityReport:
         at = (f" at elapsed time {self.worst_dt:g}" if self.worst_dt is not None and self.worst_dt != self.dt
               and not self.stable else "")
         grows = not self.evaluable or not self.spectral_radius <= self.flow_radius * (1 + TOL)
-        imprecise = self.rounding is not None and not self.rounding <= self.rounding_limit
-        late = {t: c for t, c in self.clocks.items() if not c["value"] <= c["max"]}
+        imprecise, late = self.imprecise, self.late
         reasons = [f"{', '.join(self.negative)} must be >= 0"] if self.negative else []
         if not self.evaluable:
             reasons.append(f"the step is not finite (an overflow, a NaN) at the working points{at}")
@@ -694,8 +703,8 @@ def _fewest(spec, disc, p, limit):
     report = check(spec, disc, p)
     if report.stable:
         return disc
-    if report.negative or not report.substeps_needed:
-        raise _refusal(spec, report)
+    if report.negative or not report.substeps_needed or report.imprecise or report.late:
+        raise _refusal(spec, report)                 # sub-steps cannot fix these
     m = report.substeps_needed * disc.substeps
     while m <= limit:
         candidate = replace(disc, substeps=m)

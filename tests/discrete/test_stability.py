@@ -290,3 +290,12 @@ def test_every_scheduled_gain_of_the_hybrid_is_checked():
         report = check(spec, RK4, p=p)
         assert not report.stable and report.spectral_radius > 100
         assert "the gain's own rate 5e+03 1/s" in report.message(spec.family)
+
+
+def test_auto_substeps_refuses_what_substeps_cannot_fix_at_once():
+    """A gain beyond the precision's bound with RK4 both grows and loses the estimate: sub-steps
+    fix the growth, not the rounding, so "auto" refuses at once, naming the rounding error."""
+    spec = observers.build("reduced_order", load_robot("seed000_2r"), k0=1e9)
+    with pytest.raises(UnstableDiscretization, match="rounding error") as err:
+        auto_substeps(spec, RK4)
+    assert "no substeps" not in str(err.value)
