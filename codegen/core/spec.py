@@ -112,6 +112,10 @@ class ObserverSpec:
       measurement(est)   -> y    (or None)  the measurement of a plant in the estimated state
                                             (families estimating the whole state): consistent
                                             working points for the stability check
+      phases(x, y, p)    -> [x_1 .. x_K]  (or None)  the state x moved to each phase of its logic
+                                            or clock slots (K columns, the estimate kept): the
+                                            stability check linearises at every one, so that
+                                            every gain the observer can switch to is checked
 
     Declared data (what the reference and the cross-check read, never guessed):
       variant     the family's variant (None if it has none)
@@ -123,6 +127,8 @@ class ObserverSpec:
       rate_states names of the states the linear gain term acts on (with ``rate``)
       gains       gain name -> the parameter slots it scales together (non-negative gains the
                   discrete stability check bisects on, codegen.discrete.stability)
+      clocks      clock state name -> the parameter (a time, s) it counts up to, s' = 1: the
+                  stability check refuses a time the clock cannot reach in the precision
     """
 
     family: str
@@ -141,6 +147,7 @@ class ObserverSpec:
     rate: ca.Function | None = None
     retune: ca.Function | None = None
     measurement: ca.Function | None = None
+    phases: ca.Function | None = None
     variant: str | None = None
     options: Options = field(default_factory=Options)
     inputs: InputRanges = DEFAULT_INPUTS
@@ -148,6 +155,7 @@ class ObserverSpec:
     build_args: dict = field(default_factory=dict)
     rate_states: tuple = ()
     gains: dict = field(default_factory=dict)
+    clocks: dict = field(default_factory=dict)
 
     def __setattr__(self, name, value):
         """Every design report assigned (at construction or later) is a DesignReport."""
@@ -182,6 +190,14 @@ class ObserverSpec:
         for g, slots in self.gains.items():
             if not slots or any(s not in self.p_names for s in slots):
                 raise ValueError(f"{self.family}: gain {g!r} scales unknown parameters {list(slots)}")
+        if self.phases is not None and (
+                tuple(self.phases.numel_in(i) for i in range(3)) != (self.nx, self.ny, self.np)
+                or self.phases.size1_out(0) != self.nx):
+            raise ValueError(f"{self.family}: phases must map (x, y, p) to nx = {self.nx} rows (one column per phase)")
+        self.clocks = {str(c): str(t) for c, t in self.clocks.items()}
+        for c, t in self.clocks.items():
+            if c not in self.x_names or t not in self.p_names:
+                raise ValueError(f"{self.family}: clock {c!r} -> {t!r} must name a state and a parameter")
 
     nx = property(lambda self: len(self.x_names))
     ny = property(lambda self: len(self.y_names))

@@ -9,9 +9,24 @@ points: sampled configurations y (``spec.inputs``), each at rest (estimate 0) an
     rho_c,i = rho(expm(dt (J(x_i) + J(x_i+)) / 2)),  J = d rhs/dx   (the exact linearised flow
               over the step, to O(dt^3): J at both ends, so a moving point compares like with like)
 
+The working points are taken at every phase a spec declares (``spec.phases``: a switched gain
+after its switch, each logic state of a hybrid), so every gain the observer can switch to is
+linearised, all of them jointly at the parameters p.
+
 The discretisation is *stable* when rho_i <= max(1, rho_c,i) (1 + 1e-6) at every point (it adds
-no growth the continuous-time observer does not have) and every declared gain (``spec.gains``)
-is >= 0 (a negative output-injection gain makes the continuous observer itself unstable).
+no growth the continuous-time observer does not have; a step that is not finite there, an
+overflow or a NaN, is unstable), every declared gain (``spec.gains``) is >= 0 (a negative
+output-injection gain makes the continuous observer itself unstable), the precision carries the
+gains, and every clock reaches its time (below).
+
+Precision (``precision`` "double" or "float", unit roundoff u = 2^-53 or 2^-24): the C stores the
+state to within u |x_k|; the estimate's error from it is u e, e = max_i max_j sum_k
+|d est_j/d x_k| |x_k| at the working points (reduced_order: z = x2hat - k0 y, so e ~ k0 |y|).
+It must keep at least half the estimate's significand: u e <= sqrt(u) m, m the estimate's size
+there (max |est|). k0 = 1e17 on seed000_2r: u e = 35 rad/s, refused; the bound is k0 <= 4.2e7
+in double, 1.8e3 in float. Clocks (``spec.clocks``: a state s' = 1 counting up to a time
+parameter): each step adds the elapsed time h >= dt_min rounded, so the time t is reached within
+one sample when (t / dt_min) ulp(t) / 2 <= dt (``clock_limit``: 2.1 s in float at dt = 1 ms).
 
 The step takes the elapsed time as an input, so this must hold at every sample time of the
 declared range [dt_min, dt_max] (``Discretization.dt_range``): it is checked on ``sample_times``,
@@ -21,8 +36,8 @@ sub-intervals of at most dt_max by the C, so any dt_max >= dt that is stable is 
 the worst point: an explicit step's amplification R(lambda h) leaves the stability region as h
 grows, so dt_max decides for the gain terms (RK4 on z' = -k0 z: k0 dt_max <= 2.785); the grid
 also covers a non-monotone case, and the accuracy figure below is taken at dt.
-Reported with it: the largest value of each gain stable over the whole range (bisection, the
-other parameters fixed), the largest stable sample time and the substeps that would make the
+Reported with it: the largest value of each gain stable over the whole range and within the
+precision (bisection, the other parameters fixed), the largest stable sample time and the substeps that would make the
 range stable, and the accuracy of the step at dt, max_i ||dPhi/dx - expm(dt (J(x_i) + J(x_i+)) / 2)||_2.
 
     report = check(spec, disc)               # StabilityReport; cached on disk
@@ -41,6 +56,7 @@ import math
 import re
 from dataclasses import asdict, dataclass, field
 
+import casadi as ca
 import numpy as np
 from scipy.linalg import expm
 
@@ -49,11 +65,15 @@ from ..core.target import AUTO, DT_MAX_FACTOR
 from .sampling import declared_slots, measurements
 from .discretize import step_jacobians
 
-VERSION = 6            # of this check (part of the cache key)
+VERSION = 7            # of this check (part of the cache key)
 POINTS = 8             # sampled configurations; each at rest and moving
 TOL = 1e-6             # relative slack on the spectral radius
 GROWTH = 4.0 ** 10     # a gain is searched up to this multiple of its value (x4 at a time)
 BISECTIONS = 16        # relative precision 2^-16 of the bracket
+SHRINK = 600           # an unstable gain or sample time is searched down to 4^-600 of its value
+UNIT_ROUNDOFF = {"double": 2.0 ** -53, "float": 2.0 ** -24}    # u of each precision
+SIGNIFICAND = {"double": 53, "float": 24}                       # its significand bits
+REAL_MAX = {"double": float(np.finfo(np.float64).max), "float": float(np.finfo(np.float32).max)}
 
 
 # joints a user would rather lock than integrate: grippers, fingers, hands
@@ -108,6 +128,10 @@ class StabilityReport:
     substeps_needed : int or None
         ceil(dt_max / dt_limit) (computed when unstable): the factor on substeps that makes the range stable.
     points : int
+    precision, rounding, rounding_limit : the precision checked; the estimate's rounding error
+        from the stored state and its bound (module docstring: precision)
+    clocks : dict
+        time parameter -> {"value", "max"}: the largest time its clock reaches (``clock_limit``).
     """
 
     stable: bool
@@ -128,8 +152,12 @@ class StabilityReport:
     substeps_needed: int | None = None
     points: int = 0
     checked: bool = True
-    evaluable: bool = True     # False: the step is not finite at the working points (not judged)
+    evaluable: bool = True     # False: the step is not finite at the working points (unstable)
     stiff_mode: dict | None = None   # when unstable: rate (1/s), state, joint, cause, lock
+    precision: str = "double"
+    rounding: float | None = None        # u max_i sum_k |d est / d x_k| |x_k|: the estimate's rounding
+    rounding_limit: float | None = None  # sqrt(u) max_i ||est_i||: half the significand kept
+    clocks: dict = field(default_factory=dict)   # time parameter -> {"value", "max"} (s)
 
     def as_dict(self):
         """The report as a JSON-ready dict (``dataclasses.asdict``; ``stiff_mode`` only when
@@ -138,6 +166,16 @@ class StabilityReport:
         if d["stiff_mode"] is None:
             del d["stiff_mode"]
         return d
+
+    @property
+    def imprecise(self):
+        """True when the estimate's rounding error is above its bound (module docstring: precision)."""
+        return self.rounding is not None and not self.rounding <= self.rounding_limit
+
+    @property
+    def late(self):
+        """{time parameter: {"value", "max"}} of the clocks that do not reach their time."""
+        return {t: c for t, c in self.clocks.items() if not c["value"] <= c["max"]}
 
     def message(self, family, form="python"):
         """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius,
@@ -153,35 +191,52 @@ class StabilityReport:
         gains = ", ".join(f"{g} = {v['value']:.6g}" for g, v in self.gains.items()) or family
         at = (f" at elapsed time {self.worst_dt:g}" if self.worst_dt is not None and self.worst_dt != self.dt
               and not self.stable else "")
-        why = (f"spectral radius {self.spectral_radius:.4g} > 1{at} (the continuous-time observer: "
-               f"{self.flow_radius:.4g})")
-        if self.negative:
-            why = f"{', '.join(self.negative)} must be >= 0; {why}"
+        grows = not self.evaluable or not self.spectral_radius <= self.flow_radius * (1 + TOL)
+        imprecise, late = self.imprecise, self.late
+        reasons = [f"{', '.join(self.negative)} must be >= 0"] if self.negative else []
+        if not self.evaluable:
+            reasons.append(f"the step is not finite (an overflow, a NaN) at the working points{at}")
+        elif grows or not (imprecise or late or self.negative):
+            reasons.append(f"spectral radius {self.spectral_radius:.4g} > 1{at} (the continuous-time observer: "
+                           f"{self.flow_radius:.4g})")
         stiff = self.stiff_mode or {}
-        if stiff.get("cause") and not self.negative:
-            why = f"{why}; {stiff['cause']}"
+        if stiff.get("cause") and grows and not self.negative:
+            reasons.append(stiff["cause"])
+        half = SIGNIFICAND[self.precision] // 2
+        if imprecise:
+            reasons.append(f"in {self.precision} the estimate's rounding error from the stored state is "
+                           f"{self.rounding:.3g} (u sum_k |d est/d x_k| |x_k|), above {self.rounding_limit:.3g} "
+                           f"(2^-{half} of the estimate's size: fewer than half its {SIGNIFICAND[self.precision]} "
+                           f"bits left; the gain cancels in the state)")
+        for t, c in late.items():
+            reasons.append(f"{t} = {c['value']:g} s is beyond what the {self.precision} clock reaches within one "
+                           f"sample (each step adds the elapsed time, rounded: {t} <= {c['max']:.6g} s at "
+                           f"elapsed times >= {self.dt_min:g} s)")
+        why = "; ".join(reasons)
         fixes = [f"stable for 0 <= {g} <= {v['max_stable']:.6g}" if v["limit_found"] else
                  f"stable for every {g} >= 0 tested (up to {v['max_stable']:.3g})"
                  for g, v in self.gains.items() if v["max_stable"]]
-        if self.substeps_needed:
+        if grows and self.substeps_needed:
             m = self.substeps_needed * self.substeps
             fixes.append(f"or use --substeps {m} (or more)" if cli else f"or use substeps >= {m}")
-        if self.dt_limit:
+        if grows and self.dt_limit:
             limit = f"{self.dt_limit:.3g}"
             if self.dt_limit >= self.dt:
                 fixes.append(f"or --dt-max {limit} (or less; longer intervals are split)" if cli else
                              f"or dt_max <= {limit} (longer intervals are split)")
             else:
                 fixes.append(f"or --dt {limit} (or less)" if cli else f"or dt <= {limit}")
-        if not self.negative:                 # sub-steps cannot make a negative gain stable
+        if grows and not self.negative:       # sub-steps cannot make a negative gain stable
             fixes.append("or --substeps auto to choose them" if cli else 'or substeps="auto" to choose them')
-        if stiff.get("lock") and not self.negative:
+        if stiff.get("lock") and grows and not self.negative:
             j = stiff["lock"]
             fixes.append(f"or lock {j}: --lock {j}=0" if cli else
                          f"or lock {j}: load_robot(urdf=..., locked_joints={{{j!r}: 0.0}})")
+        if (imprecise or late) and self.precision != "double":
+            fixes.append("or --precision double" if cli else 'or precision="double"')
         if fixes:                             # the first fix is not an alternative to another
             fixes[0] = fixes[0].removeprefix("or ")
-        return f"{gains} {where}: {why}; " + ", ".join(fixes)
+        return f"{gains} {where}: {why}" + (f"; {', '.join(fixes)}" if fixes else "")
 
 
 def _gain_value(p, idx):
@@ -231,20 +286,37 @@ class _Linearisation:
     def __init__(self, spec, disc, points=POINTS, seed=0):
         self.spec, self.disc = spec, disc
         rng = np.random.default_rng(seed)
-        self.Y, self.U, self.EST = _working_points(spec, points, seed, rng)
+        Y, U, EST = _working_points(spec, points, seed, rng)
         # the declared continuous slots (about y, uniform); a discrete one (a hybrid logic state)
         # stays as init sets it, consistent with the rest of the state, and the step's jump moves it
-        slots = declared_slots(spec, self.Y, rng)
+        slots = declared_slots(spec, Y, rng)
         integer = {spec.x_names.index(name) for name, _, _ in spec.inputs.x_integer}
         self.slots = {i: v for i, v in slots.items() if i not in integer}
+        # each point at each phase of the logic or clock slots (``spec.phases``): K copies in a row
+        self.K = 1 if spec.phases is None else spec.phases.size2_out(0)
+        self._base = (Y, EST)
+        self.Y, self.U, self.EST = (np.repeat(a, self.K, axis=0) for a in (Y, U, EST))
         self.S = len(self.Y)
-        self._jac, self._maps = step_jacobians(spec, disc), {}
-        self.init = spec.init.map(self.S)
+        self._jac, self._maps, self._output = step_jacobians(spec, disc), {}, None
+        self.init = spec.init.map(len(Y))
+        self.phases = None if spec.phases is None else spec.phases.map(len(Y))
 
     def _map(self, count):
         if count not in self._maps:
             self._maps[count] = self._jac.map(count)
         return self._maps[count]
+
+    def states(self, p):
+        """The states x (nx, S) at the working points for parameters p: init(y, est, p), the
+        declared slots, then each phase (``spec.phases``)."""
+        (Y, EST), nx, B = self._base, self.spec.nx, len(self._base[0])
+        P = np.tile(np.asarray(p, float)[:, None], B)
+        X = np.asarray(self.init(Y.T, EST.T, P)).reshape(nx, B)
+        for i, values in self.slots.items():
+            X[i] = values
+        if self.phases is not None:           # point i at phase k: column i K + k, as Y repeated
+            X = np.asarray(self.phases(X, Y.T, P)).reshape(nx, self.S)
+        return X
 
     def at(self, p, dts):
         """(Phi, J) (G, S, nx, nx) at parameters p and the G sample times ``dts``: the step's
@@ -252,16 +324,35 @@ class _Linearisation:
         flow over the step to O(dt^3); None for J when anything is not finite."""
         nx, S, G = self.spec.nx, self.S, len(dts)
         P = np.tile(np.asarray(p, float)[:, None], S)
-        X = np.asarray(self.init(self.Y.T, self.EST.T, P)).reshape(nx, S)
-        for i, values in self.slots.items():
-            X[i] = values
+        X = self.states(p)
         # a mapped matrix output is [A_1 A_2 ...] side by side; the points repeat per sample time
         T = np.repeat(np.asarray(dts, float), S)[None, :]
-        Phi, J0, J1 = (np.asarray(m).reshape(nx, G, S, nx).transpose(1, 2, 0, 3)
-                       for m in self._map(G * S)(np.tile(X, G), np.tile(self.Y.T, G), np.tile(self.U.T, G),
-                                                np.tile(P, G), T))
-        J = 0.5 * (J0 + J1)
+        with np.errstate(all="ignore"):
+            Phi, J0, J1 = (np.asarray(m).reshape(nx, G, S, nx).transpose(1, 2, 0, 3)
+                           for m in self._map(G * S)(np.tile(X, G), np.tile(self.Y.T, G), np.tile(self.U.T, G),
+                                                    np.tile(P, G), T))
+            J = 0.5 * (J0 + J1)
         return Phi, (J if np.all(np.isfinite(Phi)) and np.all(np.isfinite(J)) else None)
+
+    def rounding(self, p):
+        """(e, m): e = max_i max_j sum_k |d est_j / d x_k| |x_k| at the working points, the error
+        of the estimate per unit roundoff of the stored state (x_k to within u |x_k|), and
+        m = max_i max(||est_i||_inf, ||output_i||_inf), the estimate's size there (the one the
+        point is built from, and the output's); e inf when not finite."""
+        spec = self.spec
+        if self._output is None:
+            f = spec.output
+            x, y, u, q = f.sx_in() if f.is_a("SXFunction") else f.mx_in()
+            est = f(x, y, u, q)
+            self._output = ca.Function("rounding", [x, y, u, q], [ca.jacobian(est, x), est]).map(self.S)
+        X = self.states(p)
+        with np.errstate(all="ignore"):
+            D, E = (np.asarray(m) for m in self._output(X, self.Y.T, self.U.T,
+                                                       np.tile(np.asarray(p, float)[:, None], self.S)))
+            D = D.reshape(spec.nest, self.S, spec.nx).transpose(1, 0, 2)
+            e = float(np.max(np.abs(D) @ np.abs(X.T)[:, :, None])) if spec.nest and spec.nx else 0.0
+            m = float(max(np.max(np.abs(E)), np.max(np.abs(self.EST)))) if E.size else 0.0
+        return (e if math.isfinite(e) and math.isfinite(m) else math.inf), m
 
     def radii(self, p, dts, accuracy=None):
         """At each sample time of ``dts``: (max rho(Phi), max(1, rho_c) at the worst point,
@@ -289,6 +380,18 @@ class _Linearisation:
         """True when the step is stable (module docstring) at every sample time of ``dts``."""
         return bool(np.all(self.radii(p, dts)[2] <= 1 + TOL))
 
+    def precision(self, p, precision="double"):
+        """(u e, sqrt(u) m) of ``rounding`` in ``precision`` (unit roundoff u): the estimate's
+        rounding error from the stored state, and the most it may be (half the significand kept)."""
+        e, m = self.rounding(p)
+        u = UNIT_ROUNDOFF[precision]
+        return u * e, math.sqrt(u) * m
+
+    def precise(self, p, precision="double"):
+        """True when the estimate keeps at least half its significand (``precision``)."""
+        error, limit = self.precision(p, precision)
+        return error <= limit
+
 
 def _joint_of(spec, state):
     """The robot joint a state slot belongs to (its name ends with ``_<joint>``), or None."""
@@ -303,7 +406,8 @@ def stiff_mode(spec, lin, p, dt):
     is stiff, from the robot at that point's configuration y: for joint j with M^-1 (kg m^2)^-1 and
     the friction's slope at rest d_j = viscous_j + coulomb_j / width (N m s/rad; the smooth
     Coulomb sign tanh(v / width) is steepest there), the rate d_j (M^-1)_jj when it explains the
-    mode (>= half of it: "friction on a small inertia"), else the small inertia 1 / (M^-1)_jj
+    mode (>= half of it: "friction on a small inertia"), else the gain when the slot is a rate
+    state whose gain rate a (``spec.rate``) is >= half of it, else the small inertia 1 / (M^-1)_jj
     alone.
 
     Parameters
@@ -335,7 +439,14 @@ def stiff_mode(spec, lin, p, dt):
     out = {"rate": rate, "rate_dt": rate * dt, "state": spec.x_names[state], "joint": joint,
            "cause": None, "lock": None}
     robot = spec.robot
+    gain = 0.0
+    if spec.rate is not None and spec.x_names[state] in spec.rate_states:
+        # the output injection's own rate a (rhs = N - a x on the rate states)
+        gain = float(np.max(np.abs(np.asarray(spec.rate(lin.states(p)[:, i], p), dtype=float))))
+    head = f"the stiff mode (rate {rate:.3g} 1/s = {rate * dt:.3g} / dt) is "
+    by_gain = f"{head}the gain's own rate {gain:.3g} 1/s on {spec.x_names[state]}"
     if joint is None or not hasattr(robot, "M"):
+        out["cause"] = by_gain if gain >= 0.5 * rate else None
         return out
     j = robot.joint_names.index(joint)
     y = lin.Y[i][:robot.n]
@@ -348,12 +459,14 @@ def stiff_mode(spec, lin, p, dt):
     friction = (f"viscous friction {viscous:.3g} N m s/rad" if coulomb == 0 else
                 f"friction of slope {damping:.3g} N m s/rad at rest (viscous {viscous:.3g} + Coulomb "
                 f"{coulomb:.3g} N m / width {width:.3g} rad/s)")
+    if damping * minv[j, j] < 0.5 * rate <= gain:
+        out["cause"] = by_gain
+        return out
     what = (f"{friction} on the small inertia of {joint} ({inertia:.2g} kg m^2 seen from it: rate "
             f"{damping * minv[j, j]:.3g} 1/s)" if damping * minv[j, j] >= 0.5 * rate
             else f"the small inertia of {joint} ({inertia:.2g} kg m^2 seen from it)")
     gripper = bool(GRIPPER.search(joint))
-    out["cause"] = (f"the stiff mode (rate {rate:.3g} 1/s = {rate * dt:.3g} / dt) is {what}"
-                    + (", a gripper joint" if gripper else ""))
+    out["cause"] = f"{head}{what}" + (", a gripper joint" if gripper else "")
     out["lock"] = joint if gripper else None
     return out
 
@@ -366,7 +479,9 @@ def _distance(a, b):
 
 def _largest(ok, lo, hi, grow):
     """(largest v >= lo with ok(v), True) -- ok(lo) assumed: while ok(hi), hi x4 (at most
-    ``grow`` times; (the last hi, False) if never unstable), then bisect."""
+    ``grow`` times; (the last hi, False) if never unstable), then bisect. From lo = 0, when the
+    bisection finds nothing above 0 (hi far beyond the limit: a gain of 1e300), hi / 4 at a
+    time (at most ``SHRINK`` times) until ok, then bisect again."""
     if ok(hi):
         for _ in range(grow):
             lo, hi = hi, 4 * hi
@@ -374,57 +489,88 @@ def _largest(ok, lo, hi, grow):
                 break
         else:
             return hi, False
-    for _ in range(BISECTIONS):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    start = lo
+    lo, hi = _bisect(ok, lo, hi)
+    if lo == 0 == start:
+        for _ in range(SHRINK):
+            if ok(hi / 4):
+                lo, hi = _bisect(ok, hi / 4, hi)
+                break
+            hi /= 4
     return lo, True
 
 
-def _max_stable(lin, p, idx, dts):
+def _bisect(ok, lo, hi):
+    """(lo, hi) after ``BISECTIONS`` halvings of [lo, hi] keeping ok(lo) and not ok(hi)."""
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo, hi
+
+
+def _max_stable(lin, p, idx, dts, precision="double"):
     """(largest value of the gain at slots ``idx`` (all scaled together, others fixed) stable at
-    every sample time of ``dts``, whether an unstable value was found); (None, True) when unstable
-    even at 0."""
+    every sample time of ``dts`` and within ``precision`` (``_Linearisation.precise``), whether an
+    unstable value was found); (None, True) when unstable even at 0."""
     v0 = _gain_value(p, idx)
     base = p[idx] / v0 if v0 > 0 else np.ones(len(idx))
 
     def ok(v):
         q = p.copy()
         q[idx] = base * v
-        return lin.stable(q, dts)
+        return lin.stable(q, dts) and lin.precise(q, precision)
     if not ok(0.0):
         return None, True
     return _largest(ok, 0.0, v0 if v0 > 0 else 1.0, round(math.log(GROWTH, 4)))
 
 
-def _compute(spec, disc, p, gains, bounds=True):
+def clock_limit(dt, dt_min, precision="double"):
+    """The largest time t (s) a clock s' = 1 reaches within one sample in ``precision``: each step
+    adds an elapsed time h >= ``dt_min`` rounded to the precision (at most half an ulp of s), so
+    after t / dt_min steps s is off by up to (t / dt_min) ulp(t) / 2; t is reached when that is
+    at most the sample time ``dt``: t ulp(t) <= 2 dt dt_min, ulp(t) = 2^(e - m) on [2^e, 2^(e+1))
+    (m = significand bits - 1). A float clock at dt = 1 ms, dt_min = dt / 4: 2.1 s (it stalls
+    for good at 2^15 s, where h < ulp / 2); a double one: 65536 s."""
+    m, budget = SIGNIFICAND[precision] - 1, 2.0 * dt * dt_min
+    e = math.floor((math.log2(budget) + m) / 2)       # the last binade [2^e, 2^(e+1)) reached in
+    return min(math.ldexp(budget, m - e), float(np.nextafter(math.ldexp(1.0, e + 1), 0)))
+
+
+def _compute(spec, disc, p, gains, bounds=True, precision="double"):
     lin = _Linearisation(spec, disc)
     dts = sample_times(disc)
     rho, flow, excess, step_error = lin.radii(p, dts, accuracy=disc.dt)
     worst = int(np.argmax(excess))                 # the sample time of the range closest to growing
     idx = {g: [spec.p_names.index(s) for s in slots] for g, slots in gains.items()}
     negative = [g for g, i in idx.items() if np.any(p[i] < 0)]
-    # a step that is not finite at p (e.g. a guard parameter that rejects every pivot) is not
-    # judged here: the C reports it at run time (status 3); growth is what this check refuses
+    # a step that is not finite at p (a gain that overflows it, a guard parameter that rejects
+    # every pivot) is no observer: unstable, like one that grows
     evaluable = bool(np.all(np.isfinite(rho)))
-    stable = bool(excess[worst] <= 1 + TOL or not evaluable) and not negative
-    w = dts.index(disc.dt) if excess[worst] <= 1 + TOL else worst   # the radii reported: at dt, or failing
+    grows = not excess[worst] <= 1 + TOL
+    rounding, rounding_limit = lin.precision(p, precision)
+    lo, hi = disc.dt_range
+    clocks = {t: {"value": float(p[spec.p_names.index(t)]), "max": clock_limit(disc.dt, lo, precision)}
+              for t in spec.clocks.values()}
+    late = [t for t, c in clocks.items() if not c["value"] <= c["max"]]
+    stable = not (grows or negative or late or not rounding <= rounding_limit)
+    w = dts.index(disc.dt) if not grows else worst   # the radii reported: at dt, or failing
     report = {"gains": {}}
     for g, i in idx.items():
-        top, found = _max_stable(lin, p, i, dts) if bounds else (None, False)
+        top, found = _max_stable(lin, p, i, dts, precision) if bounds else (None, False)
         report["gains"][g] = {"value": _gain_value(p, i), "slots": list(gains[g]), "max_stable": top,
                               "limit_found": found}
-    lo, hi = disc.dt_range
     report.update({
         "stable": stable, "spectral_radius": float(rho[w]), "flow_radius": float(flow[w]),
         "step_error": step_error, "negative": negative, "points": lin.S, "evaluable": evaluable,
-        "dt_min": lo, "dt_max": hi, "worst_dt": dts[worst], "dts": dts})
-    if bounds and not stable and not negative:
+        "dt_min": lo, "dt_max": hi, "worst_dt": dts[worst], "dts": dts, "precision": precision,
+        "rounding": rounding, "rounding_limit": rounding_limit, "clocks": clocks})
+    if bounds and grows and not negative:
         # the largest h stable from 0 (below the smallest failing sample time)
         failing = min(d for d, e in zip(dts, excess) if not e <= 1 + TOL)
         limit = _largest(lambda h: lin.stable(p, [h]), 0.0, failing, 0)[0]
         report["dt_limit"] = limit if limit > 0 else None
         report["substeps_needed"] = math.ceil(hi / limit) if limit > 0 else None
-    if not stable and evaluable:
+    if grows and evaluable:
         report["stiff_mode"] = stiff_mode(spec, lin, p, disc.dt)
     return report
 
@@ -432,12 +578,13 @@ def _compute(spec, disc, p, gains, bounds=True):
 def _digest(spec):
     """Digests of the spec's functions: the check depends on nothing else of the spec."""
     from ..core.cache import key_digest
-    fns = [spec.rhs, spec.rhs_split, spec.output, spec.init, spec.jump, spec.rate, spec.measurement]
+    fns = [spec.rhs, spec.rhs_split, spec.output, spec.init, spec.jump, spec.rate, spec.measurement,
+           spec.phases]
     return key_digest([f.serialize() if f is not None else None for f in fns]
                       + [list(spec.rate_states), spec.inputs.to_dict()])
 
 
-def check(spec, disc, p=None, cache=True, bounds=True):
+def check(spec, disc, p=None, cache=True, bounds=True, precision="double"):
     """The discrete stability and accuracy of ``spec`` under ``disc`` (module docstring).
 
     Parameters
@@ -451,41 +598,59 @@ def check(spec, disc, p=None, cache=True, bounds=True):
     bounds : bool
         Also bisect for the largest stable gains (and, when unstable, dt and substeps); False:
         only the verdict and radii at p (``max_stable`` None).
+    precision : {"double", "float"}
+        The C's real type: the estimate's rounding and the clocks' reach are judged in it.
 
     Returns
     -------
     StabilityReport
+        Raises ValueError for a non-finite parameter or one beyond the precision's range, and
+        UnstableDiscretization for an elapsed-time range that is not finite in the precision.
     """
     p = np.asarray(spec.p_default if p is None else p, dtype=float).reshape(spec.np)
+    if precision not in UNIT_ROUNDOFF:
+        raise ValueError(f"precision must be one of {sorted(UNIT_ROUNDOFF)}, got {precision!r}")
     if disc.substeps == AUTO:
         raise ValueError(f'{spec.family}: substeps="auto" is a request, resolved into a number by '
                          "auto_substeps (codegen.pipeline.stages.make and compile_observer do); "
                          "check a number of substeps")
+    lo, hi = disc.dt_range
+    top = REAL_MAX[precision]
+    if not (0 < lo and hi <= top):
+        where = f"dt = {disc.dt:g} s (elapsed times in [{lo:g}, {hi:g}] s)"
+        raise UnstableDiscretization(
+            f"{spec.family}: {where} is beyond the {precision} range: dt and dt_max must be at most "
+            f"{top:.3g} s, and a stable one is far smaller (substeps=\"auto\" finds the sub-steps it needs)",
+            f"{spec.family}: {where} is beyond the {precision} range: --dt and --dt-max must be at most "
+            f"{top:.3g} s, and a stable one is far smaller (--substeps auto finds the sub-steps it needs)")
     if spec.nx == 0 or spec.ny == 0:
         # a stateless law has nothing to diverge; a plant (no measurement) is no observer: its
         # step is the simulation's business (codegen.evaluate.sim), not checked here
-        lo, hi = disc.dt_range
         return StabilityReport(stable=True, spectral_radius=0.0, flow_radius=1.0, step_error=0.0, dt=disc.dt,
                                method=disc.method, hold=disc.hold, substeps=disc.substeps,
-                               checked=spec.nx == 0, dt_min=lo, dt_max=hi)
+                               checked=spec.nx == 0, dt_min=lo, dt_max=hi, precision=precision)
     if not np.all(np.isfinite(p)):
         raise ValueError(f"{spec.family}: non-finite parameter(s) "
                          f"{[n for n, v in zip(spec.p_names, p) if not np.isfinite(v)]}")
+    beyond = [f"{n} = {v:g}" for n, v in zip(spec.p_names, p) if abs(v) > top]
+    if beyond:
+        raise ValueError(f"{spec.family}: parameter(s) {', '.join(beyond)} beyond the {precision} range "
+                         f"(|p| <= {top:.3g})")
     key = {"version": VERSION, "spec": _digest(spec), "disc": disc.to_dict(), "range": list(disc.dt_range),
-           "p": p.tolist(),
+           "p": p.tolist(), "precision": precision, "clocks": spec.clocks,
            "gains": {g: list(s) for g, s in spec.gains.items()}, "points": POINTS, "bounds": bounds}
 
     def compute():
-        return _compute(spec, disc, p, spec.gains, bounds)
+        return _compute(spec, disc, p, spec.gains, bounds, precision)
     value = cached_json("stability", key, compute) if cache else compute()
     return StabilityReport(dt=disc.dt, method=disc.method, hold=disc.hold, substeps=disc.substeps,
                            **value)
 
 
-def require_stable(spec, disc, p=None):
-    """``check(spec, disc, p)`` (p: parameters (np,) or None for the spec's defaults), raising
-    UnstableDiscretization (its message) when unstable."""
-    report = check(spec, disc, p)
+def require_stable(spec, disc, p=None, precision="double"):
+    """``check(spec, disc, p, precision=precision)`` (p: parameters (np,) or None for the spec's
+    defaults), raising UnstableDiscretization (its message) when unstable."""
+    report = check(spec, disc, p, precision=precision)
     if not report.stable:
         raise _refusal(spec, report)
     return report
@@ -540,8 +705,8 @@ def _fewest(spec, disc, p, limit):
     report = check(spec, disc, p)
     if report.stable:
         return disc
-    if report.negative or not report.substeps_needed:
-        raise _refusal(spec, report)
+    if report.negative or not report.substeps_needed or report.imprecise or report.late:
+        raise _refusal(spec, report)                 # sub-steps cannot fix these
     m = report.substeps_needed * disc.substeps
     while m <= limit:
         candidate = replace(disc, substeps=m)

@@ -224,7 +224,7 @@ def emit(target, out_dir, spec=None, force=True, check=True):
     if target.params:
         spec = with_params(spec, target.params)
     target = resolve_substeps(target, spec)        # substeps "auto": the fewest stable ones
-    stability = (require_stable(spec, target.discretization).as_dict() if check  # before writing
+    stability = (require_stable(spec, target.discretization, precision=target.precision).as_dict() if check
                  else {"checked": False, "gains": {}, "reason": "emit(check=False)"})
     prefix = target.prefix
     fns = {"step": discretize(spec, target.discretization, target.inline),

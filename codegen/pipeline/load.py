@@ -34,15 +34,17 @@ class CompiledObserver:
     ``obs.meta`` is the target's metadata. ``dt`` (s) is the elapsed time of a jittered loop
     (default: the designed ``obs.dt``), ``t`` the time stamps of a jittered log (see ``run``).
 
-    New parameters (``obs.params = p``, ``reset(..., p=p)``) are checked for discrete stability:
-    with ``obs.spec`` known (``compile_observer`` attaches it) by the full check
-    (codegen.discrete.stability), otherwise against the bounds recorded in the metadata (each gain
-    >= 0 and below its largest stable value, the others at their defaults). Setting them is
+    New parameters (``obs.params = p``, ``reset(..., p=p)``) are checked for discrete stability
+    by the full check (codegen.discrete.stability: all gains jointly, in the target's precision)
+    on ``obs.spec`` (``compile_observer`` attaches it) or, without it, on the spec rebuilt from the
+    metadata's target; one gain moved alone is checked against its recorded bound (>= 0 and
+    below its largest stable value, which holds with the others at their defaults). Setting them is
     bumpless: the C transforms the state so that the estimate at the last measurement is kept.
     Results are float64 arrays whatever the target's precision (``obs.dtype`` is the C's).
     """
 
     spec = None
+    _rebuilt = None        # the spec rebuilt from the metadata (check_params), when needed
 
     def __init__(self, lib_path, meta):
         self.lib_path = Path(lib_path).resolve()
@@ -206,6 +208,11 @@ class CompiledObserver:
             self._stepped(self.dt if dt is None else dt)
         return st, self._out("est", self.nest)
 
+    def c_set_params(self, p):
+        """The raw C set_params with ``p`` (np,), no stability check (a step that is not
+        finite, to see the C's status): for tests of the C."""
+        self._check(self._set_params(self._s, self._load("p", "p", p, self.np)), "set_params")
+
     def run(self, Y, U, t=None):
         """Many samples at once (rows of Y, U); the loop runs in C. Returns EST (N, nest).
 
@@ -291,17 +298,30 @@ class CompiledObserver:
 
     def check_params(self, p):
         """p as a finite vector, refused (codegen.discrete.stability.UnstableDiscretization, a ValueError)
-        when the discrete observer would be unstable with it (see the class docstring)."""
+        when the discrete observer would be unstable with it (see the class docstring).
+
+        The full check (all gains jointly, every phase, the target's precision) runs on
+        ``obs.spec``, or on the spec rebuilt from the metadata's target when p moves more than
+        one gain or any other parameter from its default; p moving one gain alone is checked
+        against that gain's recorded bound, which holds with the others at their defaults."""
         from ..discrete.stability import UnstableDiscretization, require_stable
         from ..core.target import FIELDS, Discretization
         p = as_vector("p", p, self.np)
         disc = Discretization.from_dict({k: v for k, v in self.meta["discretization"].items() if k in FIELDS})
-        if self.spec is not None:
-            require_stable(self.spec, disc, p)
-            return p
+        spec = self.spec
         names = self.meta["names"]["p"]
-        for gain, g in ((self.meta.get("stability") or {}).get("gains") or {}).items():
-            idx = [names.index(s) for s in g["slots"]]
+        recorded = (self.meta.get("stability") or {}).get("gains") or {}
+        groups = {g: [names.index(s) for s in v["slots"]] for g, v in recorded.items()}
+        defaults = np.asarray(self.meta["p_default"], dtype=float)
+        moved = [g for g, idx in groups.items() if not np.array_equal(p[idx], defaults[idx])]
+        others = np.setdiff1d(np.arange(self.np), [i for idx in groups.values() for i in idx])
+        if spec is None and (len(moved) > 1 or not np.array_equal(p[others], defaults[others])):
+            spec = self._checked_spec(p)
+        if spec is not None:
+            require_stable(spec, disc, p, precision=self.precision)
+            return p
+        for gain, g in recorded.items():
+            idx = groups[gain]
             value = float(np.max(p[idx]))
             top = g["max_stable"] if g["limit_found"] else None
             if np.any(p[idx] < 0) or (top is not None and value > top):
@@ -316,6 +336,28 @@ class CompiledObserver:
         """The design report the target was built with (a DesignReport: prints as text)."""
         from ..core.spec import DesignReport
         return DesignReport(self.meta.get("design") or {})
+
+    def _checked_spec(self, p):
+        """The spec rebuilt from the metadata's target (its parameters applied), kept for the
+        next check; ValueError naming p and the fix when it cannot be rebuilt."""
+        if getattr(self, "_rebuilt", None) is None:
+            from ..core.target import Target
+            from .emit import with_params
+            from .targets_file import build_spec
+            try:
+                target = Target.from_dict(self.meta["target"])
+                spec = with_params(build_spec(target), target.params)
+            except Exception as e:      # any failure to rebuild: refuse, naming it
+                raise ValueError(
+                    f"{self.prefix}: p = {p.tolist()} moves more than one gain (or a parameter that is not a "
+                    f"gain), which the recorded one-gain-at-a-time bounds cannot check, and the spec to check "
+                    f"them jointly could not be rebuilt from the metadata ({type(e).__name__}: {e}); attach it: "
+                    f"obs.spec = codegen.build_spec(target)") from None
+            if spec.p_names != self.meta["names"]["p"] or spec.x_names != self.meta["names"]["x"]:
+                raise ValueError(f"{self.prefix}: the spec rebuilt from the metadata has other slots than the "
+                                 f"library; attach the one it was built from: obs.spec = ...")
+            self._rebuilt = spec
+        return self._rebuilt
 
     def __repr__(self):
         return f"<CompiledObserver {self.prefix} nx={self.nx} dt={self.dt} {self.precision}>"

@@ -183,11 +183,13 @@ class ReferenceObserver:
 
     def check_params(self, p, x=None):
         """The reference's own stability check of parameters p: each declared gain >= 0, and, at
-        the state x (default: the current one, retuned to p) and the last measurement held, at
+        the state x (default: the current one, retuned to p; and each of its phases, when the
+        family gives ``phases``: every gain it can switch to) and the last measurement held, at
         the sample times dt_min, dt and dt_max of the declared range, the spectral radius of the
         step's Jacobian (central differences) at most that of the exact linearised flow,
         exp(h max Re eig J), J = (J(x) + J(x_next))/2 by central differences, or 1 (relative
-        slack 1e-5). ValueError naming the gain, dt and method otherwise."""
+        slack 1e-5; a Jacobian that is not finite fails). ValueError naming the gain, dt and
+        method otherwise."""
         p = as_vector("p", p, self.np)
         where = f"at dt = {self.dt:g} with {self.method}"
         for gain, slots in self.gains.items():
@@ -201,20 +203,26 @@ class ReferenceObserver:
         u = self._prev[1] if self._prev is not None else np.zeros(self.nu)
         saved = self._p
         flow = lambda x: np.asarray(self.family.rhs(self.robot, x, y, u, p), float)  # noqa: E731
+        phases = getattr(self.family, "phases", None)
+        states = [x0] if phases is None else phases(self.robot, x0, y, p)
         for h in sorted({self.dt_range[1], self.dt, self.dt_range[0]}, reverse=True):
-            try:
-                self._p = p
-                step = lambda x, h=h: self._advance(x, (y, u), y, u, h)[1]            # noqa: E731
-                Phi = _jacobian(step, x0)
-                J = 0.5 * (_jacobian(flow, x0) + _jacobian(flow, step(x0)))
-            finally:
-                self._p = saved
-            rho = np.max(np.abs(np.linalg.eigvals(Phi)))
-            rho_c = max(1.0, float(np.exp(h * np.max(np.linalg.eigvals(J).real))))
-            if not rho <= rho_c * (1 + 1e-5):
-                raise ValueError(f"parameters {dict(zip(self.p_names, p.tolist()))} {where}: spectral radius "
-                                 f"{rho:.4g} > {rho_c:.4g} (the continuous-time observer's) at elapsed time "
-                                 f"{h:g} and the current state")
+            for phase, xs in enumerate(states):
+                try:
+                    self._p = p
+                    step = lambda x, h=h: self._advance(x, (y, u), y, u, h)[1]            # noqa: E731
+                    with np.errstate(all="ignore"):
+                        Phi = _jacobian(step, xs)
+                        J = 0.5 * (_jacobian(flow, xs) + _jacobian(flow, step(xs)))
+                finally:
+                    self._p = saved
+                finite = np.all(np.isfinite(Phi)) and np.all(np.isfinite(J))
+                rho = np.max(np.abs(np.linalg.eigvals(Phi))) if finite else np.inf
+                rho_c = max(1.0, float(np.exp(h * np.max(np.linalg.eigvals(J).real)))) if finite else 1.0
+                if not rho <= rho_c * (1 + 1e-5):
+                    at = "the current state" if phase == 0 else f"the current state's phase {phase}"
+                    raise ValueError(f"parameters {dict(zip(self.p_names, p.tolist()))} {where}: spectral radius "
+                                     f"{rho:.4g} > {rho_c:.4g} (the continuous-time observer's) at elapsed time "
+                                     f"{h:g} and {at}")
 
     def _p_or(self, p):
         return self._p if p is None else as_vector("p", p, self.np)

@@ -95,11 +95,15 @@ def test_unstable_gains_are_refused(k0, method, tmp_path):
 
 
 def test_etdrk4_has_no_gain_limit_and_rk4_the_textbook_one():
-    """RK4 on z' = -k0 z alone is stable for k0 dt <= 2.7853; ETD-RK4 for any k0 >= 0."""
+    """RK4 on z' = -k0 z alone is stable for k0 dt <= 2.7853; ETD-RK4 for any k0 >= 0, up to
+    what double precision carries (z = x2hat - k0 y: the bound is far above any useful gain)."""
     spec = observers.build("reduced_order", load_robot("seed000_2r"), k0=100.0)
     assert 2775 < check(spec, RK4_AT_DT).gains["k0"]["max_stable"] < 2785.3
-    etd = check(spec, DEFAULT_DISCRETIZATION).gains["k0"]
-    assert not etd["limit_found"] and etd["max_stable"] > 1e7
+    etd = check(spec, DEFAULT_DISCRETIZATION)
+    top = etd.gains["k0"]["max_stable"]
+    assert top > 1e7 and check(spec, DEFAULT_DISCRETIZATION, p=[0.99 * top]).stable
+    above = check(spec, DEFAULT_DISCRETIZATION, p=[1.01 * top])
+    assert not above.stable and above.spectral_radius <= 1 and above.rounding > above.rounding_limit
 
 
 def test_header_and_metadata_record_the_bound(tmp_path):
@@ -175,3 +179,138 @@ def test_refusal_without_a_gain_limit_starts_with_its_first_fix():
         msg = report.message("su_nonsmooth", form=form)
         assert "; or" not in msg and f"a gripper joint; {first}" in msg, msg
     assert "or lock finger_left: --lock finger_left=0" in report.message("su_nonsmooth", form="cli")
+
+
+# ---------------------------------------------------------------- issue 22: F1-F4, F6
+def _cli(capsys, *argv):
+    """(exit code, stderr) of ``python -m codegen`` run in-process."""
+    from codegen import cli
+    try:
+        code = cli.main([str(a) for a in argv])
+    except SystemExit as e:
+        code = e.code
+    return code, capsys.readouterr().err
+
+
+def test_switched_gain_after_the_switch_is_checked(tmp_path, capsys):
+    """F1: k0_final = 5000 with RK4 (k0_final dt_max = 10 > 2.785) is refused however it is given
+    (a build parameter, the spec's gains, the command line): the check linearises at the clock
+    after the switch too, and k0_final gets the same bound as reduced_order's k0."""
+    from codegen.discrete.stability import UnstableDiscretization
+    robot = load_robot("seed000_2r")
+    spec = observers.build("reduced_order_switched", robot)
+    k0, _, t_switch = spec.p_default
+    report = check(spec, RK4, p=[k0, 5000.0, t_switch])
+    assert not report.stable and report.gains["k0_final"]["limit_found"]
+    top = report.gains["k0_final"]["max_stable"]
+    assert top == pytest.approx(check(observers.build("reduced_order", robot, k0=100.0), RK4)
+                                .gains["k0"]["max_stable"], rel=1e-3)
+    given = observers.build("reduced_order_switched", robot, k0=k0, k0_final=5000.0, t_switch=t_switch)
+    with pytest.raises(UnstableDiscretization, match="k0_final = 5000 .*stable for 0 <= k0_final <="):
+        compile_observer(given, method="rk4", substeps=1, out_dir=tmp_path)
+    code, err = _cli(capsys, "build", "seed000_2r", "--family", "reduced_order_switched", "--method", "rk4",
+                     "--substeps", "1", "--param", "k0_final=5000", "--out", tmp_path)
+    assert code != 0 and "k0_final = 5000" in err and "--substeps" in err
+    # "auto" finds the sub-steps k0_final needs; the header's bound is a real one; a run across
+    # the switch at t_switch stays bounded
+    from codegen.verify.trajectory import demo_trajectory
+    obs = compile_observer(given, method="rk4", out_dir=tmp_path)
+    assert obs.meta["discretization"]["substeps"] >= 2
+    assert obs.meta["stability"]["gains"]["k0_final"]["limit_found"]
+    t, Q, QD, TAU = demo_trajectory(robot, T=0.6)
+    obs.reset(Q[0])
+    assert np.abs(obs.run(Q, TAU)[t > t_switch + 0.1] - QD[t > t_switch + 0.1]).max() < 1.0
+
+
+def test_non_finite_step_is_unstable(compiled):
+    """F2: a gain that overflows the step is refused, not judged stable for want of a verdict:
+    extended_state omega = 1e80 (1e30 already was) and reduced_order k0 = 1e300 with RK4 and
+    with ETD-RK4 (``obs.params``)."""
+    robot = load_robot("seed000_2r")
+    eso = observers.build("extended_state", robot)
+    for omega in (1e30, 1e80):
+        assert not check(eso, DEFAULT_DISCRETIZATION, p=[omega], bounds=False).stable
+    ro = observers.build("reduced_order", robot)
+    report = check(ro, RK4, p=[1e300])
+    assert not report.stable and not report.evaluable
+    assert "not finite" in report.message("reduced_order") and "stable for 0 <= k0 <=" in report.message("reduced_order")
+    obs = compiled("seed000_2r")
+    with pytest.raises(UnstableDiscretization, match="k0 = 1e\\+300"):
+        obs.params = [1e300]
+
+
+def test_overflowing_gain_or_dt_names_itself(tmp_path, capsys):
+    """F3: --param k0=1e300 and --dt 1e308 are refused naming the gain (with its stable range)
+    or dt (with the largest the precision holds), not as a C literal that is not finite."""
+    code, err = _cli(capsys, "build", "seed000_2r", "--param", "k0=1e300", "--out", tmp_path)
+    assert code != 0 and "k0 = 1e+300" in err and "stable for 0 <= k0 <=" in err
+    assert "non-finite default" not in err
+    code, err = _cli(capsys, "build", "seed000_2r", "--dt", "1e308", "--out", tmp_path)
+    assert code != 0 and "dt = 1e+308" in err and "at most 1.8e+308" in err
+    assert "non-finite default" not in err
+
+
+def test_gains_are_bounded_by_the_precision():
+    """F4: z = x2hat - k0 y stores k0 y: the estimate's rounding error u k0 |y| must stay within
+    2^-26 (double) or 2^-12 (float) of its size. k0 = 1e17 with ETD-RK4 (stable: no growth) is
+    refused with the bound in the message; the float bound is (u_double / u_float)^(1/2) = 2^-14.5
+    of the double one, and a gain between the two is refused in float only."""
+    spec = observers.build("reduced_order", load_robot("seed000_2r"))
+    report = check(spec, DEFAULT_DISCRETIZATION, p=[1e17])
+    assert not report.stable and report.spectral_radius <= 1
+    assert report.rounding > 10                      # the 33 rad/s the issue measured
+    msg = report.message("reduced_order")
+    top = check(spec, DEFAULT_DISCRETIZATION, p=[1e7]).gains["k0"]["max_stable"]
+    import re
+    assert "rounding error" in msg
+    assert float(re.search(r"stable for 0 <= k0 <= ([0-9.e+]+)", msg).group(1)) == pytest.approx(top, rel=1e-3)
+    single = check(spec, DEFAULT_DISCRETIZATION, precision="float").gains["k0"]
+    assert single["limit_found"] and single["max_stable"] == pytest.approx(top * 2.0 ** -14.5, rel=1e-3)
+    between = [10 * single["max_stable"]]
+    assert check(spec, DEFAULT_DISCRETIZATION, p=between).stable
+    assert not check(spec, DEFAULT_DISCRETIZATION, p=between, precision="float").stable
+
+
+def test_float_clock_that_cannot_reach_t_switch_is_refused(tmp_path):
+    """F6: a float clock s += h stalls where h < ulp(s) / 2 (s = 2^15 s at h = dt / 4 = 0.25 ms)
+    and drifts before it: t_switch = 40000 s in float is refused with the bound (clock_limit:
+    2.1 s at dt = 1 ms); double reaches it. At the bound the float clock, simulated, is within
+    one sample of the time."""
+    robot = load_robot("seed000_2r")
+    spec = observers.build("reduced_order_switched", robot)
+    k0, k0_final, _ = spec.p_default
+    late = observers.build("reduced_order_switched", robot, k0=k0, k0_final=k0_final, t_switch=40000.0)
+    with pytest.raises(UnstableDiscretization, match="t_switch = 40000 s") as err:
+        compile_observer(late, precision="float", out_dir=tmp_path)
+    from codegen.discrete.stability import clock_limit
+    bound = clock_limit(1e-3, 2.5e-4, "float")
+    assert f"t_switch <= {bound:.6g} s" in str(err.value) and 2.0 < bound < 2.2
+    assert check(late, DEFAULT_DISCRETIZATION).stable
+    h, s = np.float32(2.5e-4), np.float32(0.0)
+    for _ in range(int(bound / 2.5e-4)):
+        s = np.float32(s + h)
+    assert abs(float(s) - int(bound / 2.5e-4) * float(h)) <= 1e-3
+    assert np.float32(np.float32(39999.9) + h) == np.float32(39999.9)   # the stall of the issue
+
+
+def test_every_scheduled_gain_of_the_hybrid_is_checked():
+    """The hybrid observer switches among k_1 .. k_r_max: each one, set alone to 5000 with RK4
+    (5000 dt_max = 10 > 2.785), is refused (the check linearises at every logic state, the
+    estimate in its band), the cause named as the gain's rate, not the robot's inertia."""
+    spec = observers.build("reduced_order_hybrid", load_robot("seed000_2r"))
+    assert check(spec, RK4).stable
+    for r in (2, 6):
+        p = spec.p_default.copy()
+        p[spec.p_names.index(f"k_{r}")] = 5000.0
+        report = check(spec, RK4, p=p)
+        assert not report.stable and report.spectral_radius > 100
+        assert "the gain's own rate 5e+03 1/s" in report.message(spec.family)
+
+
+def test_auto_substeps_refuses_what_substeps_cannot_fix_at_once():
+    """A gain beyond the precision's bound with RK4 both grows and loses the estimate: sub-steps
+    fix the growth, not the rounding, so "auto" refuses at once, naming the rounding error."""
+    spec = observers.build("reduced_order", load_robot("seed000_2r"), k0=1e9)
+    with pytest.raises(UnstableDiscretization, match="rounding error") as err:
+        auto_substeps(spec, RK4)
+    assert "no substeps" not in str(err.value)

@@ -232,7 +232,10 @@ def test_ill_conditioned_pivot_gives_nonfinite_status():
     x = e.sample_states(1, seed=4)[0]
     p = spec.p_default.copy()
     p[-1] = 2.0
-    obs.reset(x[:2], x, p)
+    with pytest.raises(ValueError, match="not finite"):   # the check refuses it (issue 22 F2)
+        obs.reset(x[:2], x, p)
+    obs.reset(x[:2], x)
+    obs.c_set_params(p)                  # the C alone
     before = obs.state
     with pytest.raises(ObserverError, match="(?i)finite"):
         obs.step(x[:2] + 0.01, np.zeros(2))

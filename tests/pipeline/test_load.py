@@ -171,3 +171,39 @@ def test_load_a_folder_the_cli_built(tmp_path, capsys):
     assert obs.prefix == "seed000_2r_reduced_order" and obs.nest == 2
     obs.reset(np.zeros(2))
     assert np.all(np.isfinite(obs.step(np.full(2, 1e-3), np.zeros(2))))
+
+
+def test_params_check_all_gains_jointly_and_every_phase(tmp_path):
+    """Issue 22 F5, F1: without the spec (load() of a built folder), new parameters moving two gains
+    run the full check on the spec rebuilt from the metadata: nicosia_tomei (RK4) with kd and kp
+    each at 0.98 of its recorded bound is refused (jointly unstable), each alone passes; the
+    switched observer's k0_final = 5000 with RK4 is refused through obs.params and load()."""
+    from codegen import compile_observer
+    from codegen.discrete.stability import UnstableDiscretization
+    from codegen.families import observers
+    from codegen.pipeline.load import load
+    from models import load_robot
+    robot = load_robot("seed000_2r")
+    obs = compile_observer(observers.build("nicosia_tomei", robot), method="rk4", substeps=1, out_dir=tmp_path)
+    loaded = load(tmp_path / obs.prefix, obs.lib_path)
+    assert loaded.spec is None
+    bounds = loaded.meta["stability"]["gains"]
+    names = loaded.meta["names"]["p"]
+    p = np.array(loaded.p_default)
+    both = p.copy()
+    for g in ("kd", "kp"):
+        alone = p.copy()
+        alone[names.index(g)] = both[names.index(g)] = 0.98 * bounds[g]["max_stable"]
+        loaded.params = alone
+    with pytest.raises(UnstableDiscretization, match="spectral radius"):
+        loaded.params = both
+    switched = observers.build("reduced_order_switched", robot)
+    k0, _, t_switch = switched.p_default
+    obs = compile_observer(switched, method="rk4", out_dir=tmp_path)
+    loaded = load(tmp_path / obs.prefix, obs.lib_path)
+    for o in (obs, loaded):
+        with pytest.raises(UnstableDiscretization, match="k0_final = 5000"):
+            o.params = [k0, 5000.0, t_switch]
+        with pytest.raises(UnstableDiscretization, match="k0_final = 5000"):
+            o.reset(np.zeros(2), p=[k0, 5000.0, t_switch])
+    assert np.array_equal(loaded.params, switched.p_default)

@@ -357,3 +357,25 @@ def test_configure_refuses_bad_options(name, source, options, match):
     from codegen.core.options import options_from_dict
     with pytest.raises(ValueError, match=match):
         _family_configure(name)(reference_robot(source), options_from_dict(options))
+
+
+def test_reference_params_check_covers_every_phase():
+    """Issue 22 F1 in the reference's own check: a switched k0_final or a hybrid k_6 of 5000
+    with RK4 (5000 dt_max = 10 > 2.785) is refused before the switch or at r = 1 (the check
+    linearises at every phase the family gives), and the defaults are accepted."""
+    from codegen.families import observers
+    from codegen.reference import reference_observer
+    from models import load_robot
+    robot = load_robot("seed000_2r")
+    y, u = np.array([0.3, -0.2]), np.array([1.0, 2.0])
+    for family, slot in (("reduced_order_switched", "k0_final"), ("reduced_order_hybrid", "k_6")):
+        spec = observers.build(family, robot)
+        ref = reference_observer(spec, method="rk4")
+        ref.reset(y)
+        ref.step(y, u)
+        ref.params = spec.p_default
+        p = spec.p_default.copy()
+        p[spec.p_names.index(slot)] = 5000.0
+        with pytest.raises(ValueError, match="spectral radius .* phase"):
+            ref.params = p
+        assert np.array_equal(ref.params, spec.p_default)

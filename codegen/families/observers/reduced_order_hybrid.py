@@ -14,7 +14,8 @@ generated C does the switching)                                           [DERIV
     z+   = z + (k_r - k_{r+}) y      i.e. x2hat continuous across the jump
 
 State x = [z; r], measurement y = q, input u = tau, estimate x2hat,
-parameters p = [k_1 .. k_{r_max}, eta, vbar, delta] (k_r designed by (16)).
+parameters p = [k_1 .. k_{r_max}, eta, vbar, delta] (k_r designed by (16)). The stability check
+linearises at every logic state (``phases``: the estimate in r's band), so every k_r is checked.
 The literal sets (15)-(17) loop (Zeno) right after an up-jump; the rule above keeps the
 safety property ||x2|| <= ||x2hat|| + eta <= r vbar while k_r is active (docs/papers/seed000.md §1.3).
 """
@@ -63,6 +64,22 @@ def switch(r, speed, eta, vbar, delta, r_max):
     for _ in range(r_max - 1):                                        # down, tolerance delta
         r = r - ca.if_else(ca.logic_and(speed <= (r - 1) * vbar - eta - delta, r >= 2), 1, 0)
     return r
+
+
+def _phases(x2hat, y, k, eta, vbar, delta, x):
+    """The state x as given, then at each logic state r = 1..r_max with the estimate moved to the
+    middle of r's band, where no jump leaves r: speed (r - 1/2) vbar - eta - delta/2 (>= 0),
+    between the down-test's (r-1) vbar - eta - delta and the up-test's r vbar - eta, along
+    x2hat (or (1, .., 1) at rest); z = x2hat_r - k_r y. The stability check linearises at each,
+    so every scheduled gain k_r is checked (columns: nx = n + 1 rows, r_max + 1 of them)."""
+    n = x2hat.numel()
+    norm = ca.norm_2(x2hat)
+    direction = ca.if_else(norm > 0, x2hat / ca.fmax(norm, 1e-300), ca.DM.ones(n) / n ** 0.5)
+    cols = [x]
+    for r in range(1, k.numel() + 1):
+        speed = ca.fmax(0, (r - 0.5) * vbar - eta - 0.5 * delta)
+        cols.append(ca.vertcat(speed * direction - k[r - 1] * y, r))
+    return ca.horzcat(*cols)
 
 
 def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, quantization=None,
@@ -123,6 +140,8 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, 
     p_new = ca.SX.sym("p_new", p.numel())
     z_retuned = z + (k_r - scheduled_gain(r, ca.vertsplit(p_new[:r_max]))) * y   # likewise at a retune
 
+    phases = ca.Function("phases", [x, y, p], [_phases(x2hat, y, k, eta_s, vbar_s, delta_s, x)])
+
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     joints = robot.joint_names
     spec = ObserverSpec(
@@ -138,7 +157,7 @@ def build(robot, eta=1.0, vbar=2.0, r_max=6, delta=0.1, gains=None, noise=None, 
         # the flow is [FD - k_r^2 y] - k_r z on z (r' = 0: k_r constant along it)
         rate=ca.Function("rate", [x, p], [k_r]), rate_states=[f"z_{j}" for j in joints],
         retune=ca.Function("retune", [x, y, p, p_new], [ca.vertcat(z_retuned, r)]),
-        gains={"k_r": tuple(gain_names(r_max))},
+        gains={"k_r": tuple(gain_names(r_max))}, phases=phases,
         options=HybridOptions(r_max=r_max, v_bound=tuple(bound)),
         inputs=InputRanges(x_integer=(("r", 1, r_max),)),
         design={"eta": float(eta), "vbar": float(vbar), "r_max": r_max, "delta": float(delta),

@@ -14,6 +14,11 @@ Jump, applied at each sample: when t_switch <= s < t_switch + 1/2 (the clock has
 switch time and the switch has not happened), z+ = z + (k0 - k0_final) y (x2hat continuous,
 as at a hybrid jump, docs/papers/seed000.md §1.3) and s+ = t_switch + 1 (marks the switch done).
 
+Phases the stability check linearises at (``phases``): the clock where init puts it (s = 0, gain
+k0) and the switch done (s = t_switch + 1, z moved by the jump: gain k0_final), so both gains
+are checked, jointly. The clock counts in the target's precision: a t_switch it cannot reach
+(s += dt rounded) is refused (``clocks``, codegen.discrete.stability).
+
 sat: the velocity bound of codegen.families.observers._bound (the published observer inside it).
 State x = [z (n); s], measurement y = q, input u = tau, parameters
 p = [k0, k0_final (1/s), t_switch (s)], estimate x2hat. The error dynamics are those of the
@@ -83,8 +88,8 @@ def build(robot, k0=None, k0_final=None, t_switch=None, eta=1.0, v_max=2.0, nois
     if not (isinstance(t_switch, (int, float)) and math.isfinite(t_switch) and t_switch >= 0):
         raise ValueError(f"t_switch must be a time >= 0 (s), got {t_switch!r}")
     if report is not None:
-        # the check linearises at the initial clock (gain k0); after the switch the observer is
-        # the fixed-gain one at k0_final: checked (and kept stable) as that family
+        # after the switch the observer is the fixed-gain one at k0_final: designed (and kept
+        # stable) as that family; the spec's check then covers both phases (``phases``)
         final = stable_report(reduced_order.build(robot, k0=k0_final, v_max=v_max, v_bound=v_bound), disc)
         report["stability_after_switch"] = final.design["stability"]
         k0_final = float(final.p_default[0])
@@ -110,6 +115,8 @@ def _spec(robot, p_default, report, bound, bound_report):
     # a retune keeps x2hat and whether the switch is done; the clock keeps running otherwise
     s_new = ca.if_else(running, s, p_new[2] + 1)
     z_new = z + (k - active_gain(s_new, p_new)) * y
+    # the phases of the clock: as given, and the switch done (the jump's z, s = t_switch + 1)
+    phases = ca.Function("phases", [x, y, p], [ca.horzcat(x, ca.vertcat(z + (p[0] - p[1]) * y, p[2] + 1))])
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     joints = robot.joint_names
     t_hi = int(2 * p_default[2]) + 2
@@ -125,9 +132,9 @@ def _spec(robot, p_default, report, bound, bound_report):
         # the flow is [FD - k^2 y] - k z on z, k constant along a step (the switch is a jump)
         rate=ca.Function("rate", [x, p], [k]), rate_states=[f"z_{j}" for j in joints],
         retune=ca.Function("retune", [x, y, p, p_new], [ca.vertcat(z_new, s_new)]),
-        gains={"k0": ("k0",), "k0_final": ("k0_final",)},
+        gains={"k0": ("k0",), "k0_final": ("k0_final",)}, phases=phases, clocks={"s": "t_switch"},
         # whole seconds of the clock, before and after the switch (a run crosses it); the
-        # stability check keeps it where init puts it (0: the gain k0)
+        # stability check keeps it where init puts it (0: the gain k0) and moves it by ``phases``
         inputs=InputRanges(x_integer=(("s", 0, t_hi),)),
         options=VelocityBoundOptions(v_bound=tuple(bound)),
         design={**(report or {"k0": p_default[0], "k0_final": p_default[1], "t_switch": p_default[2],

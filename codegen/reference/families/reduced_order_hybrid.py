@@ -108,6 +108,24 @@ def jump(robot, x, y, p):
     return np.append(z_plus, float(r))
 
 
+def phases(robot, x, y, p):
+    """The states the parameter check linearises at: x itself, then each logic state r with
+    x2hat along its direction ((1, .., 1) / sqrt(n) at rest) at the middle of r's band, speed
+    max(0, (r - 1/2) vbar - eta - delta/2), where neither jump test fires; z = x2hat - k_r y.
+    robot, x, y, p as in ``output``."""
+    k, eta, vbar, delta = _split(p)
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    x2hat = x[:-1] + gain(x, p) * y
+    norm = np.linalg.norm(x2hat)
+    direction = x2hat / norm if norm > 0 else np.ones(len(y)) / np.sqrt(len(y))
+    out = [x]
+    for r in range(1, len(k) + 1):
+        speed = max(0.0, (r - 0.5) * vbar - eta - 0.5 * delta)
+        out.append(np.append(speed * direction - k[r - 1] * y, float(r)))
+    return out
+
+
 def rate(robot, x, p):
     """The gain rate k_r of the flow on z (r' = 0, so constant along it); robot, x, p as in
     ``output``."""

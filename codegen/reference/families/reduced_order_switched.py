@@ -84,6 +84,15 @@ def jump(robot, x, y, p):
     return np.append(x[:-1] + (p[0] - p[1]) * np.asarray(y, float), p[2] + 1.0)
 
 
+def phases(robot, x, y, p):
+    """The states the parameter check linearises at: x itself, and x with the switch done (z
+    moved as by ``jump``, s = t_switch + 1: the gain k0_final); robot, x, y, p as in ``output``."""
+    x = np.asarray(x, dtype=float)
+    if not running(x, p):
+        return [x]
+    return [x, np.append(x[:-1] + (p[0] - p[1]) * np.asarray(y, float), p[2] + 1.0)]
+
+
 def rate(robot, x, p):
     """The gain rate k of the flow on z (constant along a step: the switch is a jump); robot, x,
     p as in ``output``."""
