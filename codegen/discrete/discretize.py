@@ -56,11 +56,12 @@ m = model(x, y_cfg, y) the forward dynamics, M, C, g and F, at the configuration
 velocity x and y give it; F is linear in x and in y(t): the gain and injection terms). From x,
 the memory m_prev (the model's value of the previous sub-step; 0 after init) and E = e^(-a h/2):
 
-    x_mid = E x + h/2 phi_1(-a h/2) [F(t + h/4, x, m_prev) + a D x]      (Euler off the rate states)
+    x_mid = E x + h/2 phi_1(-a h/2) [F(t + th h/2, x, m_prev) + a D x]   (Euler off the rate states)
     m     = model(x_mid, y(t + h/2), y(t + h/2))                      the one model evaluation
     x+    = x advanced by ETD-RK4 over h along x' = F(s, x, m), m held
 
-The last line is exact for the reduced-order families (F = m - k0 x2hat: forcing linear in s,
+th = phi_2(-a h/2) / phi_1(-a h/2) (1/2 without a rate) makes the prediction exact for forcing
+linear in time. The last line is exact for the reduced-order families (F = m - k0 x2hat: forcing linear in s,
 rate k0), so a ramp gives est = v for any k0 dt, as under "etdrk4"; the model's variation over
 the step enters at O(h^3) per step (midpoint rule; x_mid is O(h^2), being predicted with the
 last m). The step's memory m is an input and an output of the step Function (``m_prev``,
@@ -110,6 +111,21 @@ def etd_coefficients(z):
     p2 = ca.if_else(small, 0.5 + z * p3, (em1 - zs) / zs ** 2)
     p1 = ca.if_else(small, 1 + z * p2, em1 / zs)
     return E, 2 * p1 / (1 + E), E * E, p1, p2, p3
+
+
+def half_phi_functions(z):
+    """(e^(z/2), phi_1(z/2), phi_2(z/2)) at a scalar SX/MX z, as ``etd_coefficients`` (series for
+    |z/2| < 1, closed forms otherwise; e^(z/2) the same expression, shared)."""
+    w = z / 2
+    small = ca.fabs(w) < 1
+    ws = ca.if_else(small, 1, w)
+    E = ca.exp(z / 2)
+    s = 1.0 / math.factorial(_SERIES_TERMS + 2)
+    for j in range(_SERIES_TERMS - 1, -1, -1):
+        s = s * w + 1.0 / math.factorial(j + 2)
+    p2 = ca.if_else(small, s, (E - 1 - ws) / ws ** 2)
+    p1 = ca.if_else(small, 1 + w * p2, (E - 1) / ws)
+    return E, p1, p2
 
 
 def phi_functions(z):
@@ -186,14 +202,17 @@ def _masked(mask, etd, other):
 def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, m_prev):
     """(x+, m) of one "expmid" sub-step (module docstring): the model once, at the midpoint
     configuration and the midpoint state predicted with the last model value ``m_prev``."""
-    n_quarter = spec.rhs_model(x, y_of(t + c / 4), u, p, m_prev)
+    y0, y_mid = y_of(t), y_of(t + c / 2)
     if rate is None:
-        x_mid = x + h / 2 * n_quarter
+        theta, E, p1 = 0.5, 1, 1
     else:
-        E, p1h = etd_coefficients(-rate * h)[:2]
-        D = ca.DM(mask)
-        x_mid = _masked(mask, E * x + h / 2 * p1h * (n_quarter + rate * D * x), x + h / 2 * n_quarter)
-    y_mid = y_of(t + c / 2)
+        E, p1, p2 = half_phi_functions(-rate * h)
+        theta = p2 / p1
+    # the flow at the fraction theta of the half step: exact for forcing linear in time
+    n_theta = spec.rhs_model(x, y0 + theta * (y_mid - y0), u, p, m_prev)
+    D = ca.DM(mask)
+    x_mid = _masked(mask, E * x + h / 2 * p1 * (n_theta + (rate if rate is not None else 0) * D * x),
+                    x + h / 2 * n_theta)
     m = spec.model(x_mid, y_mid, y_mid, u, p)
     x_next = integrator_step(lambda s, xs: spec.rhs_model(xs, y_of(s), u, p, m), x, t, h, "etdrk4", rate,
                              mask, clock=c)

@@ -93,16 +93,16 @@ def etdrk4_step(f, t, x, h, a, mask):
 def expmid_step(f, model, t, x, h, a, mask, m_prev):
     """One step of length h (s) of the method expmid from t (s), x (m,) and the last model value
     m_prev: the state at the step's midpoint predicted over h/2 with m_prev held (exponential
-    Euler, the flow at t + h/4: x_mid = e^(-a h/2) x + h/2 phi_1(-a h/2) (f + a x) on the mask,
-    x + h/2 f elsewhere), the model m = model(t + h/2, x_mid) once, then x' = f(s, x, m) with m
+    Euler with the flow at t + th h/2, th = phi_2(-a h/2) / phi_1(-a h/2), 1/2 without a rate:
+    x_mid = e^(-a h/2) x + h/2 phi_1(-a h/2) (f + a x) on the mask, x + h/2 f elsewhere), the model m = model(t + h/2, x_mid) once, then x' = f(s, x, m) with m
     held by ``etdrk4_step`` (``rk4_step`` when a is None). f: (s, x, m) -> x'; a, mask as in
     ``etdrk4_step``. Returns (x(t + h), m)."""
-    n_quarter = f(t + 0.25 * h, x, m_prev)
     if a is None:
-        x_mid = x + 0.5 * h * n_quarter
+        x_mid = x + 0.5 * h * f(t + 0.25 * h, x, m_prev)
     else:
-        E, p1 = phi(-0.5 * a * h)[:2]
-        x_mid = np.where(np.asarray(mask) > 0, E * x + 0.5 * h * p1 * (n_quarter + a * x), x + 0.5 * h * n_quarter)
+        E, p1, p2 = phi(-0.5 * a * h)[:3]
+        n = f(t + 0.5 * h * p2 / p1, x, m_prev)     # exact for forcing linear in time
+        x_mid = np.where(np.asarray(mask) > 0, E * x + 0.5 * h * p1 * (n + a * x), x + 0.5 * h * n)
     m = model(t + 0.5 * h, x_mid)
 
     def held(s, xs):
