@@ -45,7 +45,7 @@ class ObserverSpec:
       jump(x, y, p)      -> x+   (or None)  hybrid jump map, applied before each step
       rate(x, p)         -> a    (or None)  the flow's linear gain rate: rhs = N - a x on the
                                             states ``rate_states`` (a constant along the flow),
-                                            integrated exactly by the default "etdrk4"
+                                            integrated exactly by "etdrk4" and "expmid"
       retune(x, y, p_old, p_new) -> x+  (or None: identity)  the state after a parameter change
                                             at measurement y that keeps the estimate continuous
       measurement(est)   -> y    (or None)  the measurement of a plant in the estimated state

@@ -50,26 +50,28 @@ sampled with y held settles at a/(1 - R(-a)) qd with a = k0 dt and R the method'
 function (RK4: R(-a) = 1 - a + a^2/2 - a^3/6 + a^4/24; exact: e^-a), a bias the linear hold
 removes for every method.
 
-``"expmid"``, the exponential midpoint rule with the model once per sub-step, for a family that
-declares its model part (``spec.model``, ``spec.rhs_model``: the flow is f(t, x) = F(t, x, m),
-m = model(x, y_cfg, y) the forward dynamics, M, C, g and F, at the configuration y_cfg and the
-velocity x and y give it; F is linear in x and in y(t): the gain and injection terms). From x,
-the memory m_prev (the model's value of the previous sub-step; 0 after init) and E = e^(-a h/2):
+``"expmid"`` (the default), the exponential midpoint rule, for a family that declares its model
+part (``spec.model``, ``spec.rhs_model``: the flow is f(t, x) = F(t, x, m), m = model(x, y_cfg, y)
+the forward dynamics, M, C, g and F, at the configuration y_cfg and the velocity x and y give
+it; F is linear in x and in y(t): the gain and injection terms). With E = e^(-a h/2),
+th = phi_2(-a h/2) / phi_1(-a h/2) (1/2 without a rate) and y_m = y(t + h/2):
 
-    x_mid = E x + h/2 phi_1(-a h/2) [F(t + th h/2, x, m_prev) + a D x]   (Euler off the rate states)
-    m     = model(x_mid, y(t + h/2), y(t + h/2))                      the one model evaluation
+    m0    = model(x, y_m, y(t))                                        the model at the start
+    x_mid = E x + h/2 phi_1(-a h/2) [F(t + th h/2, x, m0) + a D x]     (Euler off the rate states)
+    m     = model(x_mid, y_m, y_m)                                     the model at the midpoint
     x+    = x advanced by ETD-RK4 over h along x' = F(s, x, m), m held
 
-th = phi_2(-a h/2) / phi_1(-a h/2) (1/2 without a rate) makes the prediction exact for forcing
-linear in time. The last line is exact for the reduced-order families (F = m - k0 x2hat: forcing linear in s,
-rate k0), so a ramp gives est = v for any k0 dt, as under "etdrk4"; the model's variation over
-the step enters at O(h^3) per step (midpoint rule; x_mid is O(h^2), being predicted with the
-last m). The step's memory m is an input and an output of the step Function (``m_prev``,
-``m``): the generated C keeps it beside y_prev; the first sample of the first-order hold
-(dt = 0) sets it. Families without a model part get "etdrk4". Measured against "etdrk4" on the
-built-in trajectory and MuJoCo's ur5 and panda (docs/architecture.md §4): the reduced-order
-families move by < 5 % of their own error, the extended-state observer by 12 % on ur5
-without noise (so it declares no model part and keeps ETD-RK4).
+Both model evaluations are at the one configuration y_m: inlined, M(y_m), g(y_m) and the rest
+of the configuration's work (sin/cos, articulated inertias) are computed once, the velocity's
+(C, F) twice, against four times under "etdrk4". The prediction is exact for forcing linear in
+time and the last line for the reduced-order families (F = m - k0 x2hat: linear forcing, rate
+k0), so a ramp gives est = v for any k0 dt; the model's variation over the step enters at
+O(h^3) per step. The step has no memory (the discrete map is x -> x+), so the stability check
+linearises it as any other. Families without a model part get "etdrk4". Measured against
+"etdrk4" (docs/architecture.md §4.1): on the built-in trajectory and MuJoCo's ur5 and panda it
+moves the reduced-order and switched observers by < 0.1 % of their own RMS error; the
+extended-state observer, with the model held over the step, moved by 12 % on ur5 without
+noise (3.5x on MuJoCo), so it declares no model part and keeps ETD-RK4.
 """
 from __future__ import annotations
 
@@ -187,58 +189,53 @@ def rate_mask(spec):
     return [1 if name in spec.rate_states else 0 for name in spec.x_names]
 
 
-def memory_size(spec, method):
-    """Entries of the step's memory m (the model's last value): the model's size under "expmid"
-    (0 for a family without a model part: ETD-RK4), else 0."""
-    return spec.model_size if method == "expmid" else 0
-
-
 def _masked(mask, etd, other):
     """etd on the states of the 0/1 ``mask``, ``other`` on the rest."""
     D = ca.DM(mask)
     return D * etd + (1 - D) * other if 0 < sum(mask) < len(mask) else (etd if sum(mask) else other)
 
 
-def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, m_prev):
-    """(x+, m) of one "expmid" sub-step (module docstring): the model once, at the midpoint
-    configuration and the midpoint state predicted with the last model value ``m_prev``."""
+def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask):
+    """x+ of one "expmid" sub-step (module docstring): the model at the midpoint configuration,
+    at the sub-step's start and at its predicted midpoint state, the rest of the flow by
+    ETD-RK4 with the midpoint model held."""
     y0, y_mid = y_of(t), y_of(t + c / 2)
+    m0 = spec.model(x, y_mid, y0, u, p)
     if rate is None:
         theta, E, p1 = 0.5, 1, 1
     else:
         E, p1, p2 = half_phi_functions(-rate * h)
         theta = p2 / p1
     # the flow at the fraction theta of the half step: exact for forcing linear in time
-    n_theta = spec.rhs_model(x, y0 + theta * (y_mid - y0), u, p, m_prev)
+    n_theta = spec.rhs_model(x, y0 + theta * (y_mid - y0), u, p, m0)
     D = ca.DM(mask)
     x_mid = _masked(mask, E * x + h / 2 * p1 * (n_theta + (rate if rate is not None else 0) * D * x),
                     x + h / 2 * n_theta)
     m = spec.model(x_mid, y_mid, y_mid, u, p)
-    x_next = integrator_step(lambda s, xs: spec.rhs_model(xs, y_of(s), u, p, m), x, t, h, "etdrk4", rate,
-                             mask, clock=c)
-    return x_next, m
+    return integrator_step(lambda s, xs: spec.rhs_model(xs, y_of(s), u, p, m), x, t, h, "etdrk4", rate,
+                           mask, clock=c)
 
 
-def _advance(spec, x, y_of, u, p, dt, method, substeps, midpoint=False, m=None):
-    """(x advanced over dt (s, symbolic), the memory m after it (None unless "expmid")), y = y_of(s)
-    at the fraction s in [0, 1] of the interval; ``midpoint``: a family's model
-    (``spec.rhs_split``) at the configuration y((i + 1/2)/substeps) of each sub-step i, its
-    output injection at y(s). ``"expmid"``: ``_expmid_step`` per sub-step from the memory ``m``."""
+def _advance(spec, x, y_of, u, p, dt, method, substeps, midpoint=False):
+    """x advanced over dt (s, symbolic), y = y_of(s) at the fraction s in [0, 1] of the interval;
+    ``midpoint``: a family's model (``spec.rhs_split``) at the configuration y((i + 1/2)/substeps)
+    of each sub-step i, its output injection at y(s). ``"expmid"``: ``_expmid_step`` per
+    sub-step (ETD-RK4 for a family without a model part)."""
     if method == "expmid" and spec.model is None:
-        method = "etdrk4"                   # no model part declared: ETD-RK4 (module docstring)
+        method = "etdrk4"
     h = dt / substeps
     rate = spec.rate(x, p) if (spec.rate is not None and method in ("etdrk4", "expmid")) else None
     mask = rate_mask(spec)
     split = midpoint and spec.rhs_split is not None
     for i in range(substeps):
         if method == "expmid":
-            x, m = _expmid_step(spec, x, y_of, u, p, i / substeps, h, 1 / substeps, rate, mask, m)
+            x = _expmid_step(spec, x, y_of, u, p, i / substeps, h, 1 / substeps, rate, mask)
             continue
         y_cfg = y_of((i + 0.5) / substeps)
         flow = ((lambda s, xs: spec.rhs_split(xs, y_cfg, y_of(s), u, p)) if split else
                 (lambda s, xs: spec.rhs(xs, y_of(s), u, p)))
         x = integrator_step(flow, x, i / substeps, h, method, rate, mask, clock=1 / substeps)
-    return x, m
+    return x
 
 
 def _linear(y_prev, y):
@@ -251,32 +248,25 @@ def _linear(y_prev, y):
 def _inline(spec, method, substeps, inline):
     if inline != "auto":
         return bool(inline)
-    stages = {"euler": 1, "rk4": 4, "etdrk4": 4, "expmid": 1 if spec.model is not None else 4}[method] * substeps
+    stages = {"euler": 1, "rk4": 4, "etdrk4": 4, "expmid": 2 if spec.model is not None else 4}[method] * substeps
     return spec.rhs.n_instructions() * stages <= INLINE_LIMIT
 
 
 def _pieces(spec, method, substeps, hold, inline, syms=None):
-    """(inputs, x_next, est, (x_a, x_b) the flow's ends, m the memory after the step or None);
-    ``syms``: the inputs (x, y_prev, y, u_prev, u, p, dt[, m_prev]) to use, else new symbols."""
     inline = _inline(spec, method, substeps, inline)
-    sym = ca.SX.sym if inline else ca.MX.sym
-    ins = list(syms or _symbols(spec, sym))
-    if memory_size(spec, method) and len(ins) == len(_NAMES_IN):
-        ins.append(sym("m_prev", memory_size(spec, method)))
-    x, yp, y, up, u, p, dt = ins[:7]
-    m = ins[7] if len(ins) > 7 else None
+    x, yp, y, up, u, p, dt = syms or _symbols(spec, ca.SX.sym if inline else ca.MX.sym)
     if hold == "zoh":
         xj = spec.jump(x, y, p) if spec.jump is not None else x
         est = spec.output(xj, y, u, p)
-        xn, m = _advance(spec, xj, lambda s: y, u, p, dt, method, substeps, m=m)
+        xn = _advance(spec, xj, lambda s: y, u, p, dt, method, substeps)
         flow = (xj, xn)
     else:
         # linear y over the last interval; dt = 0 collapses it to no step at all
-        xa, m = _advance(spec, x, _linear(yp, y), up, p, dt, method, substeps, midpoint=True, m=m)
+        xa = _advance(spec, x, _linear(yp, y), up, p, dt, method, substeps, midpoint=True)
         xn = spec.jump(xa, y, p) if spec.jump is not None else xa
         est = spec.output(xn, y, u, p)
         flow = (x, xa)
-    return ins, xn, est, flow, m
+    return [x, yp, y, up, u, p, dt], xn, est, flow
 
 
 _NAMES_IN = ["x", "y_prev", "y", "u_prev", "u", "p", "dt"]
@@ -305,22 +295,18 @@ def discretize(spec, disc, inline="auto"):
     -------
     casadi.Function
         ``step(x, y_prev, y, u_prev, u, p, dt) -> (x_next, est)``, dt (s) the time integrated
-        over (foh: since the last sample, 0 on the first; zoh: to the next sample); under
-        "expmid" with a model part also the memory: ``(..., m_prev) -> (x_next, est, m)``.
+        over (foh: since the last sample, 0 on the first; zoh: to the next sample).
     """
-    ins, xn, est, _, m = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
-    if m is None:
-        return ca.Function("step", ins, _shared([xn, est]), _NAMES_IN, ["x_next", "est"])
-    return ca.Function("step", ins, _shared([xn, est, m]), _NAMES_IN + ["m_prev"], ["x_next", "est", "m"])
+    ins, xn, est, _ = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
+    return ca.Function("step", ins, _shared([xn, est]), _NAMES_IN, ["x_next", "est"])
 
 
 def estimate(spec, disc, inline="auto"):
-    """The estimate of ``discretize(spec, disc)`` as its own Function (same inputs, dt and m_prev included),
+    """The estimate of ``discretize(spec, disc)`` as its own Function (same inputs, dt included),
     without advancing the state; ``spec`` the observer, ``disc`` its Discretization, ``inline``:
     True (SX), False (MX calls) or "auto" (SX when the unrolled step is small)."""
-    ins, _, est, _, _ = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
-    return ca.Function("estimate", ins, _shared([est]), _NAMES_IN[:len(ins)] + ["m_prev"][:len(ins) - 7],
-                       ["est"])
+    ins, _, est, _ = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
+    return ca.Function("estimate", ins, _shared([est]), _NAMES_IN, ["est"])
 
 
 def step_jacobians(spec, disc, inline="auto"):
@@ -348,11 +334,8 @@ def step_jacobians(spec, disc, inline="auto"):
     inline = _inline(spec, disc.method, disc.substeps, inline)
     sym = ca.SX.sym if inline else ca.MX.sym
     x, y, u, p, dt = sym("x", spec.nx), sym("y", spec.ny), sym("u", spec.nu), sym("p", spec.np), sym("dt")
-    # "expmid": the memory a held measurement leaves, the model at the state itself (the
-    # linearisation then sees the predictor's use of it as a function of x)
-    mem = (spec.model(x, y, y, u, p),) if memory_size(spec, disc.method) else ()
-    _, xn, _, (xa, xb), _ = _pieces(spec, disc.method, disc.substeps, disc.hold, inline,
-                                    syms=(x, y, y, u, u, p, dt, *mem))
+    _, xn, _, (xa, xb) = _pieces(spec, disc.method, disc.substeps, disc.hold, inline,
+                                 syms=(x, y, y, u, u, p, dt))
     J = ca.Function("J", [x, y, u, p], [ca.jacobian(spec.rhs(x, y, u, p), x)])
     return ca.Function("step_jacobians", [x, y, u, p, dt],
                        [ca.jacobian(xn, x), J(xa, y, u, p), J(xb, y, u, p)],

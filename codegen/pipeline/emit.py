@@ -25,7 +25,7 @@ import numpy as np
 
 from ..core.atomic import replace_dir
 from ..core.version import __version__
-from ..discrete.discretize import discretize, estimate, memory_size
+from ..discrete.discretize import discretize, estimate
 from ..core.spec import ObserverSpec, real_number
 from ..discrete.stability import require_stable
 from ..core.target import AUTO, REAL_TYPES, SPLIT_MAX, STAMP_ULPS, sanitize
@@ -149,7 +149,6 @@ def metadata(spec, target, kernels, stability=None):
         "rate_states": list(spec.rate_states),
         "rhs_split": spec.rhs_split is not None,
         "rhs_model": spec.model_size,
-        "memory": memory_size(spec, d.method),     # the step's memory m_prev (method expmid)
         "gains": {g: list(slots) for g, slots in spec.gains.items()},
         "stability": stability,
         "kernels": kernels,
@@ -356,7 +355,6 @@ def template_values(meta):
         "hybrid_text": HYBRID_TEXT if d["hybrid"] else "",
         **{n: s[n] for n in ("nx", "ny", "nu", "np", "nest")},
         **{f"{v}_len": max(1, s["n" + v]) for v in ("x", "y", "u", "p", "est")},  # C: no empty arrays
-        "nm": meta.get("memory", 0), "m_len": max(1, meta.get("memory", 0)),
         **{key: max(v[key] for v in k.values()) for key in ("sz_arg", "sz_res")},
         **{key: max(1, max(v[key] for v in k.values())) for key in ("sz_iw", "sz_w")},
         "slot_macros": "\n".join(_slot_macros(P, meta["names"])), "status_enum": status,

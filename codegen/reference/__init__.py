@@ -154,15 +154,13 @@ class ReferenceObserver:
                              f"reference family does not")
 
         self.model_split = bool(desc.get("rhs_model"))   # the model part apart (method expmid)
-        # entries of the step's memory (the model's last value, method expmid), zero at reset
-        self.memory = int(desc["rhs_model"]) if self.method == "expmid" and self.model_split else 0
         if self.model_split and not hasattr(self.family, "model"):
             raise ValueError(f"{family_name}: the spec declares its model part (model, rhs_model) but "
                              f"the reference family does not")
         self.gains = {g: list(slots) for g, slots in (desc.get("gains") or {}).items()}
         self.p_default = as_vector("p_default", desc["p_default"], self.np)
         self._p = self.p_default.copy()
-        self._x, self._m = None, None
+        self._x = None
         self._y_last = None   # the last measurement (set by reset and step), for retuning
 
     # ------------------------------------------------------------ parameters
@@ -212,7 +210,7 @@ class ReferenceObserver:
         for h in sorted({self.dt_range[1], self.dt, self.dt_range[0]}, reverse=True):
             try:
                 self._p = p
-                step = lambda x, h=h: self._advance(x, (y, u), y, u, h, self._held_memory(x, y, u))[1]  # noqa: E731
+                step = lambda x, h=h: self._advance(x, (y, u), y, u, h)[1]            # noqa: E731
                 Phi = _jacobian(step, x0)
                 J = 0.5 * (_jacobian(flow, x0) + _jacobian(flow, step(x0)))
             finally:
@@ -293,46 +291,37 @@ class ReferenceObserver:
         if not np.all(np.isfinite(x0)):
             raise FloatingPointError(f"non-finite initial state {x0}")
         self._p, self._x, self._prev, self._y_last, self._stamp = p, x0, None, y0, None
-        self._m = np.zeros(self.memory) if self.memory else None
         return self.state
 
-    def _flow(self, x, y_of_t, u, dt, midpoint=False, m=None):
-        """(x advanced over dt with y = y_of_t(t) and u held, the memory m after it); ``midpoint``
-        (first-order hold of a family with ``rhs_split``): its model at y of each sub-step's
-        midpoint, the rest at y(t); ``m``: the memory of the method expmid (its model's last
-        value), passed through by the others."""
+    def _flow(self, x, y_of_t, u, dt, midpoint=False):
+        """x advanced over dt with y = y_of_t(t) and u held; ``midpoint`` (first-order hold of a
+        family with ``rhs_split``): its model at y of each sub-step's midpoint, the rest at y(t);
+        expmid (a family with its model part apart): at y of each sub-step's midpoint always."""
         p, robot, family = self._p, self.robot, self.family
         rate = family.rate(robot, x, p) if self._mask is not None else None
-        if self.memory:                 # expmid: the model once per sub-step, at its midpoint
+        if self.method == "expmid" and self.model_split:     # the model at each sub-step's midpoint
             return discretize.integrate_expmid(
-                lambda t, xi, mi: family.rhs_model(robot, xi, y_of_t(t), u, p, mi),
-                lambda t, xi: family.model(robot, xi, y_of_t(t), y_of_t(t), u, p),
-                x, dt, self.substeps, m, rate, self._mask)
+                lambda t, xi, m: family.rhs_model(robot, xi, y_of_t(t), u, p, m),
+                lambda tm, t, xi: family.model(robot, xi, y_of_t(tm), y_of_t(t), u, p),
+                x, dt, self.substeps, rate, self._mask)
         method = "etdrk4" if self.method == "expmid" else self.method   # expmid without a model part
         if midpoint and self.split:
             return discretize.integrate(
                 lambda t, xi, tm: family.rhs_split(robot, xi, y_of_t(tm), y_of_t(t), u, p),
-                x, dt, method, self.substeps, rate, self._mask, midpoint=True), m
+                x, dt, method, self.substeps, rate, self._mask, midpoint=True)
         return discretize.integrate(lambda t, xi: family.rhs(robot, xi, y_of_t(t), u, p),
-                                    x, dt, method, self.substeps, rate, self._mask), m
-
-    def _held_memory(self, x, y, u):
-        """The memory of the method expmid a held measurement y leaves at state x: the model at x
-        (None for the other methods)."""
-        return np.asarray(self.family.model(self.robot, x, y, y, u, self._p), float) if self.memory else None
+                                    x, dt, method, self.substeps, rate, self._mask)
 
     def _jumped(self, x, y):
         """x after the jump map at measurement y (the identity for non-hybrid families)."""
         return self.family.jump(self.robot, x, y, self._p) if self.hybrid else x
 
-    def _advance(self, x, prev, y, u, dt=None, mem=None):
-        """(est, x_next, mem_next) for one sample from state x after the elapsed time ``dt`` (s,
-        default the designed dt; first-order hold: since the last sample ``prev`` = (y, u),
-        nothing to integrate when it is None; zero-order hold: to the next sample), in
-        m = ceil(dt / dt_max) equal sub-intervals h, each ending at a virtual sample with its jump
-        (module docstring); ``mem``: the memory of the method expmid (the model's last value;
-        on the first sample of a first-order hold it becomes the model at x and y), passed through
-        by the others; raises on a non-finite result."""
+    def _advance(self, x, prev, y, u, dt=None):
+        """(est, x_next) for one sample from state x after the elapsed time ``dt`` (s, default
+        the designed dt; first-order hold: since the last sample ``prev`` = (y, u), nothing to
+        integrate when it is None; zero-order hold: to the next sample), in m = ceil(dt / dt_max)
+        equal sub-intervals h, each ending at a virtual sample with its jump (module docstring);
+        raises on a non-finite result."""
         p, dt = self._p, self.dt if dt is None else dt
         m = split_count(dt, self.dt_range[1])
         h = dt / m
@@ -342,24 +331,22 @@ class ReferenceObserver:
                 ya = yp
                 for j in range(1, m + 1):       # y linear from yp to y, the last input held
                     yb = y if j == m else yp + (j / m) * (y - yp)
-                    x, mem = self._flow(x, lambda t, a=ya, b=yb: a + (t / h) * (b - a), up, h, True, mem)
+                    x = self._flow(x, lambda t, a=ya, b=yb: a + (t / h) * (b - a), up, h, midpoint=True)
                     if j < m:
                         x = self._jumped(x, yb)
                     ya = yb
-            elif self.memory:                   # expmid: nothing integrated; the model at the sample
-                mem = np.asarray(self.family.model(self.robot, x, y, y, u, p), dtype=float)
             x = self._jumped(x, y)
             est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)
             x_next = x
         else:                                   # y and u held over the interval after the sample
             x = self._jumped(x, y)
             est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)
-            x_next, mem = self._flow(x, lambda t: y, u, h, m=mem)
+            x_next = self._flow(x, lambda t: y, u, h)
             for _ in range(m - 1):
-                x_next, mem = self._flow(self._jumped(x_next, y), lambda t: y, u, h, m=mem)
+                x_next = self._flow(self._jumped(x_next, y), lambda t: y, u, h)
         if not (np.all(np.isfinite(est)) and np.all(np.isfinite(x_next))):
             raise FloatingPointError(f"non-finite result (est={est}, x={x_next}); state unchanged")
-        return est, x_next, mem
+        return est, x_next
 
     def _elapsed(self, dt):
         """The elapsed time ``dt`` (s) of a step: positive, finite, at most ``dt_limit``; None: dt."""
@@ -394,7 +381,7 @@ class ReferenceObserver:
         h = self._elapsed(dt)
         y = as_vector("y", y, self.ny)
         u = as_vector("u", u, self.nu)
-        est, self._x, self._m = self._advance(self._x, self._prev, y, u, h, self._m)
+        est, self._x = self._advance(self._x, self._prev, y, u, h)
         if self._prev is not None and self._stamp is not None:
             self._stamp += h
         self._prev, self._y_last = (y, u), y
@@ -405,7 +392,7 @@ class ReferenceObserver:
         self._require_reset()
         h = self._elapsed(dt)
         y, u = as_vector("y", y, self.ny), as_vector("u", u, self.nu)
-        return self._advance(self._x, self._prev, y, u, h, self._m)[0]
+        return self._advance(self._x, self._prev, y, u, h)[0]
 
     def run(self, Y, U, t=None):
         """Repeated ``step``, all-or-nothing: on an error the state is left unchanged.
@@ -449,16 +436,16 @@ class ReferenceObserver:
             if len(bad):
                 raise ValueError(f"t: the interval of sample {int(bad[0])} is {H[bad[0]]:g} s, expected "
                                  f"0 < interval <= {self.dt_limit:g} s (split_max x dt_max)")
-        x, prev, stamp, mem = self._x, self._prev, self._stamp, self._m
+        x, prev, stamp = self._x, self._prev, self._stamp
         EST = np.empty((N, self.nest))
         for k in range(N):
-            EST[k], x, mem = self._advance(x, prev, Y[k], U[k], float(H[k]), mem)
+            EST[k], x = self._advance(x, prev, Y[k], U[k], float(H[k]))
             if prev is not None and stamp is not None:
                 stamp += H[k]
             prev = (Y[k], U[k])
             if t is not None:
                 stamp = float(t[k])
-        self._x, self._prev, self._stamp, self._m = x, prev, stamp, mem
+        self._x, self._prev, self._stamp = x, prev, stamp
         if len(Y):
             self._y_last = Y[-1]
         return EST

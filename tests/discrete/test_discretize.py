@@ -124,23 +124,26 @@ def _trig_count(step):
 def test_first_order_hold_builds_the_model_once_per_substep(spec_of):
     """The code shape behind `make bench`'s ratio: under the first-order hold the ur5 step
     evaluates the configuration-dependent model (its sin/cos) once per sub-step, as the
-    zero-order hold does; without the split flow it is three times (y_k-1, midpoint, y_k)."""
+    zero-order hold does (ETD-RK4 and expmid); without the split flow ETD-RK4 evaluates it
+    three times (y_k-1, midpoint, y_k)."""
     import dataclasses
 
     from codegen.discrete.discretize import discretize
     from codegen.core.target import Discretization
     spec = spec_of("ur5")
-    once = _trig_count(discretize(spec, Discretization(dt=1e-3, hold="zoh"), inline=True))
-    assert once > 0
-    assert _trig_count(discretize(spec, Discretization(dt=1e-3), inline=True)) == once
-    assert _trig_count(discretize(spec, Discretization(dt=1e-3, substeps=2), inline=True)) == 2 * once
-    unsplit = dataclasses.replace(spec, rhs_split=None)
-    assert _trig_count(discretize(unsplit, Discretization(dt=1e-3), inline=True)) == 3 * once
+    for method in ("etdrk4", "expmid"):
+        once = _trig_count(discretize(spec, Discretization(dt=1e-3, hold="zoh", method=method), inline=True))
+        assert once > 0
+        assert _trig_count(discretize(spec, Discretization(dt=1e-3, method=method), inline=True)) == once
+        assert _trig_count(discretize(spec, Discretization(dt=1e-3, substeps=2, method=method),
+                                      inline=True)) == 2 * once
+    unsplit = dataclasses.replace(spec, rhs_split=None, model=None, rhs_model=None)
+    assert _trig_count(discretize(unsplit, Discretization(dt=1e-3, method="etdrk4"), inline=True)) == 3 * once
 
 
 @pytest.mark.parametrize("name", ["ur5", "panda"])
 def test_midpoint_model_error_is_negligible(name):
-    """On the built-in trajectory at the guarantee gain, the model at the sub-step's midpoint
+    """On the built-in trajectory at the guarantee gain, ETD-RK4 with the model at the sub-step's midpoint
     moves the estimate (t >= 1 s) by less than a tenth of the observer's own error against the
     true velocity (the reference with and without the split; measured 1.3e-6 vs 7.5e-5 rad/s on
     ur5, 1.1e-5 vs 3.2e-4 on panda)."""
@@ -150,7 +153,7 @@ def test_midpoint_model_error_is_negligible(name):
     t, Q, QD, TAU = demo_trajectory(spec.robot, T=1.5)
     ests = []
     for split in (True, False):
-        ref = reference_observer(dict(spec.describe(), rhs_split=split))
+        ref = reference_observer(dict(spec.describe(), rhs_split=split), method="etdrk4")
         ref.reset(Q[0])
         ests.append(ref.run(Q, TAU))
     m = t >= 1.0
@@ -166,17 +169,17 @@ def _model_calls(step):
 
 
 @pytest.mark.parametrize("substeps", [1, 2])
-def test_expmid_calls_the_model_once_per_substep(spec_of, substeps):
+def test_expmid_calls_the_model_twice_per_substep(spec_of, substeps):
     """Calling the spec's functions (the C of a big observer), the expmid step calls the model
-    once per sub-step and only the cheap rest of the flow (rhs_model) in the predictor and the
-    four ETD-RK4 stages;
+    twice per sub-step (start and predicted midpoint, both at the midpoint configuration) and
+    only the cheap rest of the flow (rhs_model) in the predictor and the four ETD-RK4 stages;
     the ETD-RK4 step calls the whole flow four times. A family without a model part (the
     extended-state observer) gets the ETD-RK4 step."""
     from codegen.core.target import Discretization
     from codegen.discrete.discretize import discretize
     spec = spec_of("ur5")
     calls = _model_calls(discretize(spec, Discretization(method="expmid", substeps=substeps), inline=False))
-    assert calls.count("model") == substeps and calls.count("rhs_model") == 5 * substeps
+    assert calls.count("model") == 2 * substeps and calls.count("rhs_model") == 5 * substeps
     assert "rhs_split" not in calls and "rhs" not in calls
     etd = _model_calls(discretize(spec, Discretization(substeps=substeps, method="etdrk4"), inline=False))
     assert etd.count("rhs_split") == 4 * substeps
@@ -188,23 +191,23 @@ def test_expmid_calls_the_model_once_per_substep(spec_of, substeps):
 
 def test_expmid_step_is_exact_with_the_model_held():
     """The reference's expmid step: with a model independent of the state it integrates
-    z' = m - a z + c1 s exactly (ETD-RK4 with m held), and it evaluates the model once, at the
-    step's midpoint, the state there predicted with the memory m_prev exactly too."""
+    z' = m - a z + c1 s exactly (ETD-RK4 with the midpoint m held); the model is evaluated at
+    the midpoint configuration twice, at the start and at the midpoint state, which the
+    prediction (with the first value) gets exactly too."""
     from codegen.reference.discretize import expmid_step
     a, c1, h, x0, m0 = 2146.0, -40.0, 1e-3, 0.7, 3.0
     exact = x0 * np.exp(-a * h) + m0 * (1 - np.exp(-a * h)) / a + c1 * (h / a - (1 - np.exp(-a * h)) / a ** 2)
     seen = []
 
-    def model(t, x):
-        seen.append((t, x.copy()))
+    def model(t_cfg, t, x):
+        seen.append((t_cfg, t, x.copy()))
         return np.array([m0])
-    x1, m = expmid_step(lambda s, x, mi: mi - a * x + c1 * s, model, 0.0, np.array([x0]), h, a, [1],
-                        np.array([m0]))
-    assert x1[0] == pytest.approx(exact, rel=1e-13) and m[0] == m0
-    assert len(seen) == 1 and seen[0][0] == h / 2
+    x1 = expmid_step(lambda s, x, mi: mi - a * x + c1 * s, model, 0.0, np.array([x0]), h, a, [1])
+    assert x1[0] == pytest.approx(exact, rel=1e-13)
+    assert [(tc, t) for tc, t, _ in seen] == [(h / 2, 0.0), (h / 2, h / 2)] and seen[0][2][0] == x0
     e = np.exp(-a * h / 2)
     half = x0 * e + m0 * (1 - e) / a + c1 * (h / 2 / a - (1 - e) / a ** 2)
-    assert seen[0][1][0] == pytest.approx(half, rel=1e-13)
+    assert seen[1][2][0] == pytest.approx(half, rel=1e-13)
 
 
 def test_half_phi_functions_agree_with_the_reference():
@@ -224,8 +227,8 @@ def test_half_phi_functions_agree_with_the_reference():
 @pytest.mark.parametrize("family,name", [("reduced_order", "ur5"), ("reduced_order", "panda"),
                                          ("reduced_order_switched", "ur5")])
 def test_expmid_moves_the_estimate_by_less_than_5_percent_of_its_error(family, name):
-    """On the built-in trajectory without noise at the default gains, expmid (the model once per
-    step) moves the estimate (t >= 1 s) from ETD-RK4's by less than 5 % of the observer's own RMS
+    """On the built-in trajectory without noise at the default gains, expmid (the model at the
+    step's midpoint configuration, twice) moves the estimate (t >= 1 s) from ETD-RK4's by less than 5 % of the observer's own RMS
     error against the true velocity (the references; measured 1e-7 vs 2.9e-4 rad/s on ur5
     reduced-order, 0.04 %)."""
     from codegen.reference import reference_observer

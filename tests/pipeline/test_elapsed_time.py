@@ -95,7 +95,7 @@ def test_ramp_with_jittered_stamps_gives_its_slope(ur5):
 
 
 def test_expmid_ramp_and_jittered_stamps(ur5, tmp_path):
-    """expmid (the model once per step, its memory carried between samples): the ramp of
+    """expmid (the model at the step's midpoint configuration): the ramp of
     ``test_ramp_with_jittered_stamps_gives_its_slope`` keeps est = v (1e-9 |v|) in C and in the
     reference; on random inputs over jittered stamps with 10 ms gaps (split into sub-intervals)
     the C equals the reference, and estimate() equals step() bit for bit."""
