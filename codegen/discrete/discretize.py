@@ -69,7 +69,7 @@ k0), so a ramp gives est = v for any k0 dt; the model's variation over the step 
 O(h^3) per step. The step has no memory (the discrete map is x -> x+), so the stability check
 linearises it as any other. Families without a model part get "etdrk4". Measured against
 "etdrk4" (docs/architecture.md §4.1): on the built-in trajectory and MuJoCo's ur5 and panda it
-moves the reduced-order and switched observers by < 0.1 % of their own RMS error; the
+moves the reduced-order and switched observers by at most 1.8 % of their own RMS error; the
 extended-state observer, with the model held over the step, moved by 12 % on ur5 without
 noise (3.5x on MuJoCo), so it declares no model part and keeps ETD-RK4.
 """
