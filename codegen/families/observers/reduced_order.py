@@ -37,7 +37,8 @@ def flow(robot, z, y_cfg, y, tau, k, bound, m=None):
 
 
 def model(robot, z, y_cfg, y, tau, k, bound):
-    """FD(y_cfg, sat(x2hat), tau), x2hat = z + k y: the model's part of ``flow`` (same arguments)."""
+    """FD(y_cfg, sat(x2hat), tau), x2hat = z + k y, saturated to ``bound``: the model's part of
+    ``flow`` for ``robot`` (z, y_cfg, y, tau, k, bound as there)."""
     return robot.forward_dynamics(y_cfg, _bound.saturate(z + k * y, bound), tau)
 
 

@@ -66,7 +66,7 @@ def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
 
 def model(robot, x, y_cfg, y, u, p, v_bound=None):
     """The model's part of ``rhs_split``: forward_dynamics(y_cfg, sat(x2hat), tau) (n,), rad/s^2,
-    x2hat = z + k0 y; arguments as in ``rhs_split``."""
+    x2hat = z + k0 y saturated to ``v_bound``; robot, x, y_cfg, y, u = tau, p as in ``rhs_split``."""
     return robot.forward_dynamics(y_cfg, saturate(output(robot, x, y, u, p), v_bound), u)
 
 

@@ -70,7 +70,8 @@ def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
 
 def model(robot, x, y_cfg, y, u, p, v_bound=None):
     """The model's part of ``rhs_split``: FD(y_cfg, sat(x2hat), tau) (n,), rad/s^2 (as
-    ``reduced_order.model`` with the gain in force); arguments as in ``rhs_split``."""
+    ``reduced_order.model`` with the gain in force); robot, x, y_cfg, y, u, p, v_bound as in
+    ``rhs_split``."""
     return reduced_order.model(robot, x[:-1], y_cfg, y, u, [gain(x, p)], v_bound)
 
 
