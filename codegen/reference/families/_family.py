@@ -22,8 +22,8 @@ def bound(module, **options):
     ----------
     module : module or str
         A reference family module (or its ``__name__``) giving ``rhs``, ``output``, ``init``,
-        ``sizes`` and optionally ``rhs_split``, ``model`` with ``rhs_model``, ``jump``, ``rate``, ``rate_states``, ``retune``
-        and ``P_NAMES``.
+        ``sizes`` and optionally ``rhs_split``, ``model`` with ``rhs_model``, ``jump``, ``rate``,
+        ``rate_states``, ``retune`` and ``P_NAMES``.
     **options
         Keyword arguments; each contract function receives those its signature names.
 
