@@ -101,12 +101,19 @@ class ObserverSpec:
                                             rhs(x, y, u, p) = rhs_split(x, y, y, u, p). The
                                             first-order hold freezes y_cfg at the sub-step's
                                             midpoint (codegen.discrete.discretize)
+      model(x, y_cfg, y, u, p) -> m         (or None, with rhs_model)  the model's part of the flow
+                                            (the forward dynamics: M, C, g, F at y_cfg and at the
+                                            velocity the state x and y give it)
+      rhs_model(x, y, u, p, m) -> xdot      the flow with that part given as m (the gain and
+                                            injection terms): rhs_split(x, y_cfg, y, u, p) =
+                                            rhs_model(x, y, u, p, model(x, y_cfg, y, u, p)); the
+                                            method "expmid" evaluates model once per sub-step
       output(x, y, u, p) -> est             the estimate at the current sample
       init(y0, est0, p)  -> x0              state from a first measurement and an initial estimate
       jump(x, y, p)      -> x+   (or None)  hybrid jump map, applied before each step
       rate(x, p)         -> a    (or None)  the flow's linear gain rate: rhs = N - a x on the
                                             states ``rate_states`` (a constant along the flow),
-                                            integrated exactly by the default "etdrk4"
+                                            integrated exactly by "etdrk4" and "expmid"
       retune(x, y, p_old, p_new) -> x+  (or None: identity)  the state after a parameter change
                                             at measurement y that keeps the estimate continuous
       measurement(est)   -> y    (or None)  the measurement of a plant in the estimated state
@@ -145,6 +152,8 @@ class ObserverSpec:
     jump: ca.Function | None = None
     rhs_split: ca.Function | None = None
     rate: ca.Function | None = None
+    model: ca.Function | None = None
+    rhs_model: ca.Function | None = None
     retune: ca.Function | None = None
     measurement: ca.Function | None = None
     phases: ca.Function | None = None
@@ -181,6 +190,7 @@ class ObserverSpec:
             if got_in != ins or got_out != outs:
                 raise ValueError(f"{self.family}: function {f.name()} has sizes {got_in}->{got_out}, "
                                  f"expected {ins}->{outs}")
+        self._check_model()
         self.rate_states = tuple(self.rate_states)
         unknown = [s for s in self.rate_states if s not in self.x_names]
         if unknown or (self.rate is None) != (not self.rate_states):
@@ -198,6 +208,24 @@ class ObserverSpec:
         for c, t in self.clocks.items():
             if c not in self.x_names or t not in self.p_names:
                 raise ValueError(f"{self.family}: clock {c!r} -> {t!r} must name a state and a parameter")
+
+    def _check_model(self):
+        """model and rhs_model come together, with a flow split like rhs_split, sizes matching."""
+        if (self.model is None) != (self.rhs_model is None) or (self.model is not None and self.rhs_split is None):
+            raise ValueError(f"{self.family}: model and rhs_model come together, with rhs_split")
+        if self.model is None:
+            return
+        nm = self.model.size1_out(0) * self.model.size2_out(0)
+        for f, ins in ((self.model, (self.nx, self.ny, self.ny, self.nu, self.np)),
+                       (self.rhs_model, (self.nx, self.ny, self.nu, self.np, nm))):
+            got = tuple(f.size1_in(i) * f.size2_in(i) for i in range(f.n_in()))
+            if got != ins:
+                raise ValueError(f"{self.family}: function {f.name()} has inputs {got}, expected {ins}")
+
+    @property
+    def model_size(self):
+        """Entries of the model's part m (``model``), 0 without one."""
+        return 0 if self.model is None else self.model.size1_out(0) * self.model.size2_out(0)
 
     nx = property(lambda self: len(self.x_names))
     ny = property(lambda self: len(self.y_names))
@@ -228,13 +256,14 @@ class ObserverSpec:
     def describe(self):
         """Plain data (JSON-able) the reference rebuilds this observer from: family, variant,
         robot source, slot names, default parameters, options, whether it is hybrid, its rate states
-        and whether it splits its flow's y (``rhs_split``)."""
+        whether it splits its flow's y (``rhs_split``) and the size of its model part (``model``;
+        0: none)."""
         return {"family": self.family, "variant": self.variant, "robot": self.robot_source,
                 "names": {"x": list(self.x_names), "y": list(self.y_names), "u": list(self.u_names),
                           "p": list(self.p_names), "est": list(self.est_names)},
                 "p_default": [float(v) for v in self.p_default], "options": self.options.to_dict(),
                 "hybrid": self.jump is not None, "rate_states": list(self.rate_states),
-                "rhs_split": self.rhs_split is not None,
+                "rhs_split": self.rhs_split is not None, "rhs_model": self.model_size,
                 "gains": {g: list(slots) for g, slots in self.gains.items()}}
 
 
@@ -244,6 +273,16 @@ def split_flow(x, y_cfg, y, u, p, xdot):
     rhs(x, y, u, p) is it at y_cfg = y. x, y_cfg, y, u, p: the SX symbols it depends on."""
     return (ca.Function("rhs", [x, y, u, p], [ca.substitute(xdot, y_cfg, y)]),
             ca.Function("rhs_split", [x, y_cfg, y, u, p], [xdot]))
+
+
+def split_model(x, y_cfg, y, u, p, m, model, xdot):
+    """(rhs, rhs_split, model, rhs_model) of a flow ``xdot`` (SX) written with the model's part as
+    the symbol ``m`` and that part ``model`` (SX, at the configuration ``y_cfg``): the flow is
+    ``xdot`` with m = model (ObserverSpec.model, .rhs_model; ``split_flow``). x, y_cfg, y, u, p:
+    the SX symbols they depend on."""
+    rhs, rhs_split = split_flow(x, y_cfg, y, u, p, ca.substitute(xdot, m, model))
+    return (rhs, rhs_split, ca.Function("model", [x, y_cfg, y, u, p], [model]),
+            ca.Function("rhs_model", [x, y, u, p, m], [xdot]))
 
 
 def real_number(name, value):

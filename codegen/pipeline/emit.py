@@ -163,6 +163,7 @@ def metadata(spec, target, kernels, stability=None):
                                                                     else np.float64).eps)},
         "rate_states": list(spec.rate_states),
         "rhs_split": spec.rhs_split is not None,
+        "rhs_model": spec.model_size,
         "gains": {g: list(slots) for g, slots in spec.gains.items()},
         "stability": stability,
         "kernels": kernels,

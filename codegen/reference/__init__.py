@@ -24,7 +24,9 @@ A family module gives ``rhs(robot, x, y, u, p)``, ``output(robot, x, y, u, p)``,
 ``init(robot, y0, est0, p)``, ``sizes(robot)``, optionally ``P_NAMES``, for hybrid
 observers ``jump(robot, x, y, p)``, for a flow split like the spec's (``rhs_split`` in its
 description) ``rhs_split(robot, x, y_cfg, y, u, p)`` (the model at y_cfg, which the first-order
-hold puts at each sub-step's midpoint configuration), and, when it needs the spec's declared
+hold puts at each sub-step's midpoint configuration), for a flow whose model part is apart
+(``rhs_model`` in its description; the method expmid) ``model(robot, x, y_cfg, y, u, p)`` and
+``rhs_model(robot, x, y, u, p, m)``, and, when it needs the spec's declared
 options, ``configure(robot, options) -> family`` (options: the typed value of codegen.core.options): the
 module's functions with those options bound as keyword arguments (reference/_family.py),
 never state stored on the robot.
@@ -151,6 +153,10 @@ class ReferenceObserver:
             raise ValueError(f"{family_name}: the spec splits its flow's y (rhs_split) but the "
                              f"reference family does not")
 
+        self.model_split = bool(desc.get("rhs_model"))   # the model part apart (method expmid)
+        if self.model_split and not hasattr(self.family, "model"):
+            raise ValueError(f"{family_name}: the spec declares its model part (model, rhs_model) but "
+                             f"the reference family does not")
         self.gains = {g: list(slots) for g, slots in (desc.get("gains") or {}).items()}
         self.p_default = as_vector("p_default", desc["p_default"], self.np)
         self._p = self.p_default.copy()
@@ -297,15 +303,22 @@ class ReferenceObserver:
 
     def _flow(self, x, y_of_t, u, dt, midpoint=False):
         """x advanced over dt with y = y_of_t(t) and u held; ``midpoint`` (first-order hold of a
-        family with ``rhs_split``): its model at y of each sub-step's midpoint, the rest at y(t)."""
+        family with ``rhs_split``): its model at y of each sub-step's midpoint, the rest at y(t);
+        expmid (a family with its model part apart): at y of each sub-step's midpoint always."""
         p, robot, family = self._p, self.robot, self.family
         rate = family.rate(robot, x, p) if self._mask is not None else None
+        if self.method == "expmid" and self.model_split:     # the model at each sub-step's midpoint
+            return discretize.integrate_expmid(
+                lambda t, xi, m: family.rhs_model(robot, xi, y_of_t(t), u, p, m),
+                lambda tm, t, xi: family.model(robot, xi, y_of_t(tm), y_of_t(t), u, p),
+                x, dt, self.substeps, rate, self._mask)
+        method = "etdrk4" if self.method == "expmid" else self.method   # expmid without a model part
         if midpoint and self.split:
             return discretize.integrate(
                 lambda t, xi, tm: family.rhs_split(robot, xi, y_of_t(tm), y_of_t(t), u, p),
-                x, dt, self.method, self.substeps, rate, self._mask, midpoint=True)
+                x, dt, method, self.substeps, rate, self._mask, midpoint=True)
         return discretize.integrate(lambda t, xi: family.rhs(robot, xi, y_of_t(t), u, p),
-                                    x, dt, self.method, self.substeps, rate, self._mask)
+                                    x, dt, method, self.substeps, rate, self._mask)
 
     def _jumped(self, x, y):
         """x after the jump map at measurement y (the identity for non-hybrid families)."""

@@ -94,6 +94,30 @@ def test_ramp_with_jittered_stamps_gives_its_slope(ur5):
     assert np.max(np.abs(zoh.run(Q, TAU, t) - v)) > 1e-3 * np.linalg.norm(v)
 
 
+def test_expmid_ramp_and_jittered_stamps(ur5, tmp_path):
+    """expmid (the model at the step's midpoint configuration): the ramp of
+    ``test_ramp_with_jittered_stamps_gives_its_slope`` keeps est = v (1e-9 |v|) in C and in the
+    reference; on random inputs over jittered stamps with 10 ms gaps (split into sub-intervals)
+    the C equals the reference, and estimate() equals step() bit for bit."""
+    spec = ur5[0]
+    obs = compile_observer(spec, method="expmid", out_dir=tmp_path)
+    ref = reference_observer(spec, method="expmid")
+    t = jittered_stamps(500, 1e-3, seed=4)
+    Q, TAU, v = _ramp(spec.robot, t)
+    for o in (obs, ref):
+        o.reset(Q[0], est0=v)
+        assert np.max(np.abs(o.run(Q, TAU, t) - v)) <= 1e-9 * np.linalg.norm(v)
+    Y, U = run_inputs(spec, 600, 1e-3, seed=2)
+    t = jittered_stamps(600, 1e-3, seed=2)
+    for o in (obs, ref):
+        o.reset(Y[0])
+    assert relative_error(obs.run(Y, U, t), ref.run(Y, U, t)) <= TOL
+    y, u = Y[-1] + 0.01, U[-1]
+    est = obs.estimate(y, u, 7e-3)
+    assert np.array_equal(est, obs.step(y, u, 7e-3))
+    assert relative_error(est, ref.step(y, u, 7e-3)) <= TOL
+
+
 def test_a_gap_ten_times_dt_is_integrated_stably(tmp_path):
     """RK4 with k0 = 1000 at dt = 1 ms: k0 dt_max = 2 is inside RK4's limit 2.785, one step of a
     10 ms gap (k0 h = 10, |R(-10)| = 291) is not. step(y, u, 10 dt) splits it into 5 sub-intervals

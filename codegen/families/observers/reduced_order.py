@@ -14,7 +14,7 @@ import casadi as ca
 
 from ..design import reduced_order_design, reduced_order_gain
 from ...core.options import VelocityBoundOptions
-from ...core.spec import ObserverSpec, split_flow
+from ...core.spec import ObserverSpec, split_model
 from . import _bound
 from ._design import check_design, design_discretization, stable_report
 
@@ -22,17 +22,24 @@ from ._design import check_design, design_discretization, stable_report
 EXAMPLES = [{"robot": "seed000_2r"}]
 
 
-def flow(robot, z, y_cfg, y, tau, k, bound):
+def flow(robot, z, y_cfg, y, tau, k, bound, m=None):
     """(x2hat, z') of the observer with gain k(y) = k y, k a scalar SX  [S000 (6),(9)], for ``robot``
     at state z, measurement y = q and torque ``tau`` (SX vectors (n,)), the model (M, C, g, F)
     at the configuration ``y_cfg`` (y itself in the continuous-time observer; ObserverSpec.rhs_split)
     and at the estimate saturated to ``bound`` ((n,) rad/s, codegen.families.observers._bound).
+    ``m`` (SX (n,), optional): a symbol standing for the model's acceleration, z' = m - k x2hat
+    (ObserverSpec.rhs_model; ``model`` gives the acceleration itself).
 
     Shared by the hybrid and switched families, where k is the scheduled or switched gain."""
     x2hat = z + k * y                                                # [S000 (9)]
-    v = _bound.saturate(x2hat, bound)                                # the model's velocity argument
-    zdot = robot.forward_dynamics(y_cfg, v, tau) - k * x2hat         # [S000 (6)] with dk/dy = k I
-    return x2hat, zdot
+    a = model(robot, z, y_cfg, y, tau, k, bound) if m is None else m
+    return x2hat, a - k * x2hat                                      # [S000 (6)] with dk/dy = k I
+
+
+def model(robot, z, y_cfg, y, tau, k, bound):
+    """FD(y_cfg, sat(x2hat), tau), x2hat = z + k y, saturated to ``bound``: the model's part of
+    ``flow`` for ``robot`` (z, y_cfg, y, tau, k, bound as there)."""
+    return robot.forward_dynamics(y_cfg, _bound.saturate(z + k * y, bound), tau)
 
 
 def build(robot, k0=None, eta=1.0, v_max=2.0, noise=None, quantization=None, uncertainty=0.0,
@@ -87,8 +94,10 @@ def _spec(robot, k0, report, bound, bound_report):
     n = robot.n
     z, y, y_cfg, tau = ca.SX.sym("z", n), ca.SX.sym("y", n), ca.SX.sym("y_cfg", n), ca.SX.sym("tau", n)
     k, k_new = ca.SX.sym("k0"), ca.SX.sym("k0_new")
-    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k, bound)
-    rhs, rhs_split = split_flow(z, y_cfg, y, tau, k, zdot)
+    m = ca.SX.sym("m", n)
+    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k, bound, m)
+    rhs, rhs_split, fd, rhs_model = split_model(z, y_cfg, y, tau, k, m, model(robot, z, y_cfg, y, tau, k, bound),
+                                                zdot)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     q = [f"q_{j}" for j in robot.joint_names]
     return ObserverSpec(
@@ -96,7 +105,7 @@ def _spec(robot, k0, report, bound, bound_report):
         x_names=[f"z_{j}" for j in robot.joint_names], y_names=q,
         u_names=[f"tau_{j}" for j in robot.joint_names], p_names=["k0"],
         est_names=[f"qd_hat_{j}" for j in robot.joint_names], p_default=[k0],
-        rhs=rhs, rhs_split=rhs_split,
+        rhs=rhs, rhs_split=rhs_split, model=fd, rhs_model=rhs_model,
         output=ca.Function("output", [z, y, tau, k], [x2hat]),
         init=ca.Function("init", [y0, est0, k], [est0 - k * y0]),  # [CODE-KUKA] z(0) = x2hat(0) - k0 y(0)
         # z' = [FD(y, x2hat) - k0^2 y] - k0 z: the gain rate k0 on every z, integrated exactly

@@ -32,10 +32,10 @@ import casadi as ca
 
 from ..design import reduced_order_design, switched_gains
 from ...core.options import InputRanges, VelocityBoundOptions
-from ...core.spec import ObserverSpec, split_flow
+from ...core.spec import ObserverSpec, split_model
 from ._design import design_discretization, stable_report
 from . import _bound, reduced_order
-from .reduced_order import flow
+from .reduced_order import flow, model
 
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed000_2r"}]
@@ -106,9 +106,11 @@ def _spec(robot, p_default, report, bound, bound_report):
     p, p_new = ca.SX.sym("p", 3), ca.SX.sym("p_new", 3)
     x = ca.vertcat(z, s)
     k = active_gain(s, p)
-    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k, bound)         # [S000 (6),(9)] with the gain k
+    m = ca.SX.sym("m", n)
+    x2hat, zdot = flow(robot, z, y_cfg, y, tau, k, bound, m)      # [S000 (6),(9)] with the gain k
     running = s < p[2] + 0.5
-    rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, ca.vertcat(zdot, ca.if_else(running, 1, 0)))
+    rhs, rhs_split, fd, rhs_model = split_model(x, y_cfg, y, tau, p, m, model(robot, z, y_cfg, y, tau, k, bound),
+                                                ca.vertcat(zdot, ca.if_else(running, 1, 0)))
     switching = ca.logic_and(s >= p[2], running)
     z_plus = z + ca.if_else(switching, p[0] - p[1], 0) * y        # x2hat continuous at the switch
     s_plus = ca.if_else(switching, p[2] + 1, s)
@@ -125,7 +127,7 @@ def _spec(robot, p_default, report, bound, bound_report):
         x_names=[f"z_{j}" for j in joints] + ["s"], y_names=[f"q_{j}" for j in joints],
         u_names=[f"tau_{j}" for j in joints], p_names=list(P_NAMES),
         est_names=[f"qd_hat_{j}" for j in joints], p_default=list(p_default),
-        rhs=rhs, rhs_split=rhs_split,
+        rhs=rhs, rhs_split=rhs_split, model=fd, rhs_model=rhs_model,
         output=ca.Function("output", [x, y, tau, p], [x2hat]),
         init=ca.Function("init", [y0, est0, p], [ca.vertcat(est0 - p[0] * y0, 0)]),   # [CODE-KUKA]
         jump=ca.Function("jump", [x, y, p], [ca.vertcat(z_plus, s_plus)]),

@@ -11,7 +11,8 @@ import sys
 from functools import partial
 from types import SimpleNamespace
 
-CONTRACT = ("rhs", "rhs_split", "output", "init", "jump", "sizes", "rate", "rate_states", "retune", "phases")
+CONTRACT = ("rhs", "rhs_split", "model", "rhs_model", "output", "init", "jump", "sizes", "rate", "rate_states",
+            "retune", "phases")
 
 
 def bound(module, **options):
@@ -21,8 +22,8 @@ def bound(module, **options):
     ----------
     module : module or str
         A reference family module (or its ``__name__``) giving ``rhs``, ``output``, ``init``,
-        ``sizes`` and optionally ``rhs_split``, ``jump``, ``rate``, ``rate_states``, ``retune``,
-        ``phases`` and ``P_NAMES``.
+        ``sizes`` and optionally ``rhs_split``, ``model`` with ``rhs_model``, ``jump``, ``rate``,
+        ``rate_states``, ``retune``, ``phases`` and ``P_NAMES``.
     **options
         Keyword arguments; each contract function receives those its signature names.
 

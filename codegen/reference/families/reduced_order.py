@@ -61,8 +61,19 @@ def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
     at the configuration y_cfg (n,) rad and at x2hat = z + k0 y saturated to ``v_bound`` ((n,)
     rad/s or None), x2hat at the measurement (M^{-1} k0 M x2hat = k0 x2hat, so the M dk/dy term
     leaves the solve); robot, x, y, u, p as in ``output``."""
-    x2hat = output(robot, x, y, u, p)
-    return robot.forward_dynamics(y_cfg, saturate(x2hat, v_bound), u) - p[0] * x2hat
+    return rhs_model(robot, x, y, u, p, model(robot, x, y_cfg, y, u, p, v_bound))
+
+
+def model(robot, x, y_cfg, y, u, p, v_bound=None):
+    """The model's part of ``rhs_split``: forward_dynamics(y_cfg, sat(x2hat), tau) (n,), rad/s^2,
+    x2hat = z + k0 y saturated to ``v_bound``; robot, x, y_cfg, y, u = tau, p as in ``rhs_split``."""
+    return robot.forward_dynamics(y_cfg, saturate(output(robot, x, y, u, p), v_bound), u)
+
+
+def rhs_model(robot, x, y, u, p, m):
+    """z' = m - k0 x2hat  [S000 (6)] (n,) with the model's acceleration given as m (n,) rad/s^2;
+    robot, x, y, u, p as in ``output``."""
+    return np.asarray(m, dtype=float) - p[0] * output(robot, x, y, u, p)
 
 
 def rhs(robot, x, y, u, p, v_bound=None):

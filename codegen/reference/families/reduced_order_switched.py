@@ -65,7 +65,20 @@ def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
     """[z'; s'] = [FD(y_cfg, sat(x2hat), tau) - k x2hat; 1 before the switch, else 0]  [S000 (6)]
     (n + 1,), the model at the configuration y_cfg (n,) rad and at x2hat saturated to ``v_bound``
     ((n,) rad/s or None); robot, x, y, u, p as in ``output``."""
-    zdot = reduced_order.rhs_split(robot, x[:-1], y_cfg, y, u, [gain(x, p)], v_bound)
+    return rhs_model(robot, x, y, u, p, model(robot, x, y_cfg, y, u, p, v_bound))
+
+
+def model(robot, x, y_cfg, y, u, p, v_bound=None):
+    """The model's part of ``rhs_split``: FD(y_cfg, sat(x2hat), tau) (n,), rad/s^2 (as
+    ``reduced_order.model`` with the gain in force); robot, x, y_cfg, y, u, p, v_bound as in
+    ``rhs_split``."""
+    return reduced_order.model(robot, x[:-1], y_cfg, y, u, [gain(x, p)], v_bound)
+
+
+def rhs_model(robot, x, y, u, p, m):
+    """[z'; s'] = [m - k x2hat; 1 before the switch, else 0] (n + 1,) with the model's
+    acceleration given as m (n,) rad/s^2; robot, x, y, u, p as in ``output``."""
+    zdot = reduced_order.rhs_model(robot, x[:-1], y, u, [gain(x, p)], m)
     return np.append(zdot, 1.0 if running(x, p) else 0.0)
 
 
