@@ -230,7 +230,7 @@ def test_build_prints_the_designed_gains_and_why(capsys, workdir):
     spec = observers.build("reduced_order", load_robot("seed000_2r"))
     k0, report = spec.params["k0"], spec.design
     assert f"k0 = {k0:.6g}: {report['choice']}: {report['why']}" in out
-    assert "discrete stability at dt 0.001 s (etdrk4, foh, 1 substeps): stable" in out
+    assert "discrete stability at dt 0.001 s (expmid, foh, 1 substeps): stable" in out
     assert 'print(codegen.load("' in out
     text = str(report)
     assert not text.startswith("{") and f"why: {report['why']}" in text and "stability:\n" in text
