@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import re
 from dataclasses import asdict, dataclass, field, replace
 
@@ -31,6 +32,12 @@ DT_MAX_FACTOR = 2.0
 # two such stamps by about one ulp), eps that of the real type
 SPLIT_MAX = 1000
 STAMP_ULPS = 4
+# the most sub-steps of one sample, given or found by "auto" (codegen.discrete.stability.auto_substeps):
+# every sub-step is unrolled into the C of the step, so its size and compile time grow with them
+# (seed000_2r reduced_order: 16 sub-steps 0.15 MB of kernels built in 16 s, 64 0.87 MB in 84 s,
+# 256 still compiling after 11 min); the stiffest default (xarm7's wrist) needs 19. An observer
+# that needs more wants a smaller dt (or the etdrk4 method, exact on its linear gain term).
+SUBSTEPS_MAX = 64
 
 
 def split_count(elapsed, dt_max):
@@ -61,12 +68,17 @@ def _seconds(name, value):
     return x
 
 
-def _substeps(value):
-    if value == AUTO:
+def check_substeps(value):
+    """``value`` if it is "auto" or an integer in [1, SUBSTEPS_MAX], else ValueError (one line)."""
+    if isinstance(value, str) and value == AUTO:
         return value
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
         raise ValueError(f'substeps must be a positive integer or "auto", got {value!r}')
-    return value
+    if value > SUBSTEPS_MAX:
+        raise ValueError(f"substeps must be at most {SUBSTEPS_MAX}, got {value}: every sub-step is unrolled "
+                         f"into the C step (64 on a 2R: 0.87 MB of C, 84 s to build); for a stiffer observer "
+                         f"lower dt, or use method etdrk4")
+    return int(value)
 
 
 @dataclass(frozen=True)
@@ -116,7 +128,7 @@ class Discretization:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.hold not in HOLDS:
             raise ValueError(f"hold must be one of {HOLDS}, got {self.hold!r}")
-        _substeps(self.substeps)
+        object.__setattr__(self, "substeps", check_substeps(self.substeps))
         for name in ("dt_min", "dt_max"):
             value = getattr(self, name)
             if value is not None:
