@@ -59,11 +59,11 @@ def interval(a, b, dt, eps=2.0 ** -52):
 
 def _seconds(name, value):
     """``value`` as a positive finite float (s), or ValueError naming ``name``."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive finite number of seconds, got {value!r}") from None
-    if isinstance(value, bool) or not (math.isfinite(x) and x > 0):
+    if isinstance(value, (bool, str)) or not isinstance(value, numbers.Real):     # "1e-3": refused, not converted
+        raise ValueError(f"{name} must be a positive finite number of seconds, got {value!r} "
+                         f"({type(value).__name__})")
+    x = float(value)
+    if not (math.isfinite(x) and x > 0):
         raise ValueError(f"{name} must be a positive finite number of seconds, got {value!r}")
     return x
 
@@ -279,6 +279,10 @@ class Target:
             raise ValueError(f"precision must be one of {PRECISIONS}, got {self.precision!r}")
         if self.inline not in ("auto", True, False):
             raise ValueError(f"inline must be 'auto', True or False, got {self.inline!r}")
+        for key in ("variant", "name"):
+            value = getattr(self, key)
+            if value is not None and not isinstance(value, str):       # ["a", "b"] is not "a_b"
+                raise ValueError(f"{key} must be a string, got {value!r} ({type(value).__name__})")
         if self.name is not None:
             object.__setattr__(self, "name", sanitize(self.name))
         check_prefix(self.prefix)
