@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.arrays import as_matrix, as_vector, positive, time_stamps
-from .compile import verify
+from .compile import MANIFEST, verify
 
 REALS = {"double": (np.float64, ct.c_double), "float": (np.float32, ct.c_float)}  # precision -> types
 
@@ -359,12 +359,13 @@ class CompiledObserver:
 
 def load(target_dir, lib_path):
     """CompiledObserver from the generated folder ``target_dir`` and its built library ``lib_path``,
-    with the metadata the library was built from (kept beside it by ``compile_library`` and checked
-    against its build record; else the folder's, checked against the library's sizes)."""
+    with the metadata beside the library (in the cache: kept by ``compile_library`` and checked
+    against its build record), else the folder's; either is checked against the library's sizes."""
     lib_path = Path(lib_path)
     meta = lib_path.parent / f"{lib_path.stem.removeprefix('lib')}.json"
     if meta.is_file():
-        verify(meta)            # as recorded at build (the library's own sizes are checked too)
+        if (meta.parent / MANIFEST).exists():     # a cache folder: as recorded at build
+            verify(meta)
     else:
         meta = next(iter(sorted(Path(target_dir).glob("*.json"))))
     return CompiledObserver(lib_path, json.loads(meta.read_text()))
