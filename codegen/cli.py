@@ -18,7 +18,7 @@ from pathlib import Path
 from .core.atomic import WriteError
 from .pipeline.compile import ToolError, work_dir
 from .pipeline.emit import FolderTaken
-from .core.target import HOLDS, METHODS, PRECISIONS
+from .core.target import HOLDS, METHODS, PRECISIONS, check_substeps
 from .pipeline.targets_file import DEFAULT_FAMILY, TargetError, check_unique, load_targets, make_target
 
 TARGETS_FILE = "targets.toml"
@@ -90,7 +90,7 @@ def _numbers(text, what):
 
 
 def _substeps(text):
-    """--substeps: a positive integer or "auto" (argparse type)."""
+    """--substeps: a positive integer up to SUBSTEPS_MAX, or "auto" (argparse type)."""
     if text == "auto":
         return text
     try:
@@ -99,7 +99,10 @@ def _substeps(text):
         value = 0
     if value < 1:
         raise argparse.ArgumentTypeError(f'expected a positive integer or "auto", got {text!r}')
-    return value
+    try:
+        return check_substeps(value)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def _value(text, what):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import re
 from dataclasses import asdict, dataclass, field, replace
 
@@ -31,6 +32,12 @@ DT_MAX_FACTOR = 2.0
 # two such stamps by about one ulp), eps that of the real type
 SPLIT_MAX = 1000
 STAMP_ULPS = 4
+# the most sub-steps of one sample, given or found by "auto" (codegen.discrete.stability.auto_substeps):
+# every sub-step is unrolled into the C of the step, so its size and compile time grow with them
+# (seed000_2r reduced_order: 16 sub-steps 0.15 MB of kernels built in 16 s, 64 0.87 MB in 84 s,
+# 256 still compiling after 11 min); the stiffest default (xarm7's wrist) needs 19. An observer
+# that needs more wants a smaller dt (or the etdrk4 method, exact on its linear gain term).
+SUBSTEPS_MAX = 64
 
 
 def split_count(elapsed, dt_max):
@@ -52,21 +59,26 @@ def interval(a, b, dt, eps=2.0 ** -52):
 
 def _seconds(name, value):
     """``value`` as a positive finite float (s), or ValueError naming ``name``."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive finite number of seconds, got {value!r}") from None
-    if isinstance(value, bool) or not (math.isfinite(x) and x > 0):
+    if isinstance(value, (bool, str)) or not isinstance(value, numbers.Real):     # "1e-3": refused, not converted
+        raise ValueError(f"{name} must be a positive finite number of seconds, got {value!r} "
+                         f"({type(value).__name__})")
+    x = float(value)
+    if not (math.isfinite(x) and x > 0):
         raise ValueError(f"{name} must be a positive finite number of seconds, got {value!r}")
     return x
 
 
-def _substeps(value):
-    if value == AUTO:
+def check_substeps(value):
+    """``value`` if it is "auto" or an integer in [1, SUBSTEPS_MAX], else ValueError (one line)."""
+    if isinstance(value, str) and value == AUTO:
         return value
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
         raise ValueError(f'substeps must be a positive integer or "auto", got {value!r}')
-    return value
+    if value > SUBSTEPS_MAX:
+        raise ValueError(f"substeps must be at most {SUBSTEPS_MAX}, got {value}: every sub-step is unrolled "
+                         f"into the C step (64 on a 2R: 0.87 MB of C, 84 s to build); for a stiffer observer "
+                         f"lower dt, or use method etdrk4")
+    return int(value)
 
 
 @dataclass(frozen=True)
@@ -120,7 +132,7 @@ class Discretization:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.hold not in HOLDS:
             raise ValueError(f"hold must be one of {HOLDS}, got {self.hold!r}")
-        _substeps(self.substeps)
+        object.__setattr__(self, "substeps", check_substeps(self.substeps))
         for name in ("dt_min", "dt_max"):
             value = getattr(self, name)
             if value is not None:
@@ -271,6 +283,10 @@ class Target:
             raise ValueError(f"precision must be one of {PRECISIONS}, got {self.precision!r}")
         if self.inline not in ("auto", True, False):
             raise ValueError(f"inline must be 'auto', True or False, got {self.inline!r}")
+        for key in ("variant", "name"):
+            value = getattr(self, key)
+            if value is not None and not isinstance(value, str):       # ["a", "b"] is not "a_b"
+                raise ValueError(f"{key} must be a string, got {value!r} ({type(value).__name__})")
         if self.name is not None:
             object.__setattr__(self, "name", sanitize(self.name))
         check_prefix(self.prefix)

@@ -61,7 +61,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..core.cache import cached_json
-from ..core.target import AUTO, DT_MAX_FACTOR
+from ..core.target import AUTO, DT_MAX_FACTOR, SUBSTEPS_MAX
 from .sampling import declared_slots, measurements
 from .discretize import step_jacobians
 
@@ -216,8 +216,8 @@ class StabilityReport:
         fixes = [f"stable for 0 <= {g} <= {v['max_stable']:.6g}" if v["limit_found"] else
                  f"stable for every {g} >= 0 tested (up to {v['max_stable']:.3g})"
                  for g, v in self.gains.items() if v["max_stable"]]
-        if grows and self.substeps_needed:
-            m = self.substeps_needed * self.substeps
+        m = (self.substeps_needed or 0) * self.substeps
+        if grows and 0 < m <= SUBSTEPS_MAX:   # more than a target may have: not a fix
             fixes.append(f"or use --substeps {m} (or more)" if cli else f"or use substeps >= {m}")
         if grows and self.dt_limit:
             limit = f"{self.dt_limit:.3g}"
@@ -662,7 +662,7 @@ def _refusal(spec, report, prefix=""):
                                   f"{spec.family}: {prefix}" + report.message(spec.family, form="cli"))
 
 
-def auto_substeps(spec, disc, p=None, limit=64):
+def auto_substeps(spec, disc, p=None, limit=SUBSTEPS_MAX):
     """The discretisation with the smallest substeps (>= disc.substeps, <= limit) that is stable.
 
     When the range of the elapsed time is the default one (``disc.dt_max`` not declared), the
@@ -680,7 +680,7 @@ def auto_substeps(spec, disc, p=None, limit=64):
     p : (np,) array or None
         Parameters; None: the spec's defaults.
     limit : int
-        Largest substeps tried.
+        Largest substeps tried (default ``codegen.core.target.SUBSTEPS_MAX``, what a target may have).
 
     Returns
     -------

@@ -177,6 +177,9 @@ class Comparison:
         if bl is None:
             return "no tuned filter ran: nothing to compare the observers with"
         b = bl.metrics["rms"]
+        if b == 0:
+            return (f"no observer beats the best tuned filter here: {bl.name} has no error after t_ss "
+                    f"(ratios to it are undefined)")
         if obs is None:
             return f"no observer beats the best tuned filter here ({bl.name}): no observer ran"
         a = obs.metrics["rms"]
@@ -184,6 +187,8 @@ class Comparison:
             return (f"no observer beats the best tuned filter here ({bl.name}, RMS {b:.3g} rad/s; "
                     f"best observer {obs.name}, {a:.3g} rad/s)")
         if u == 0:
+            if a == 0:                      # b / a undefined: say what the errors are
+                return f"use {obs.name}: no error after t_ss, the best tuned filter ({bl.name}) {b:.3g} rad/s RMS"
             return f"use {obs.name}: {b / a:.3g} x better than the best tuned filter ({bl.name})"
         low = (b - u) / (a + u)
         if low > 1:
@@ -200,7 +205,9 @@ class Comparison:
         out = []
         for e in self.entries:
             r = {"name": e.name, "kind": e.kind, "params": e.params, **e.metrics}
-            r["rms_over_best_baseline"] = (e.metrics["rms"] / best.metrics["rms"]) if best else float("nan")
+            # undefined (NaN) when the best baseline has no error (the verdict says so)
+            r["rms_over_best_baseline"] = (e.metrics["rms"] / best.metrics["rms"]
+                                           if best and best.metrics["rms"] > 0 else float("nan"))
             r["within_uncertainty"] = bool(u > 0 and e.metrics["rms"] <= u)
             if e.note:
                 r["note"] = e.note
@@ -447,6 +454,10 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     if list(rec.joint_names) != list(robot.joint_names):
         raise ValueError(f"rec: joints {rec.joint_names} differ from the robot's {robot.joint_names}")
     t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
+    if not np.any(np.ptp(Y, axis=0) > 0):   # before the (slow) runs: nothing to estimate
+        raise ValueError(f"rec: the robot does not move (q constant on every joint over the {len(t)} samples): "
+                         "its velocity is 0, which any difference filter gives exactly, so the methods cannot "
+                         "be compared; record a run with motion")
     t_ss = float(t[0] + (t[-1] - t[0]) / 2 if t_ss is None else t_ss)
     ref = reference_of(rec, ref_cutoff)
     parsed = [(item, *parse_observer(item)) for item in families]

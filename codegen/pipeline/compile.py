@@ -101,10 +101,21 @@ MANIFEST = "manifest.json"   # beside the products of a cache folder: name -> si
 
 
 def _manifest(folder):
+    """The folder's manifest, name -> {"size": int, "sha256": hex str}, or None when it is missing,
+    unreadable or not of that form (e.g. ``{"libx.so": 5}``): then nothing in the folder is trusted."""
     try:
-        return json.loads((Path(folder) / MANIFEST).read_text())
+        m = json.loads((Path(folder) / MANIFEST).read_text())
     except (OSError, ValueError):
         return None
+    if not isinstance(m, dict) or not all(_record_ok(r) for r in m.values()):
+        return None
+    return m
+
+
+def _record_ok(record):
+    """True when ``record`` is {"size": int >= 0, "sha256": 64 hex digits}."""
+    return (isinstance(record, dict) and isinstance(record.get("size"), int) and not isinstance(record["size"], bool)
+            and record["size"] >= 0 and isinstance(record.get("sha256"), str) and len(record["sha256"]) == 64)
 
 
 def _mismatch(path, record):
@@ -125,15 +136,53 @@ def _complete(folder, names):
         _mismatch(Path(folder) / n, m[n]) for n in names)
 
 
+def _elf_short(path):
+    """None when the ELF file ``path`` holds every byte its headers point to (program headers,
+    segments, section headers), else what is missing: a segment past the end of the file is a
+    SIGBUS when the loader touches it."""
+    import struct
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as e:
+        return f"unreadable ({e.strerror})"
+    if len(data) < 52 or data[:4] != b"\x7fELF" or data[4] not in (1, 2) or data[5] not in (1, 2):
+        return f"not a whole ELF shared library ({len(data)} bytes)"
+    wide, end = data[4] == 2, "<" if data[5] == 1 else ">"
+    head = f"{end}16xHHI" + ("QQQ" if wide else "III") + "IHHHHHH"
+    if len(data) < struct.calcsize(head):
+        return f"ELF header cut at {len(data)} bytes"
+    *_, phoff, shoff, _, _, phentsize, phnum, shentsize, shnum, _ = struct.unpack_from(head, data)
+    need = max(phoff + phnum * phentsize, shoff + shnum * shentsize)
+    ph = f"{end}IIQQQQQQ" if wide else f"{end}IIIIIIII"
+    for i in range(phnum if phoff + phnum * phentsize <= len(data) else 0):
+        fields = struct.unpack_from(ph, data, phoff + i * phentsize)
+        offset, filesz = (fields[2], fields[5]) if wide else (fields[1], fields[4])
+        need = max(need, offset + filesz)
+    return None if need <= len(data) else f"{len(data)} bytes, its ELF headers point up to byte {need}"
+
+
 def verify(path):
     """``path`` if it matches the size and sha256 recorded when it was built (the manifest of
-    its cache folder; a file without one is not checked), else CompileError: a truncated
-    library must never be mapped (SIGBUS)."""
+    its cache folder), else CompileError (one line): a truncated library must never be mapped
+    (SIGBUS), so a file of a cache folder its manifest does not record (a corrupt manifest, or
+    no entry for it) is not trusted either. A library with no manifest beside it (a copy
+    outside the cache) has no record to match: it is checked to be a whole ELF file."""
     path = Path(path)
-    record = (_manifest(path.parent) or {}).get(path.name)
-    why = record and _mismatch(path, record)
+    m = _manifest(path.parent)
+    if not (path.parent / MANIFEST).exists():
+        why = _elf_short(path)
+        if why:
+            why += f"; no build record ({MANIFEST}) beside it"
+    elif m is None:
+        why = f"its build record {path.parent / MANIFEST} is corrupt"
+    elif path.name not in m:
+        why = f"its build record {path.parent / MANIFEST} does not list it"
+    else:
+        why = _mismatch(path, m[path.name])
     if why:
-        raise CompileError(f"{path} is corrupt: {why}; compile_library() rebuilds it (or delete {path.parent})")
+        raise CompileError(f"{path} is corrupt or unverified: {why}; compile_library() rebuilds it "
+                           f"(or delete {path.parent})")
     return path
 
 

@@ -6,6 +6,10 @@ time stamps). Bad input (shape, NaN/Inf, dt <= 0, stamps that do not increase) r
 reaching C; a non-zero C status raises ObserverError naming the status. A single-precision target (metadata "precision": "float")
 gets float32 buffers: inputs are rounded to float32 at the boundary (a value beyond float32's
 range is refused), results come back as float64 arrays.
+
+Before any buffer is passed, the library is checked against its build record
+(``codegen.pipeline.compile.verify``) and the metadata's sizes against the library's own
+(``<prefix>_sizes``, ``check_sizes``): metadata of another build is refused, never trusted.
 """
 from __future__ import annotations
 
@@ -16,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.arrays import as_matrix, as_vector, positive, time_stamps
-from .compile import verify
+from .compile import MANIFEST, verify
 
 REALS = {"double": (np.float64, ct.c_double), "float": (np.float32, ct.c_float)}  # precision -> types
 
@@ -24,6 +28,43 @@ REALS = {"double": (np.float64, ct.c_double), "float": (np.float32, ct.c_float)}
 class ObserverError(RuntimeError):
     """A C function returned a non-zero status; the observer state is as it was before the call
     (a failing run() is rolled back to its start)."""
+
+
+class LibraryMismatch(ValueError):
+    """The metadata does not describe the library (its sizes or prefix differ from the library's
+    own): no buffer is passed to it."""
+
+
+SIZES = ("nx", "ny", "nu", "np", "nest")      # the order of <prefix>_sizes(n)
+
+
+def library_sizes(lib, prefix, lib_path=""):
+    """{"nx", "ny", "nu", "np", "nest"} as the library ``lib`` (a ctypes.CDLL) reports them through
+    its ``<prefix>_sizes(long n[5])``; LibraryMismatch, naming the file ``lib_path``, when it has
+    no such function."""
+    try:
+        fn = getattr(lib, f"{prefix}_sizes")
+    except AttributeError:
+        raise LibraryMismatch(f"{lib_path}: exports no {prefix}_sizes: not the library of observer {prefix!r} "
+                              "(or built by an older codegen); compile_library() rebuilds it") from None
+    fn.argtypes, fn.restype = [ct.POINTER(ct.c_long)], ct.c_int
+    n = (ct.c_long * len(SIZES))()
+    if fn(n) != 0:
+        raise LibraryMismatch(f"{lib_path}: {prefix}_sizes failed")
+    return dict(zip(SIZES, n))
+
+
+def check_sizes(lib, prefix, sizes, lib_path=""):
+    """LibraryMismatch (one line, naming the file ``lib_path``) unless the metadata's ``sizes``
+    (dict) equal the library's own (``library_sizes`` of ``lib``, a ctypes.CDLL, for the symbol
+    ``prefix``): buffers sized from the metadata are only passed to the library they fit."""
+    own = library_sizes(lib, prefix, lib_path)
+    bad = [f"{k} = {sizes.get(k)!r} (library: {v})" for k, v in own.items()
+           if not (type(sizes.get(k)) is int and sizes.get(k) == v)]
+    if bad:
+        raise LibraryMismatch(f"{lib_path}: the metadata's sizes differ from the library's own: {', '.join(bad)}; "
+                              "load it with the metadata it was built from (codegen.pipeline.load.load), or "
+                              "regenerate and rebuild")
 
 
 class CompiledObserver:
@@ -64,6 +105,7 @@ class CompiledObserver:
         R = ct.POINTER(ctype)
         self._R = R
         lib = ct.CDLL(str(verify(self.lib_path)))  # absolute path: never LD_LIBRARY_PATH
+        check_sizes(lib, self.prefix, s, self.lib_path)   # before any buffer is passed
         f = lambda name: getattr(lib, f"{self.prefix}_{name}")  # noqa: E731
         self._lib = lib
         self._state_size = f("state_size")
@@ -365,15 +407,19 @@ class CompiledObserver:
 
 def load(target_dir, lib_path=None):
     """CompiledObserver from the generated folder ``target_dir`` (e.g. ``generated/ur5_reduced_order``
-    written by ``build`` or ``generate``) and its built library ``lib_path``, with the metadata the
-    library was built from (kept beside it by ``codegen.pipeline.compile.compile_library``; else the
-    folder's). ``lib_path`` None: the folder's library from the compile cache (compiled now if the
-    cache does not hold it)."""
+    written by ``build`` or ``generate``) and its built library ``lib_path``, with the metadata beside
+    the library (in the cache: kept by ``codegen.pipeline.compile.compile_library`` and checked against
+    its build record), else the folder's; either is checked against the library's sizes.
+    ``lib_path`` None: the folder's library from the compile cache (compiled now if the cache does
+    not hold it)."""
     if lib_path is None:
         from .compile import compile_library
         lib_path = compile_library(target_dir)
     lib_path = Path(lib_path)
     meta = lib_path.parent / f"{lib_path.stem.removeprefix('lib')}.json"
-    if not meta.is_file():
+    if meta.is_file():
+        if (meta.parent / MANIFEST).exists():     # a cache folder: as recorded at build
+            verify(meta)
+    else:
         meta = next(iter(sorted(Path(target_dir).glob("*.json"))))
     return CompiledObserver(lib_path, json.loads(meta.read_text()))

@@ -38,6 +38,10 @@ from ..core.target import AUTO, Discretization, Target
 KEYS = ("robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design", "params",
         "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision", "name", "out")
 DISCRETIZATION_KEYS = ("dt", "dt_min", "dt_max", "method", "hold", "substeps")
+# the TOML type of each key checked here (elastic, lock, design, params, J, K and substeps are
+# checked where they are read); a value of another type is refused, never converted
+STRING_KEYS = ("robot", "urdf", "family", "variant", "method", "hold", "precision", "name", "out")
+NUMBER_KEYS = ("dt", "dt_min", "dt_max")
 DEFAULT_OUT = "generated"
 DEFAULT_FAMILY = "reduced_order"
 
@@ -172,9 +176,12 @@ def make_target(entry, base=".", where=""):
         The target (variant defaulted to the family's, so the name says it) and the parent
         folder of its generated folder (``out``, default ``./generated``).
     """
+    if not isinstance(entry, dict):
+        _fail(where, f"a target must be a table of key = value ([[target]]), got {entry!r} ({_toml_type(entry)})")
     unknown = sorted(set(entry) - set(KEYS))
     if unknown:
         _fail(where, f"unknown key{'s' * (len(unknown) > 1)} {', '.join(unknown)}; valid keys: {', '.join(KEYS)}")
+    _check_types(entry, where)
     family = entry.get("family", DEFAULT_FAMILY)
     variants, default_variant, design_names, needs_elastic = family_info(family, where)
     variant = entry.get("variant", default_variant)
@@ -205,9 +212,31 @@ def make_target(entry, base=".", where=""):
     return target, out.resolve()
 
 
+def _toml_type(value):
+    """The TOML name of ``value``'s type, for messages."""
+    for kind, name in ((bool, "a boolean"), (int, "an integer"), (float, "a float"), (str, "a string"),
+                       (list, "an array"), (dict, "a table")):
+        if isinstance(value, kind):
+            return name
+    return type(value).__name__
+
+
+def _check_types(entry, where):
+    """TargetError naming the key, the type it takes and the one given, for a string or number
+    key (``STRING_KEYS``, ``NUMBER_KEYS``) of ``entry`` holding another type."""
+    for key in STRING_KEYS:
+        if key in entry and not isinstance(entry[key], str):
+            _fail(where, f"{key} must be a string, got {entry[key]!r} ({_toml_type(entry[key])})")
+    for key in NUMBER_KEYS:
+        value = entry.get(key, 0.0)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            _fail(where, f"{key} must be a number of seconds, got {value!r} ({_toml_type(value)})"
+                  + ("; write it without quotes" if isinstance(value, str) else ""))
+
+
 def _table(entry, key, where):
-    value = entry.get(key) or {}
-    if not isinstance(value, dict):
+    value = entry.get(key, {})
+    if not isinstance(value, dict):                   # design = [] is not an empty table
         _fail(where, f"{key} must be a table of name = value, got {value!r}")
     return dict(value)
 
@@ -247,8 +276,10 @@ def load_targets(path):
         _fail(str(path), "no [[target]] tables")
     out = []
     for i, entry in enumerate(entries, 1):
-        label = entry.get("robot") or Path(str(entry.get("urdf", "?"))).name
-        where = f"{path}, target {i} ({label} {entry.get('family', DEFAULT_FAMILY)})"
+        where = f"{path}, target {i}"
+        if isinstance(entry, dict):                 # (make_target refuses anything else)
+            label = entry.get("robot") or Path(str(entry.get("urdf", "?"))).name
+            where += f" ({label} {entry.get('family', DEFAULT_FAMILY)})"
         out.append(make_target(entry, base=path.parent, where=where))
     check_unique(out)
     return out

@@ -210,6 +210,42 @@ def test_verdict_against_a_reference_allows_for_its_uncertainty():
                                     "uncertainty")
 
 
+def test_a_baseline_with_no_error_leaves_the_ratios_undefined():
+    """Issue 22, F20: a best baseline whose error is 0 (a robot at rest) divided by zero in the
+    table; an observer with no error did in the verdict. The ratios are NaN and the verdict says
+    which error is 0."""
+    cmp = _comparison([1e-3, 0.0], 0.0, ["observer", "baseline"])
+    assert all(np.isnan(r["rms_over_best_baseline"]) for r in cmp.rows())
+    assert cmp.verdict() == ("no observer beats the best tuned filter here: baseline1 has no error after "
+                             "t_ss (ratios to it are undefined)")
+    assert cmp.table().splitlines()[-1] == cmp.verdict()
+    cmp = _comparison([0.0, 2e-3], 0.0, ["observer", "baseline"])
+    assert cmp.rows()[0]["rms_over_best_baseline"] == 0.0
+    assert cmp.verdict() == "use observer0: no error after t_ss, the best tuned filter (baseline1) 0.002 rad/s RMS"
+
+
+def test_a_robot_at_rest_is_refused_before_the_runs(tmp_path, capsys):
+    """Issue 22, F20: compare on a recording of a robot at rest ran every method (about a minute)
+    and then divided by zero. A log whose q never changes is refused first, in one line."""
+    import time
+
+    from codegen.cli import main
+    from codegen.evaluate.compare import compare
+    robot = load_robot(ROBOT)
+    t = np.arange(0.0, 4.0, 1e-3)
+    q0 = np.array([0.3, -0.2])
+    rest = Recording(t=t, q=np.tile(q0, (len(t), 1)), tau=np.tile(np.ravel(robot.gravity(q0)), (len(t), 1)),
+                     qd=np.zeros((len(t), 2)), joint_names=list(robot.joint_names))
+    start = time.perf_counter()
+    with pytest.raises(ValueError, match="rec: the robot does not move .*record a run with motion"):
+        compare(rest, robot)
+    path = rest.write_csv(tmp_path / "rest.csv")
+    assert main(["compare", str(path), "--robot", ROBOT]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "the robot does not move" in err and "\n" not in err
+    assert time.perf_counter() - start < 10
+
+
 # ------------------------------------------------------------------------------ robots, packages
 URDF = Path(__file__).resolve().parents[1] / "data" / "gripper_arm.urdf"
 

@@ -196,3 +196,60 @@ def test_map_axes_carry_units_the_window_and_the_paper(tmp_path, monkeypatch):
     assert fig.axes[1].get_ylabel() == "log10 median rms [rad/s]"
     text = ax.get_title()
     assert "over t >= 2 s of each 4 s run" in text and "reduced_order: docs/papers/seed000.md §1.1" in text
+
+
+_HOLD = ("import sys\nfrom codegen.evaluate.sweep.store import Store\n"
+         "with Store(sys.argv[1]).lock():\n    print('locked', flush=True)\n    sys.stdin.read()\n")
+
+
+def test_one_writer_per_results_folder(tmp_path, capsys):
+    """Issue 22, F19: two sweep clients on one --out wrote every cell twice. A second writer is
+    refused in one line naming the folder and the holder's pid, before it writes anything (Python
+    and the CLI); the lock goes with the process holding it."""
+    from codegen.cli import main
+    from codegen.evaluate.sweep.store import FolderBusy
+    out = tmp_path / "out"
+    holder = subprocess.Popen([sys.executable, "-c", _HOLD, str(out)], cwd=ROOT, stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(FolderBusy, match=rf"{out} is being written by another sweep \(pid {holder.pid}, "):
+            sweep.run(SMALL, workers=0, out=out, progress=False)
+        cfg = tmp_path / "small.toml"
+        cfg.write_text('robot = "seed000_2r"\nT = 0.5\nobservers = ["reduced_order"]\n[axes]\nk0 = [2.0]\n')
+        capsys.readouterr()
+        assert main(["sweep", str(cfg), "--workers", "0", "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "is being written by another sweep" in err and "another --out" in err and "\n" not in err
+        assert sorted(p.name for p in out.iterdir()) == [".lock"]          # nothing written
+    finally:
+        holder.kill()
+        holder.wait()
+    with Store(out).lock():                   # released with its process
+        pass
+
+
+def test_foreign_parquet_part_is_refused(tmp_path):
+    """Issue 22, F19: a Parquet part of another schema in results/ was read without complaint.
+    Every part is checked against the row schema, naming the file: a foreign table, a file that
+    is not Parquet, and a part with other gain columns than the sweep's."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from codegen.evaluate.sweep.store import ForeignPart, schema
+    store = Store(tmp_path / "out")
+    store.results.mkdir(parents=True)
+    foreign = store.results / "part-foreign.parquet"
+    pq.write_table(pa.table({"cell": ["x"], "speed": [1.0]}), foreign)
+    for call in (store.done, store.read, lambda: sweep.run(SMALL, workers=0, out=store.out, progress=False)):
+        with pytest.raises(ForeignPart, match=rf"{foreign}: not a part of this sweep: missing columns method, "):
+            call()
+    assert not (store.out / "targets").exists()                     # refused before the preparation
+    foreign.write_bytes(b"not parquet")
+    with pytest.raises(ForeignPart, match=rf"{foreign}: not a sweep's results"):
+        store.done()
+    foreign.unlink()
+    pq.write_table(pa.Table.from_pylist([], schema=schema(("kp",))), store.results / "part-kp.parquet")
+    assert store.done() == set()                                     # a sweep's part, its own gains
+    with pytest.raises(ForeignPart, match=r"part-kp.parquet: .*missing columns k0; unexpected columns kp; move"):
+        store.done(("k0",))

@@ -96,3 +96,69 @@ def test_cli_and_python_share_one_library(tmp_path):
     obs = compile_observer(observers.build("reduced_order", load_robot("seed000_2r")), dt=1e-3,
                            out_dir=tmp_path / "python")
     assert obs.lib_path == made.lib.resolve()
+
+
+# ------------------------------------------------------------------ the cache's build record
+_LOAD = ("import json, sys\nfrom codegen.pipeline.load import CompiledObserver\n"
+         "try:\n    CompiledObserver(sys.argv[1], json.loads(sys.argv[2]))\n"
+         "except Exception as e:\n    print(type(e).__name__, e); sys.exit(7)\n")
+
+
+def _load_in_child(lib, meta):
+    """Load ``lib`` with ``meta`` in a child process: (exit code, stdout); a signal (SIGBUS on a
+    truncated library) is a negative code."""
+    import json
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-c", _LOAD, str(lib), json.dumps(meta)], capture_output=True, text=True)
+    return r.returncode, r.stdout
+
+
+def _built(spec_of, tmp_path):
+    import json
+    folder = emit(spec_of("seed000_2r"), tmp_path / "t")
+    lib = compile_library(folder, cache=tmp_path / "cache")
+    return folder, lib, json.loads((folder / f"{folder.name}.json").read_text()), lib.read_bytes()
+
+
+@pytest.mark.parametrize("record", ["entry deleted", "manifest deleted"])
+def test_unrecorded_library_is_never_mapped(record, spec_of, tmp_path):
+    """Issue 22, F15: a truncated cached library whose manifest entry (or whole manifest) was
+    deleted was mapped unchecked (SIGBUS). A file the build record does not list is not trusted:
+    loading it is one line naming it, and compile_library() rebuilds it."""
+    import json
+
+    from codegen.pipeline.compile import MANIFEST
+    folder, lib, meta, good = _built(spec_of, tmp_path)
+    lib.write_bytes(good[: len(good) // 2])
+    manifest = lib.parent / MANIFEST
+    if record == "manifest deleted":
+        manifest.unlink()
+    else:
+        m = json.loads(manifest.read_text())
+        del m[lib.name]
+        manifest.write_text(json.dumps(m))
+    code, out = _load_in_child(lib, meta)
+    assert code == 7, (code, out)                        # an error, not a signal
+    assert "unverified" in out and lib.name in out and "compile_library() rebuilds it" in out
+    assert len(out.strip().splitlines()) == 1
+    assert compile_library(folder, cache=tmp_path / "cache") == lib and lib.read_bytes() == good
+    assert _load_in_child(lib, meta)[0] == 0
+
+
+def test_corrupt_manifest_is_reported_and_repaired(spec_of, tmp_path):
+    """Issue 22, F17: a manifest ``{"lib<prefix>.so": 5}`` raised TypeError from both the loader
+    and compile_library(). Now the loader refuses in one line, and the build rebuilds the folder."""
+    import json
+
+    from codegen.pipeline.compile import MANIFEST, verify
+    folder, lib, meta, good = _built(spec_of, tmp_path)
+    (lib.parent / MANIFEST).write_text(json.dumps({lib.name: 5}))
+    with pytest.raises(CompileError, match=f"{lib.name} is corrupt or unverified: its build record .* is corrupt"):
+        verify(lib)
+    code, out = _load_in_child(lib, meta)
+    assert code == 7 and "CompileError" in out and len(out.strip().splitlines()) == 1, (code, out)
+    assert compile_library(folder, cache=tmp_path / "cache") == lib
+    m = json.loads((lib.parent / MANIFEST).read_text())
+    assert m[lib.name]["size"] == len(good) and verify(lib) == lib
+    assert _load_in_child(lib, meta)[0] == 0

@@ -207,3 +207,31 @@ def test_params_check_all_gains_jointly_and_every_phase(tmp_path):
         with pytest.raises(UnstableDiscretization, match="k0_final = 5000"):
             o.reset(np.zeros(2), p=[k0, 5000.0, t_switch])
     assert np.array_equal(loaded.params, switched.p_default)
+
+
+@pytest.mark.parametrize("size", ["ny", "nest"])
+def test_metadata_sizes_checked_against_the_library(size, spec_of, tmp_path):
+    """Issue 22, F16: sizes.ny or sizes.nest edited to 1 in the metadata made the steps read and
+    write past the buffers. The library exports its own sizes (<prefix>_sizes); the loader checks
+    the metadata against them before passing any buffer, and load() checks the metadata kept
+    beside the library against its build record."""
+    import json
+
+    from codegen.pipeline.compile import CompileError, compile_library
+    from codegen.pipeline.load import CompiledObserver, LibraryMismatch, load
+    folder = emit(spec_of("seed000_2r"), tmp_path / "t")
+    lib = compile_library(folder, cache=tmp_path / "cache")
+    obs = load(folder, lib)
+    assert {k: getattr(obs, k) for k in ("nx", "ny", "nu", "np", "nest")} == obs.meta["sizes"]
+    meta = json.loads((folder / f"{folder.name}.json").read_text())
+    meta["sizes"][size] = 1
+    with pytest.raises(LibraryMismatch, match=rf"sizes differ from the library's own: {size} = 1 \(library: 2\)"):
+        CompiledObserver(lib, meta)
+    kept = lib.parent / f"{folder.name}.json"
+    kept.write_text(json.dumps(meta))                       # the copy beside the library, edited
+    with pytest.raises(CompileError, match=f"{kept.name} is corrupt or unverified: .*recorded at build"):
+        load(folder, lib)
+    kept.unlink()                                           # then the folder's own, edited
+    (folder / f"{folder.name}.json").write_text(json.dumps(meta))
+    with pytest.raises(LibraryMismatch, match=f"{size} = 1"):
+        load(folder, lib)

@@ -50,6 +50,33 @@ def test_cli_parses_substeps(capsys):
     assert "positive integer or \"auto\"" in capsys.readouterr().err
 
 
+def test_substeps_are_bounded_everywhere(tmp_path, capsys):
+    """Every sub-step is unrolled into the C step (issue 22, F7: --substeps 1000000 ran with no
+    bound): above SUBSTEPS_MAX the Python value, the targets file and the CLI refuse in one line
+    naming the bound and the fix; SUBSTEPS_MAX itself and "auto" are taken, and auto searches
+    no further than that."""
+    import inspect
+
+    from codegen.core.target import SUBSTEPS_MAX
+    from codegen.discrete.stability import auto_substeps
+    assert Discretization(substeps=SUBSTEPS_MAX).substeps == SUBSTEPS_MAX
+    assert inspect.signature(auto_substeps).parameters["limit"].default == SUBSTEPS_MAX
+    for big in (SUBSTEPS_MAX + 1, 9223372036854775807):
+        with pytest.raises(ValueError, match=f"substeps must be at most {SUBSTEPS_MAX}, got {big}: .*lower dt"):
+            Discretization(substeps=big)
+    path = tmp_path / "t.toml"
+    path.write_text('[[target]]\nrobot = "seed000_2r"\nsubsteps = 9223372036854775807\n')
+    with pytest.raises(ValueError, match=rf"{path}, target 1 .*substeps must be at most {SUBSTEPS_MAX}") as e:
+        load_targets(path)
+    assert "\n" not in str(e.value)
+    with pytest.raises(SystemExit) as exit_:
+        main(["build", "seed000_2r", "--substeps", "1000000", "--out", str(tmp_path / "o")])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert f"substeps must be at most {SUBSTEPS_MAX}, got 1000000" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
 @pytest.mark.slow
 def test_make_resolves_auto_and_recognises_its_folder(tmp_path):
     """The damped URDF with plain RK4 at its guarantee gain needs 2 sub-steps: "auto" builds it

@@ -125,6 +125,18 @@ BAD_FILES = [
     ('[[target]]\nrobot = "ur5"\ndt = -1e-3\n', ["dt must be a positive finite number"]),
     ('[[target]]\nrobot = "ur5"\nmethod = "rk45"\n', ["method must be one of"]),
     ('[[target]]\nrobot = "ur5"\nprecision = "quad"\n', ["precision must be one of"]),
+    # wrong TOML types are refused naming the key and the type, never converted (issue 22, F8, F9)
+    ('target = [1, 2]\n', ["target 1: a target must be a table", "got 1 (an integer)"]),
+    ('[[target]]\nrobot = "ur5"\nname = ["a", "b"]\n', ["name must be a string, got ['a', 'b'] (an array)"]),
+    ('[[target]]\nrobot = "ur5"\nname = 12\n', ["name must be a string, got 12 (an integer)"]),
+    ('[[target]]\nrobot = "ur5"\ndt = "1e-3"\n', ["dt must be a number of seconds, got '1e-3' (a string)",
+                                                  "without quotes"]),
+    ('[[target]]\nrobot = "ur5"\ndt_max = true\n', ["dt_max must be a number of seconds, got True (a boolean)"]),
+    ('[[target]]\nrobot = 5\n', ["robot must be a string, got 5 (an integer)"]),
+    ('[[target]]\nrobot = "ur5"\nfamily = ["reduced_order"]\n', ["family must be a string"]),
+    ('[[target]]\nrobot = "ur5"\nout = 1\n', ["out must be a string, got 1 (an integer)"]),
+    ('[[target]]\nrobot = "ur5"\nsubsteps = 2.0\n', ['substeps must be a positive integer or "auto", got 2.0']),
+    ('[[target]]\nrobot = "ur5"\ndesign = []\n', ["design must be a table"]),
     ('[[target]]\nrobot = "ur5"\n\n[[target]]\nrobot = "ur5"\n', ["targets 1 and 2 both write",
                                                                   "ur5_reduced_order", "give one a name"]),
 ]
@@ -141,6 +153,20 @@ def test_bad_file_names_file_target_and_choices(tmp_path, text, words):
         assert w in msg
     if "[[target]]\n" in text and "both write" not in msg and "TOML" not in msg:
         assert msg.startswith(f"{path}, target 1 (")
+
+
+def test_python_values_of_the_wrong_type_are_refused():
+    """The Target and Discretization a Python caller builds refuse what the targets file does
+    (issue 22, F9): a name or variant that is not a string, a time given as a string."""
+    from codegen.core.target import Discretization
+    robot = {"kind": "catalog", "name": "ur5"}
+    for key, value in (("name", ["a", "b"]), ("name", 12), ("variant", 2)):
+        with pytest.raises(ValueError, match=f"{key} must be a string, got"):
+            Target(robot=robot, family="reduced_order", **{key: value})
+    for key in ("dt", "dt_min", "dt_max"):
+        with pytest.raises(ValueError, match=f"{key} must be a positive finite number of seconds, got '1e-3' \\(str\\)"):
+            Discretization(**{"dt": 1e-3, key: "1e-3"})
+    assert Target(robot=robot, family="reduced_order", name="Arm-1").name == "arm_1"
 
 
 def test_missing_file():

@@ -172,23 +172,30 @@ def run(source, workers=None, scheduler=None, out=None, progress=True, client=No
     SweepResult
     """
     from ...pipeline.compile import work_dir
-    from ..compare import robot_by_name
-    from .work import run_batch, true_run, warm
     sweep = plan.load(source)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 0):
         raise ValueError(f"workers must be a whole number >= 0, got {workers!r}")
     if scheduler and workers:
         raise ValueError("workers, scheduler: give one (a new local cluster, or an existing one)")
     out = Path(out or work_dir() / "sweeps" / sweep.name)
+    with Store(out).lock() as store:      # one writer per folder, from the targets to the last part
+        store.parts()                      # a foreign part refused before the (slow) preparation
+        return _run(sweep, out, workers, scheduler, progress, client)
+
+
+def _run(sweep, out, workers, scheduler, progress, client):
+    """``run`` of the parsed ``sweep`` into ``out`` (its lock held)."""
+    from ..compare import robot_by_name
+    from .work import run_batch, true_run, warm
     robot = robot_by_name(sweep.robot)
     methods, designed, designs, targets, fingerprint = prepare(sweep, robot, out)
     cells = plan.cells(sweep, methods, designed)
     gains = tuple(k for k in sweep.axes if k not in plan.AXES) or \
         tuple(sorted({p for m in methods for p in m.p_names}))
     store = Store(out)
+    done = store.done(gains)               # every part checked before anything is written
     fid = store.start(sweep, fingerprint)
     store.put("designed.json", designs)
-    done = store.done()
     todo = [c for c in cells if c["cell"] not in done]
     jobs = plan.batches(todo, sweep.batch)
     common = (sweep.robot, sweep.plant, float(sweep.T))
