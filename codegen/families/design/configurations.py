@@ -12,6 +12,8 @@ of a symmetric bilinear form is the max of its quadratic form) is computed by gr
 """
 from __future__ import annotations
 
+import time
+
 import casadi as ca
 import numpy as np
 
@@ -38,7 +40,7 @@ def sample_points(robot, samples, seed):
     return np.vstack([0.5 * (robot.q_lower + robot.q_upper), robot.sample_configurations(samples, seed)])
 
 
-def pattern_search(fun, robot, starts, values, steps=STEPS, sweeps=SWEEPS):
+def pattern_search(fun, robot, starts, values, steps=STEPS, sweeps=SWEEPS, moved=None):
     """Local maxima of a batched ``fun`` from each row of ``starts``, inside the joint box.
 
     Each sweep evaluates the 2n coordinate neighbours of every current point at step h in one
@@ -50,6 +52,8 @@ def pattern_search(fun, robot, starts, values, steps=STEPS, sweeps=SWEEPS):
     fun : callable (K, n) -> (K,)
     robot : RobotModel, whose q_lower, q_upper bound the search
     starts : (K, n) configurations;  values : (K,) fun at those
+    moved : optional callable (better (K,) bools, j (K,) ints): told which points moved, each to
+        its neighbour j of the last call of ``fun`` (fun's rows are the K points' 2n neighbours)
 
     Returns
     -------
@@ -68,6 +72,8 @@ def pattern_search(fun, robot, starts, values, steps=STEPS, sweeps=SWEEPS):
             if not np.any(better):
                 break
             Q[better], cur[better] = cand[better, j[better]], best[better]
+            if moved is not None:
+                moved(better, j)
     return cur, Q
 
 
@@ -95,6 +101,30 @@ def refine_max(fun, robot, points, vals, refine=3, starts=None):
     return float(cur[i]), np.asarray(Q[i])
 
 
+# CPU seconds a design's sups over configurations may take (every catalog robot: < 2 s; a generic
+# 50-joint chain: ~60 s); beyond, DesignBudgetError
+DESIGN_BUDGET_S = 300.0
+
+
+class DesignBudgetError(ValueError):
+    """A design that cannot finish in its CPU budget (DESIGN_BUDGET_S)."""
+
+
+class _Budget:
+    """Raise DesignBudgetError naming ``robot`` once ``seconds`` of process CPU time have passed
+    since construction (checked by ``check``, called between batches)."""
+
+    def __init__(self, robot, seconds):
+        self.robot, self.seconds, self.t0 = robot, seconds, time.process_time()
+
+    def check(self):
+        if time.process_time() - self.t0 > self.seconds:
+            raise DesignBudgetError(
+                f"the gain design for {self.robot.name} ({self.robot.n} joints) did not finish in its budget "
+                f"of {self.seconds:g} s CPU (DESIGN_BUDGET_S): give the gain instead, e.g. --design k0=VALUE "
+                f"(1/s) for the reduced-order families")
+
+
 # memory bound of one batch of the c0 ascent and of the mass matrices (bytes): configurations
 # are processed in chunks whose temporaries stay below it
 MEMORY_BYTES = 64 * 2 ** 20
@@ -114,7 +144,7 @@ LARGE_UNIT_STARTS, PRUNE_EVERY, PRUNE_RATIO, LARGE_TOL, LARGE_REFINE = 3, 8, 0.9
 
 
 def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, tol=1e-13,
-              pair_bytes=None, unit_starts=UNIT_STARTS, prune=False):
+              pair_bytes=None, unit_starts=UNIT_STARTS, prune=False, budget=None):
     """c0(q_s) = max_{|v|=1} ||C(q_s, v) v||_2 for S configurations (docs/papers/seed000.md §0), from
     the products of the Coriolis matrix only (no Christoffel tensor).
 
@@ -132,12 +162,13 @@ def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, to
     products : callable (rows (P,), v (P, n)) -> (C(q_rows, v) v, C(q_rows, v)^T C(q_rows, v) v),
         each (P, n), rows indexing the S configurations
     S, n : int, number of configurations and of joints
-    starts : optional (m, n) starts, each used for every configuration
+    starts : optional (m, n) starts, each used for every configuration, or (S, m, n) per configuration
     extra_starts, iters, seed : random starts, most iterations, seed of the random starts
     pair_bytes : int, memory of one pair's products (default 1600 n)
     unit_starts : int, the most unit vectors started from (UNIT_STARTS in the text above)
     prune : bool, drop the starts below PRUNE_RATIO of their configuration's best every
         PRUNE_EVERY iterations (a start that far behind is taken not to overtake)
+    budget : optional _Budget, checked every iteration
 
     Returns
     -------
@@ -145,23 +176,25 @@ def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, to
     unit = starts is None and n > unit_starts
     if starts is None:
         starts = np.vstack([np.eye(n), np.random.default_rng(seed).normal(size=(extra_starts, n))])
-    starts = np.atleast_2d(starts) / np.linalg.norm(np.atleast_2d(starts), axis=1, keepdims=True)
-    m = unit_starts + extra_starts if unit else len(starts)
+    starts = np.asarray(starts, dtype=float)
+    per_config = starts.ndim == 3
+    starts = np.atleast_2d(starts) / np.linalg.norm(np.atleast_2d(starts), axis=-1, keepdims=True)
+    m = unit_starts + extra_starts if unit else starts.shape[-2]
     chunk = max(1, int(MEMORY_BYTES // ((pair_bytes or 1600 * n) * max(m, n if unit else 0))))
     c0s, vs = np.empty(S), np.empty((S, n))
     for lo in range(0, S, chunk):
         configs = np.arange(lo, min(S, lo + chunk))
-        V = np.broadcast_to(starts, (len(configs),) + starts.shape)
+        V = starts[configs] if per_config else np.broadcast_to(starts, (len(configs),) + starts.shape)
         if unit:            # the unit_starts unit vectors of largest ||C(q, e_k) e_k||
             c, _ = products(np.repeat(configs, n), np.tile(np.eye(n), (len(configs), 1)))
             top = np.argsort(-np.linalg.norm(c, axis=1).reshape(len(configs), n), axis=1, kind="stable")
             top = np.sort(top[:, :unit_starts], axis=1)
             V = np.concatenate([np.eye(n)[top], V[:, n:]], axis=1)
-        c0s[configs], vs[configs] = _ascent(products, configs, V, iters, tol, prune)
+        c0s[configs], vs[configs] = _ascent(products, configs, V, iters, tol, prune, budget)
     return c0s, vs
 
 
-def _ascent(products, configs, starts, iters, tol, prune=False):
+def _ascent(products, configs, starts, iters, tol, prune=False, budget=None):
     """``c0_ascent`` on the configurations ``configs`` from ``starts`` (len(configs), m, n), all
     pairs at once."""
     S, m, n = starts.shape
@@ -175,6 +208,8 @@ def _ascent(products, configs, starts, iters, tol, prune=False):
     active = np.arange(len(v))
     val, g = value(active, v)
     for it in range(iters):
+        if budget is not None:
+            budget.check()
         if prune and m > 1 and it and it % PRUNE_EVERY == 0:
             best = np.repeat(np.max(val.reshape(S, m), axis=1), m)
             keep = val[active] >= PRUNE_RATIO * best[active]
@@ -294,6 +329,7 @@ class ConfigurationStats:
 
     def __init__(self, robot, samples=2000, seed=0):
         self.robot, self.samples = robot, samples
+        self._budget = _Budget(robot, DESIGN_BUDGET_S)
         self._model = dynamics_model(robot)
         self.points = sample_points(robot, samples, seed)
         self.lmin, self.lmax, self.c0s, self._v = self.at(self.points)
@@ -305,36 +341,66 @@ class ConfigurationStats:
         in chunks of MEMORY_BYTES."""
         pts = np.atleast_2d(np.asarray(pts, dtype=float))
         model, n = self._model, self.robot.n
-        m = n + 2 if starts is None else len(np.atleast_2d(starts))
+        m = n + 2 if starts is None else np.shape(starts)[-2] if np.ndim(starts) > 1 else 1
         chunk = max(1, int(MEMORY_BYTES // (model.config_bytes + (model.pair_bytes * m if c0 else 0))))
         out = [np.empty(len(pts)) for _ in range(3)] + [np.empty((len(pts), n))]
         for lo in range(0, len(pts), chunk):
             hi = min(len(pts), lo + chunk)
+            self._budget.check()
             batch = model.batch(pts[lo:hi])
             lam = np.linalg.eigvalsh(batch.mass_matrix())
             out[0][lo:hi], out[1][lo:hi] = lam[:, 0], lam[:, -1]
+            part = starts[lo:hi] if starts is not None and np.ndim(starts) == 3 else starts
             if c0 and n <= TENSOR_MAX:
-                out[2][lo:hi], out[3][lo:hi] = c0_ascent(tensor_products(batch.christoffel()), hi - lo, n,
-                                                         starts, tol=tol, pair_bytes=16 * n ** 3)
+                out[2][lo:hi], out[3][lo:hi] = c0_ascent(
+                    tensor_products(batch.christoffel()), hi - lo, n, part, tol=tol,
+                    pair_bytes=16 * n ** 3, budget=self._budget)
             elif c0:
-                out[2][lo:hi], out[3][lo:hi] = c0_ascent(batch.coriolis_products, hi - lo, n, starts,
-                                                         tol=max(tol, LARGE_TOL), pair_bytes=model.pair_bytes,
-                                                         unit_starts=LARGE_UNIT_STARTS, prune=True)
+                out[2][lo:hi], out[3][lo:hi] = c0_ascent(
+                    batch.coriolis_products, hi - lo, n, part, tol=max(tol, LARGE_TOL),
+                    pair_bytes=model.pair_bytes, unit_starts=LARGE_UNIT_STARTS, prune=True,
+                    budget=self._budget)
         return (out[0], out[1], out[2], out[3]) if c0 else (out[0], out[1], None, None)
 
     def maximise(self, fun, refine=3, c0=True, starts=None):
         """max_q fun(lmin, lmax, c0) (vectorised): best samples (and ``starts``, configurations),
         then a pattern search from each, c0 (when ``c0``: fun uses it) started from the
         maximisers v of those samples and resolved to 1e-10 relative during the search; ``refine``
-        best samples are refined.
+        best samples are refined. Beyond TENSOR_MAX joints: LARGE_REFINE samples at most, and c0
+        at each neighbour started from the maximiser v at the point it neighbours (one start).
 
         Returns (max value, maximiser (n,))."""
         vals = fun(self.lmin, self.lmax, self.c0s)
         if self.robot.n > TENSOR_MAX:
-            refine = min(refine, LARGE_REFINE)
-        v0 = self._v[np.argsort(vals)[::-1][:max(refine, 1) if self.robot.n <= TENSOR_MAX else 1]]
+            return self._maximise_warm(fun, min(refine, LARGE_REFINE), c0, vals, starts)
+        v0 = self._v[np.argsort(vals)[::-1][:max(refine, 1)]]
         return refine_max(lambda Q: fun(*self.at(Q, v0, c0, tol=1e-10)[:3]), self.robot, self.points,
                           vals, refine, starts)
+
+    def _maximise_warm(self, fun, refine, c0, vals, starts):
+        """``maximise`` with warm starts: the pattern search's points carry their c0 maximiser v,
+        each neighbour's ascent starts from its point's v."""
+        order = np.argsort(vals)[::-1][:max(refine, 1)]
+        P, V, W = self.points[order], vals[order], self._v[order]
+        if starts is not None and len(starts):
+            starts = np.atleast_2d(starts)
+            lmin, lmax, c0s, v = self.at(starts, W[:1], c0, tol=1e-10)
+            P, V = np.vstack([P, starts]), np.concatenate([V, fun(lmin, lmax, c0s)])
+            W = np.vstack([W, v if c0 else np.repeat(W[:1], len(starts), axis=0)])
+        last = {}
+
+        def f(Q):
+            parent = np.arange(len(Q)) // (len(Q) // len(W))
+            lmin, lmax, c0s, v = self.at(Q, W[parent][:, None, :], c0, tol=1e-10)
+            last["v"] = v
+            return fun(lmin, lmax, c0s)
+
+        def moved(better, j):
+            if c0:
+                W[better] = last["v"].reshape(len(W), -1, self.robot.n)[better, j[better]]
+        cur, Q = pattern_search(f, self.robot, P, V, moved=moved)
+        i = int(np.argmax(cur))
+        return float(cur[i]), np.asarray(Q[i])
 
     def extremes(self, refine=3):
         """(min_q lambda_min(M(q)), max_q lambda_max(M(q)), max_q c0(q)), each refined from its
