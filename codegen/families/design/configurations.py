@@ -8,7 +8,12 @@ pattern search (every candidate of a sweep evaluated in one call). The Coriolis 
 
 (the second form because C(q, a) b = C(q, b) a makes the bilinear form symmetric, and the norm
 of a symmetric bilinear form is the max of its quadratic form) is computed by gradient ascent of
-||C(q, v) v||^2 on the unit sphere from several starts, all configurations at once.
+||C(q, v) v||^2 on the unit sphere from several starts, all configurations at once. The ascent
+needs only the products C(q, v) v and C(q, v)^T C(q, v) v: up to TENSOR_MAX joints from the
+Christoffel tensor (n^3 entries per configuration), beyond from O(n) recursions
+(codegen.families.design.rigid_batch for robots with a kinematic tree). M(q) and those products
+are evaluated numerically in chunks of configurations below MEMORY_BYTES, and a design's sups
+stop with DesignBudgetError (naming --design k0=) after DESIGN_BUDGET_S CPU seconds.
 """
 from __future__ import annotations
 
@@ -130,30 +135,29 @@ class _Budget:
 MEMORY_BYTES = 64 * 2 ** 20
 
 
-# the most unit vectors a c0 ascent starts from at one configuration: beyond, the ones with the
-# largest ||C(q, e_k) e_k|| (n <= UNIT_STARTS: all n, as for every robot of the catalog)
-UNIT_STARTS = 7
 # the largest n whose c0 ascent iterates on the Christoffel tensor (n^3 entries per configuration,
-# 2 n^3 per product, fast below); beyond, on the O(n) Coriolis products
-TENSOR_MAX = 12
-# beyond TENSOR_MAX [ASSUMPTION, measured: docs/architecture.md]: unit starts per configuration,
-# pruning of the starts (every PRUNE_EVERY iterations, those below PRUNE_RATIO of their
-# configuration's best are dropped), relative tolerance, and in ``maximise`` the refined samples and
-# the starts of c0 at each candidate (the maximiser at the best sample)
+# 2 n^3 per product), from all n unit vectors: every catalog arm (<= 7 joints), whose gains are
+# those of the former tensor design up to round-off. Beyond, the ascent iterates on the O(n)
+# Coriolis products with LARGE_UNIT_STARTS unit starts (those of largest ||C(q, e_k) e_k||) plus
+# the 2 random ones, pruned every PRUNE_EVERY iterations to those within PRUNE_RATIO of their
+# configuration's best, to relative LARGE_TOL; ``maximise`` refines LARGE_REFINE samples, c0 at
+# each neighbour warm-started from its point's maximiser [ASSUMPTION: a local ascent either way;
+# tested against the full start set in tests/families/test_rigid_batch.py]
+TENSOR_MAX = 7
 LARGE_UNIT_STARTS, PRUNE_EVERY, PRUNE_RATIO, LARGE_TOL, LARGE_REFINE = 3, 8, 0.98, 1e-10, 2
 
 
 def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, tol=1e-13,
-              pair_bytes=None, unit_starts=UNIT_STARTS, prune=False, budget=None):
+              pair_bytes=None, unit_starts=None, prune=False, budget=None):
     """c0(q_s) = max_{|v|=1} ||C(q_s, v) v||_2 for S configurations (docs/papers/seed000.md §0), from
     the products of the Coriolis matrix only (no Christoffel tensor).
 
     Gradient ascent on the sphere, v <- C(v)^T C(v) v / ||.|| (the gradient of ||C(v) v||^2 is
     4 C(v)^T C(v) v), every (configuration, start) pair iterated at once until its value
     settles (relative ``tol``), from ``starts`` or else from unit vectors plus ``extra_starts``
-    random ones; the best start is kept. The unit vectors: all n when n <= UNIT_STARTS, else
-    the UNIT_STARTS with the largest ||C(q_s, e_k) e_k|| at each configuration (one product
-    each), so that a configuration costs O(n) products, not O(n^2). Pairs are independent:
+    random ones; the best start is kept. The unit vectors: all n, or the ``unit_starts`` with
+    the largest ||C(q_s, e_k) e_k|| at each configuration (one product each), so that a
+    configuration costs O(n) products, not O(n^2). Pairs are independent:
     they are processed in chunks of configurations whose ``pair_bytes`` per pair stay below
     MEMORY_BYTES.
 
@@ -165,7 +169,7 @@ def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, to
     starts : optional (m, n) starts, each used for every configuration, or (S, m, n) per configuration
     extra_starts, iters, seed : random starts, most iterations, seed of the random starts
     pair_bytes : int, memory of one pair's products (default 1600 n)
-    unit_starts : int, the most unit vectors started from (UNIT_STARTS in the text above)
+    unit_starts : optional int, the most unit vectors started from (default all n)
     prune : bool, drop the starts below PRUNE_RATIO of their configuration's best every
         PRUNE_EVERY iterations (a start that far behind is taken not to overtake)
     budget : optional _Budget, checked every iteration
@@ -173,7 +177,7 @@ def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, to
     Returns
     -------
     (c0 (S,), maximiser v (S, n))."""
-    unit = starts is None and n > unit_starts
+    unit = starts is None and unit_starts is not None and n > unit_starts
     if starts is None:
         starts = np.vstack([np.eye(n), np.random.default_rng(seed).normal(size=(extra_starts, n))])
     starts = np.asarray(starts, dtype=float)
@@ -364,22 +368,16 @@ class ConfigurationStats:
 
     def maximise(self, fun, refine=3, c0=True, starts=None):
         """max_q fun(lmin, lmax, c0) (vectorised): best samples (and ``starts``, configurations),
-        then a pattern search from each, c0 (when ``c0``: fun uses it) started from the
-        maximisers v of those samples and resolved to 1e-10 relative during the search; ``refine``
-        best samples are refined. Beyond TENSOR_MAX joints: LARGE_REFINE samples at most, and c0
-        at each neighbour started from the maximiser v at the point it neighbours (one start).
+        then a pattern search from each, c0 (when ``c0``: fun uses it) at each neighbour started
+        from the maximiser v at the point it neighbours (warm, one start; the maximisers of
+        several samples at every neighbour gave the same gains to 1e-11 relative on ur5 and
+        panda) and resolved to 1e-10 relative; ``refine`` best samples are refined (beyond
+        TENSOR_MAX joints LARGE_REFINE at most).
 
         Returns (max value, maximiser (n,))."""
         vals = fun(self.lmin, self.lmax, self.c0s)
         if self.robot.n > TENSOR_MAX:
-            return self._maximise_warm(fun, min(refine, LARGE_REFINE), c0, vals, starts)
-        v0 = self._v[np.argsort(vals)[::-1][:max(refine, 1)]]
-        return refine_max(lambda Q: fun(*self.at(Q, v0, c0, tol=1e-10)[:3]), self.robot, self.points,
-                          vals, refine, starts)
-
-    def _maximise_warm(self, fun, refine, c0, vals, starts):
-        """``maximise`` with warm starts: the pattern search's points carry their c0 maximiser v,
-        each neighbour's ascent starts from its point's v."""
+            refine = min(refine, LARGE_REFINE)
         order = np.argsort(vals)[::-1][:max(refine, 1)]
         P, V, W = self.points[order], vals[order], self._v[order]
         if starts is not None and len(starts):
@@ -398,7 +396,7 @@ class ConfigurationStats:
         def moved(better, j):
             if c0:
                 W[better] = last["v"].reshape(len(W), -1, self.robot.n)[better, j[better]]
-        cur, Q = pattern_search(f, self.robot, P, V, moved=moved)
+        cur, Q = pattern_search(f, self.robot, P, V, moved=moved) if refine else (V, P)
         i = int(np.argmax(cur))
         return float(cur[i]), np.asarray(Q[i])
 
