@@ -189,16 +189,18 @@ def _designed_or_refused_within_budget(joints, tmp_path, monkeypatch):
     assert time.process_time() - t0 <= CHAIN_BUDGET_S + SLACK_S
 
 
-@settings(max_examples=5, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+CHAIN_SETTINGS = dict(deadline=None, derandomize=True,
+                      suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+@settings(max_examples=5, **CHAIN_SETTINGS)
 @pytest.mark.slow
 @given(joints=long_chains(1, 10))
 def test_chains_up_to_10_joints_are_designed_or_refused_within_budget(joints, tmp_path, monkeypatch):
     _designed_or_refused_within_budget(joints, tmp_path, monkeypatch)
 
 
-@settings(max_examples=3, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(max_examples=3, **CHAIN_SETTINGS)
 @pytest.mark.long
 @given(joints=long_chains(11, 50))
 def test_chains_up_to_50_joints_are_designed_or_refused_within_budget(joints, tmp_path, monkeypatch):
