@@ -355,12 +355,12 @@ def sweep_ur5(path=None, modes=(0, 1, 2)):
     return row
 
 
-def _instructions_per_step(target, robot, dt, steps=(200, 1200)):
+def _instructions_per_step(target, robot, dt, steps=(200, 1200), native=False):
     """Instructions per ``<prefix>_step`` of ``target`` (a velocity observer of ``robot`` at
     sample time ``dt``): valgrind's callgrind on run_csv over ``steps`` samples of the demo
     trajectory, counting inside the step only (--toggle-collect), the difference of the totals
     over the difference of the counts (the first sample's start-up cancels); None without
-    valgrind."""
+    valgrind. ``native``: the harness compiled with -march=native."""
     import re
     import shutil
     import subprocess
@@ -370,7 +370,7 @@ def _instructions_per_step(target, robot, dt, steps=(200, 1200)):
     from ..verify.trajectory import demo_trajectory
     if shutil.which("valgrind") is None:
         return None
-    exe = compile_harness(target)["run_csv"]
+    exe = compile_harness(target, native=native)["run_csv"]
     totals = []
     with tempfile.TemporaryDirectory() as tmp:
         for N in steps:
@@ -532,8 +532,9 @@ def scaling_markdown(rows):
 
 def native_isa(robots=("ur5", "panda")):
     """The default target of each robot compiled portable (the default) and with -march=native
-    (``--native``): instructions per step (callgrind, None without valgrind) and ns per step and
-    per RHS of each, and the speed-up native / portable.
+    (``--native``): instructions per step (callgrind, None without valgrind; with wider vectors
+    native runs fewer) and ns per step and per RHS of each, and the speed-up native / portable
+    (ns: on a shared machine, a single run's ratio moves by 2x; the instruction counts do not).
 
     Returns
     -------
@@ -549,7 +550,8 @@ def native_isa(robots=("ur5", "panda")):
         for label, native in (("portable", False), ("native", True)):
             t = c_programs.time_target(target, native=native)
             row[f"ns_step_{label}"], row[f"ns_rhs_{label}"] = t["ns_per_step"], t["ns_per_rhs"]
-        row["instructions_portable"] = _instructions_per_step(target, load_robot(name), 1e-3)
+        for label, native in (("portable", False), ("native", True)):
+            row[f"instructions_{label}"] = _instructions_per_step(target, load_robot(name), 1e-3, native=native)
         row["speedup_step"] = row["ns_step_portable"] / row["ns_step_native"]
         row["speedup_rhs"] = row["ns_rhs_portable"] / row["ns_rhs_native"]
         rows.append(row)
