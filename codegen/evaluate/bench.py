@@ -462,8 +462,9 @@ def generic_chain_urdf(n, seed=0):
 
 def scaling(ns=(2, 6, 12, 24, 50), seed=0):
     """Generic serial chains (``generic_chain_urdf``) of ``ns`` joints, the default reduced-order
-    observer: CPU seconds of the design (``observers.build`` with an empty design cache, the
-    stability check included), of emit and of the compile (fresh compile cache, the compiler's
+    observer: CPU seconds of the design's sups over configurations (``reduced_order_gain``, (12))
+    and of the whole design (``observers.build`` with an empty design cache, the noise-aware gain
+    and the stability check included), of emit and of the compile (fresh compile cache, the compiler's
     CPU), bytes of C, instructions per step (callgrind, ``_instructions_per_step``; None without
     valgrind), ns per step and per RHS (timing program) and pinocchio's native ``aba`` (ns).
 
@@ -488,7 +489,10 @@ def scaling(ns=(2, 6, 12, 24, 50), seed=0):
             old = os.environ.get("CODEGEN_CACHE")
             os.environ["CODEGEN_CACHE"] = str(Path(tmp) / "cache")      # the design from scratch
             try:
+                from ..families.design.reduced_order import reduced_order_gain
                 t0 = time.process_time()
+                reduced_order_gain(robot)                 # the sups over configurations, (12)
+                t_sups = time.process_time() - t0
                 spec = observers.build("reduced_order", robot)
                 t_design = time.process_time() - t0
             finally:
@@ -507,7 +511,7 @@ def scaling(ns=(2, 6, 12, 24, 50), seed=0):
                 pin_ns = c_programs.time_pin(str(urdf), blocks=21, block_ms=10.0)["ns_aba"]
             except CompileError:          # no Eigen headers: `make bench` installs them (.[bench])
                 pin_ns = None
-            rows.append({"n": n, "design_s": round(t_design, 2), "emit_s": round(t_emit, 2),
+            rows.append({"n": n, "sups_s": round(t_sups, 2), "design_s": round(t_design, 2), "emit_s": round(t_emit, 2),
                          "compile_s": round(cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime, 2),
                          "c_bytes": c_bytes, "step_instructions": _instructions_per_step(target, robot, 1e-3),
                          "ns_step": timing["ns_per_step"], "ns_rhs": timing["ns_per_rhs"],
@@ -518,12 +522,12 @@ def scaling(ns=(2, 6, 12, 24, 50), seed=0):
 
 def scaling_markdown(rows):
     """The ``scaling`` rows as a markdown table (the README's bench section)."""
-    out = ["| n | design s | emit s | compile s | C kB | step instr | step ns | RHS ns | pin aba ns "
-           "| step/RHS | step/aba |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = ["| n | sups s | design s | emit s | compile s | C kB | step instr | step ns | RHS ns | pin aba ns "
+           "| step/RHS | step/aba |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         def fmt(x, f):
             return "-" if x is None else format(x, f)
-        out.append(f"| {r['n']} | {r['design_s']:.2f} | {r['emit_s']:.2f} | {r['compile_s']:.1f} | "
+        out.append(f"| {r['n']} | {r['sups_s']:.2f} | {r['design_s']:.2f} | {r['emit_s']:.2f} | {r['compile_s']:.1f} | "
                    f"{r['c_bytes'] / 1e3:.0f} | {fmt(r['step_instructions'], ',.0f')} | {r['ns_step']:.0f} | "
                    f"{r['ns_rhs']:.0f} | {fmt(r['ns_pin_aba'], '.0f')} | {r['step_over_rhs']:.2f} | "
                    f"{fmt(r['step_over_aba'], '.2f')} |")

@@ -11,7 +11,7 @@ import re
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from codegen.pipeline.emit import _slot_macros
@@ -200,8 +200,18 @@ def test_chains_up_to_10_joints_are_designed_or_refused_within_budget(joints, tm
     _designed_or_refused_within_budget(joints, tmp_path, monkeypatch)
 
 
+def _fifty_joints():
+    """50 revolute joints, unaligned axes and placements (the explicit largest example)."""
+    rng = np.random.default_rng(50)
+    txt = lambda x: " ".join(repr(float(e)) for e in x)  # noqa: E731
+    return [Joint(f"j{i}", "revolute", Link(f"l{i}", mass=repr(float(rng.uniform(0.5, 2))), com=txt(rng.uniform(-0.1, 0.1, 3))),
+                  axis=txt(a / np.linalg.norm(a)), origin=txt(rng.uniform(-0.2, 0.2, 3)), rpy=txt(rng.uniform(-3, 3, 3)))
+            for i, a in enumerate(rng.normal(size=(50, 3)))]
+
+
 @settings(max_examples=3, **CHAIN_SETTINGS)
 @pytest.mark.long
 @given(joints=long_chains(11, 50))
+@example(joints=_fifty_joints())
 def test_chains_up_to_50_joints_are_designed_or_refused_within_budget(joints, tmp_path, monkeypatch):
     _designed_or_refused_within_budget(joints, tmp_path, monkeypatch)
