@@ -14,6 +14,13 @@ assert a speed).
     sweep_ur5        the 500-cell ur5 sweep in-process, on 1 and on 2 Dask workers: cells/s, ratio
     generate         `make generate` from scratch (empty build cache, new process): wall time
                      and each target's stage times, against the 60 s budget
+    friction         the step with and without friction in the model (instructions, ns)
+    native           the default targets portable (the default) and with -march=native (--native)
+    scaling          generic serial chains n = 2, 6, 12, 24, 50: design, emit, compile, C size,
+                     instructions and ns per step, ns per RHS, pinocchio's aba (a markdown table)
+
+The observer-RHS table adds instructions per step (valgrind's callgrind, when valgrind is
+installed: a figure the machine's load does not change).
 
 ``main`` prints the table and the scenario rows and writes them as JSON
 ({"observer_rhs": [...], "scenarios": {"seed000": ..., "seed003": ..., "seed004": [...]}}).
@@ -93,7 +100,8 @@ def observer_rhs(robots=("ur5", "panda"), native=False):
     -------
     list of dict
         robot, ns_rhs, ns_step (default), ns_rk4_zoh_step, ns_pin_aba and the ratios RHS/aba,
-        step/aba and step/(RK4 zoh step).
+        step/aba and step/(RK4 zoh step); instructions_step, the default step's instructions
+        (callgrind; None without valgrind).
     """
     from models import load_robot
 
@@ -110,11 +118,13 @@ def observer_rhs(robots=("ur5", "panda"), native=False):
             ns[key] = c_programs.time_target(target)
         pin = c_programs.time_pin(src["path"], list(src.get("locked_joints", {})))
         ours = ns["default"]
+        instructions = _instructions_per_step(_emit(spec, Discretization(dt=1e-3))[0], load_robot(name), 1e-3)
         rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_step": ours["ns_per_step"],
                      "ns_rk4_zoh_step": ns["rk4_zoh"]["ns_per_step"], "ns_pin_aba": pin["ns_aba"],
                      "ratio_rhs_over_aba": ours["ns_per_rhs"] / pin["ns_aba"],
                      "ratio_step_over_aba": ours["ns_per_step"] / pin["ns_aba"],
-                     "ratio_step_over_rk4_zoh": ours["ns_per_step"] / ns["rk4_zoh"]["ns_per_step"]})
+                     "ratio_step_over_rk4_zoh": ours["ns_per_step"] / ns["rk4_zoh"]["ns_per_step"],
+                     "instructions_step": instructions})
     return rows
 
 
@@ -345,12 +355,12 @@ def sweep_ur5(path=None, modes=(0, 1, 2)):
     return row
 
 
-def _instructions_per_step(target, robot, dt, steps=(200, 1200)):
+def _instructions_per_step(target, robot, dt, steps=(200, 1200), native=False):
     """Instructions per ``<prefix>_step`` of ``target`` (a velocity observer of ``robot`` at
     sample time ``dt``): valgrind's callgrind on run_csv over ``steps`` samples of the demo
     trajectory, counting inside the step only (--toggle-collect), the difference of the totals
     over the difference of the counts (the first sample's start-up cancels); None without
-    valgrind."""
+    valgrind. ``native``: the harness compiled with -march=native."""
     import re
     import shutil
     import subprocess
@@ -360,7 +370,7 @@ def _instructions_per_step(target, robot, dt, steps=(200, 1200)):
     from ..verify.trajectory import demo_trajectory
     if shutil.which("valgrind") is None:
         return None
-    exe = compile_harness(target)["run_csv"]
+    exe = compile_harness(target, native=native)["run_csv"]
     totals = []
     with tempfile.TemporaryDirectory() as tmp:
         for N in steps:
@@ -420,8 +430,140 @@ def friction_step(robot="ur5", families=("reduced_order", "kalman_model")):
     return rows
 
 
+def generic_chain_urdf(n, seed=0):
+    """The URDF text of a generic serial chain of ``n`` revolute joints: axes, placements and
+    inertials drawn with ``seed`` (no axis aligned, so no term folds away: the cost of a chain,
+    not of a catalog arm's round numbers). Ranges +-2 rad, 2 rad/s, unit-ish masses."""
+    import xml.etree.ElementTree as ET
+
+    def txt(x):
+        return " ".join(repr(float(e)) for e in x)
+    rng = np.random.default_rng(seed)
+    root = ET.Element("robot", name=f"chain{n}")
+    ET.SubElement(root, "link", name="base")
+    parent = "base"
+    for i in range(n):
+        joint = ET.SubElement(root, "joint", name=f"j{i}", type="revolute")
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=f"l{i}")
+        ET.SubElement(joint, "origin", xyz=txt(rng.uniform(-0.2, 0.2, 3)), rpy=txt(rng.uniform(-np.pi, np.pi, 3)))
+        axis = rng.normal(size=3)
+        ET.SubElement(joint, "axis", xyz=txt(axis / np.linalg.norm(axis)))
+        ET.SubElement(joint, "limit", lower="-2", upper="2", effort="10", velocity="2")
+        inertial = ET.SubElement(ET.SubElement(root, "link", name=f"l{i}"), "inertial")
+        ET.SubElement(inertial, "origin", xyz=txt(rng.uniform(-0.1, 0.1, 3)))
+        ET.SubElement(inertial, "mass", value=repr(float(rng.uniform(0.5, 2.0))))
+        m = rng.uniform(0.01, 0.05, 3)
+        ET.SubElement(inertial, "inertia", ixx=repr(float(m[0])), ixy="0", ixz="0", iyy=repr(float(m[1])),
+                      iyz="0", izz=repr(float(m[2])))
+        parent = f"l{i}"
+    return ET.tostring(root, encoding="unicode")
+
+
+def scaling(ns=(2, 6, 12, 24, 50), seed=0):
+    """Generic serial chains (``generic_chain_urdf``) of ``ns`` joints, the default reduced-order
+    observer: CPU seconds of the design's sups over configurations (``reduced_order_gain``, (12))
+    and of the whole design (``observers.build`` with an empty design cache, the noise-aware gain
+    and the stability check included), of emit and of the compile (fresh compile cache, the compiler's
+    CPU), bytes of C, instructions per step (callgrind, ``_instructions_per_step``; None without
+    valgrind), ns per step and per RHS (timing program) and pinocchio's native ``aba`` (ns).
+
+    Returns
+    -------
+    list of dict, one per n."""
+    import os
+    import resource
+    import tempfile
+
+    from models.urdf import load_urdf
+
+    from ..families import observers
+    from ..pipeline.compile import CompileError
+    from ..verify import c_programs
+    rows = []
+    for n in ns:
+        with tempfile.TemporaryDirectory() as tmp:
+            urdf = Path(tmp) / f"chain{n}.urdf"
+            urdf.write_text(generic_chain_urdf(n, seed))
+            robot = load_urdf(urdf)
+            old = os.environ.get("CODEGEN_CACHE")
+            os.environ["CODEGEN_CACHE"] = str(Path(tmp) / "cache")      # the design from scratch
+            try:
+                from ..families.design.reduced_order import reduced_order_gain
+                t0 = time.process_time()
+                reduced_order_gain(robot)                 # the sups over configurations, (12)
+                t_sups = time.process_time() - t0
+                spec = observers.build("reduced_order", robot)
+                t_design = time.process_time() - t0
+            finally:
+                if old is None:
+                    os.environ.pop("CODEGEN_CACHE")
+                else:
+                    os.environ["CODEGEN_CACHE"] = old
+            t0 = time.process_time()
+            target, c_bytes = _emit(spec, Discretization(dt=1e-3))
+            t_emit = time.process_time() - t0
+            cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            compile_library(target, cache=Path(tmp) / "cc")
+            cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            timing = c_programs.time_target(target, blocks=21, block_ms=10.0)
+            try:
+                pin_ns = c_programs.time_pin(str(urdf), blocks=21, block_ms=10.0)["ns_aba"]
+            except CompileError:          # no Eigen headers: `make bench` installs them (.[bench])
+                pin_ns = None
+            rows.append({"n": n, "sups_s": round(t_sups, 2), "design_s": round(t_design, 2), "emit_s": round(t_emit, 2),
+                         "compile_s": round(cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime, 2),
+                         "c_bytes": c_bytes, "step_instructions": _instructions_per_step(target, robot, 1e-3),
+                         "ns_step": timing["ns_per_step"], "ns_rhs": timing["ns_per_rhs"],
+                         "ns_pin_aba": pin_ns, "step_over_rhs": timing["ns_per_step"] / timing["ns_per_rhs"],
+                         "step_over_aba": pin_ns and timing["ns_per_step"] / pin_ns})
+    return rows
+
+
+def scaling_markdown(rows):
+    """The ``scaling`` rows as a markdown table (the README's bench section)."""
+    out = ["| n | sups s | design s | emit s | compile s | C kB | step instr | step ns | RHS ns | pin aba ns "
+           "| step/RHS | step/aba |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        def fmt(x, f):
+            return "-" if x is None else format(x, f)
+        out.append(f"| {r['n']} | {r['sups_s']:.2f} | {r['design_s']:.2f} | {r['emit_s']:.2f} | {r['compile_s']:.1f} | "
+                   f"{r['c_bytes'] / 1e3:.0f} | {fmt(r['step_instructions'], ',.0f')} | {r['ns_step']:.0f} | "
+                   f"{r['ns_rhs']:.0f} | {fmt(r['ns_pin_aba'], '.0f')} | {r['step_over_rhs']:.2f} | "
+                   f"{fmt(r['step_over_aba'], '.2f')} |")
+    return "\n".join(out)
+
+
+def native_isa(robots=("ur5", "panda")):
+    """The default target of each robot compiled portable (the default) and with -march=native
+    (``--native``): instructions per step (callgrind, None without valgrind; with wider vectors
+    native runs fewer) and ns per step and per RHS of each, and the speed-up native / portable
+    (ns: on a shared machine, a single run's ratio moves by 2x; the instruction counts do not).
+
+    Returns
+    -------
+    list of dict, one per robot."""
+    from models import load_robot
+
+    from ..verify import c_programs
+    from ..pipeline.targets_file import default_spec
+    rows = []
+    for name in robots:
+        target, _ = _emit(default_spec(name), Discretization(dt=1e-3))
+        row = {"robot": name}
+        for label, native in (("portable", False), ("native", True)):
+            t = c_programs.time_target(target, native=native)
+            row[f"ns_step_{label}"], row[f"ns_rhs_{label}"] = t["ns_per_step"], t["ns_per_rhs"]
+        for label, native in (("portable", False), ("native", True)):
+            row[f"instructions_{label}"] = _instructions_per_step(target, load_robot(name), 1e-3, native=native)
+        row["speedup_step"] = row["ns_step_portable"] / row["ns_step_native"]
+        row["speedup_rhs"] = row["ns_rhs_portable"] / row["ns_rhs_native"]
+        rows.append(row)
+    return rows
+
+
 SCENARIOS = {"seed000": seed000_loop, "seed003": seed003_ii_ur5, "seed003_aov": seed003_ii_aov_ur5,
-             "seed004": seed004_cg, "sweep_ur5": sweep_ur5, "friction": friction_step}
+             "seed004": seed004_cg, "sweep_ur5": sweep_ur5, "friction": friction_step, "native": native_isa, "scaling": scaling}
 
 
 # ---------------------------------------------------------------------------- report
@@ -432,11 +574,11 @@ def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, 
     Returns 0 (the CLI's exit status)."""
     rows = observer_rhs(robots, native)
     print(f"{'robot':8s} {'RHS ns':>9s} {'step ns':>9s} {'rk4/zoh ns':>11s} {'pin aba ns':>11s} {'RHS/aba':>8s} "
-          f"{'step/aba':>9s} {'step/rk4zoh':>12s}   (step: the default, expmid with first-order hold)")
+          f"{'step/aba':>9s} {'step/rk4zoh':>12s} {'step instr':>11s}   (step: the default, expmid with first-order hold)")
     for r in rows:
         print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_step']:9.1f} {r['ns_rk4_zoh_step']:11.1f} "
               f"{r['ns_pin_aba']:11.1f} {r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f} "
-              f"{r['ratio_step_over_rk4_zoh']:12.3f}")
+              f"{r['ratio_step_over_rk4_zoh']:12.3f} {r['instructions_step'] or 0:11,.0f}")
     extra = {}
     benches = dict(SCENARIOS if scenarios else {}, **({"generate": generate_from_scratch} if generate else {}))
     for name, fn in benches.items():
@@ -447,6 +589,8 @@ def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, 
                                    for k, v in row.items() if not isinstance(v, list)))
             for k, v in ((k, v) for k, v in row.items() if isinstance(v, list)):
                 print("\n".join(f"    {k}: {item}" for item in v))
+        if name == "scaling":
+            print("\n" + scaling_markdown(extra[name]))
     if json_path:
         Path(json_path).write_text(json.dumps({"observer_rhs": rows, "scenarios": extra}, indent=2,
                                               default=float))

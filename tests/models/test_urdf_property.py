@@ -11,7 +11,7 @@ import re
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from codegen.pipeline.emit import _slot_macros
@@ -129,3 +129,89 @@ def test_random_urdf_loads_and_matches_pinocchio_or_is_refused_naming_an_element
     event(f"loaded, n = {robot.n}")
     _matches_pinocchio(robot, path, seed=len(joints))
     _slots_are_unique_identifiers(robot)
+
+
+# ------------------------------------------------------------------ long chains: the design scales
+# Each chain of up to 50 joints is designed (the reduced-order gain, whose sups over
+# configurations grow with n: codegen.families.design.configurations) or refused within a stated
+# CPU budget: CHAIN_BUDGET_S (the design's DESIGN_BUDGET_S set to it) plus one batch of slack.
+CHAIN_BUDGET_S, SLACK_S = 60.0, 5.0
+
+
+@st.composite
+def long_chains(draw, n_min, n_max):
+    """n_min..n_max revolute, continuous or prismatic joints, unaligned axes and placements, good
+    inertials (R diag R^T) with a few absent ones (a massless link: refused or carried)."""
+    n = draw(st.integers(n_min, n_max))
+    joints = []
+    for i in range(n):
+        jtype = draw(st.sampled_from(["revolute", "revolute", "continuous", "prismatic"]))
+        axis = np.array(draw(st.lists(st.floats(0.2, 1.0), min_size=3, max_size=3)))
+        axis *= draw(st.sampled_from([1, -1])) * np.array(draw(st.sampled_from([(1, 1, 1), (1, -1, 1), (-1, 1, 1)])))
+        kind = draw(st.sampled_from(["good"] * 15 + ["none"]))
+        moments = draw(st.lists(st.floats(0.01, 0.2), min_size=3, max_size=3))
+        R = pin.rpy.rpyToMatrix(*draw(st.lists(st.floats(-math.pi, math.pi), min_size=3, max_size=3)))
+        inertia = R @ np.diag(moments) @ R.T
+        values = {k: repr(float(inertia[a, b])) for k, (a, b) in
+                  zip(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)))}
+        com = " ".join(repr(v) for v in draw(st.lists(st.floats(-0.2, 0.2), min_size=3, max_size=3)))
+        mass = None if kind == "none" else repr(draw(st.floats(0.1, 5.0)))
+        xyz, rpy = (" ".join(repr(v) for v in draw(st.lists(st.floats(-r, r), min_size=3, max_size=3)))
+                    for r in (0.3, 3.0))
+        joints.append(Joint(f"j{i}", jtype, Link(f"l{i}", mass=mass, com=com, inertia=values),
+                            axis=" ".join(repr(float(a / np.linalg.norm(axis))) for a in axis), origin=xyz, rpy=rpy))
+    return joints
+
+
+def _designed_or_refused_within_budget(joints, tmp_path, monkeypatch):
+    import time
+
+    from codegen.families.design import configurations
+    from codegen.families.design.reduced_order import reduced_order_gain
+    path = write_chain(tmp_path / "long.urdf", joints)
+    try:
+        robot = load_urdf(path, snap_tol=0.0)
+    except ModelError as e:
+        assert any(repr(j.name) in str(e) or repr(j.child.name) in str(e) for j in joints) or "long" in str(e), str(e)
+        event("refused by the loader")
+        return
+    monkeypatch.setattr(configurations, "DESIGN_BUDGET_S", CHAIN_BUDGET_S)
+    monkeypatch.setenv("CODEGEN_CACHE", str(tmp_path / "cache"))
+    t0 = time.process_time()
+    try:
+        k0 = reduced_order_gain(robot, samples=512, seed=robot.n).k0
+    except configurations.DesignBudgetError as e:
+        assert "--design k0=" in str(e) and "\n" not in str(e)
+        event("refused: over budget")
+    else:
+        assert math.isfinite(k0) and k0 >= 0          # 0: one joint, no Coriolis term
+        event(f"designed, n in {10 * (robot.n // 10)}..{10 * (robot.n // 10) + 9}")
+    assert time.process_time() - t0 <= CHAIN_BUDGET_S + SLACK_S
+
+
+CHAIN_SETTINGS = dict(deadline=None, derandomize=True,
+                      suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+@settings(max_examples=5, **CHAIN_SETTINGS)
+@pytest.mark.slow
+@given(joints=long_chains(1, 10))
+def test_chains_up_to_10_joints_are_designed_or_refused_within_budget(joints, tmp_path, monkeypatch):
+    _designed_or_refused_within_budget(joints, tmp_path, monkeypatch)
+
+
+def _fifty_joints():
+    """50 revolute joints, unaligned axes and placements (the explicit largest example)."""
+    rng = np.random.default_rng(50)
+    txt = lambda x: " ".join(repr(float(e)) for e in x)  # noqa: E731
+    return [Joint(f"j{i}", "revolute", Link(f"l{i}", mass=repr(float(rng.uniform(0.5, 2))), com=txt(rng.uniform(-0.1, 0.1, 3))),
+                  axis=txt(a / np.linalg.norm(a)), origin=txt(rng.uniform(-0.2, 0.2, 3)), rpy=txt(rng.uniform(-3, 3, 3)))
+            for i, a in enumerate(rng.normal(size=(50, 3)))]
+
+
+@settings(max_examples=3, **CHAIN_SETTINGS)
+@pytest.mark.long
+@given(joints=long_chains(11, 50))
+@example(joints=_fifty_joints())
+def test_chains_up_to_50_joints_are_designed_or_refused_within_budget(joints, tmp_path, monkeypatch):
+    _designed_or_refused_within_budget(joints, tmp_path, monkeypatch)
