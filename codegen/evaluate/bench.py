@@ -468,6 +468,13 @@ def scaling(ns=(2, 6, 12, 24, 50), seed=0):
     CPU), bytes of C, instructions per step (callgrind, ``_instructions_per_step``; None without
     valgrind), ns per step and per RHS (timing program) and pinocchio's native ``aba`` (ns).
 
+    Parameters
+    ----------
+    ns : sequence of int
+        Numbers of joints of the chains.
+    seed : int
+        Seeds the chains' drawn geometry and inertials.
+
     Returns
     -------
     list of dict, one per n."""
@@ -539,6 +546,11 @@ def native_isa(robots=("ur5", "panda")):
     (``--native``): instructions per step (callgrind, None without valgrind; with wider vectors
     native runs fewer) and ns per step and per RHS of each, and the speed-up native / portable
     (ns: on a shared machine, a single run's ratio moves by 2x; the instruction counts do not).
+
+    Parameters
+    ----------
+    robots : sequence of str
+        Catalog robots, each with its default target (``default_spec``).
 
     Returns
     -------
