@@ -224,7 +224,7 @@ def cmd_build(args):
     from .jobs import COMPILE
 
     def line(job, row):
-        report = "".join(f"\n  {text}" for text in row["design"].brief(row["params"]))
+        report = "".join(f"\n  {text}" for text in row["design"].brief(row["params"], row.get("stability")))
         return (f"{row['prefix']}: {row['lib']}  ({_times(row, COMPILE)}){report}\n"
                 f"  the full design report: print(codegen.load(\"{row['folder']}\").design)")
 

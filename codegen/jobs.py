@@ -7,6 +7,7 @@ processes, with a progress bar over the stages (what `generate`, `build` and `ch
 """
 from __future__ import annotations
 
+import json
 import multiprocessing as mp
 import os
 import sys
@@ -80,6 +81,9 @@ def make(job, report=lambda stage: None):
     made = make_target(target, job.out, force=job.force, native=job.native, report=stage)
     spec, folder = made.spec, made.folder
     row["params"], row["lib"], row["design"] = spec.params, str(made.lib), spec.design
+    # the stability of what was built (the folder's: after substeps "auto" was resolved), not the
+    # design's own check at the design's discretisation
+    row["stability"] = json.loads((Path(folder) / f"{target.prefix}.json").read_text()).get("stability")
     if "run" in job.stages:
         stage("run")
         row.update(_run(spec, target, folder, Path(row["lib"]), job.options.get("T", 2.0)))

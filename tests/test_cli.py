@@ -239,6 +239,18 @@ def test_build_prints_the_designed_gains_and_why(capsys, workdir):
     assert json.loads(json.dumps(report)) == dict(report)     # still plain JSON data
 
 
+def test_build_prints_the_stability_of_what_it_built(capsys, workdir):
+    """The damped arm's noise-aware gain is unstable under expmid at one sub-step over the default
+    range (the design's own check says so); "auto" makes the built target stable (it declares a
+    shorter dt_max): `build` prints the built target's check, not the design's."""
+    code, out, err = run(capsys, "build", "--urdf", ROOT / "tests" / "data" / "damped_arm.urdf")
+    assert code == 0, err
+    meta = json.loads(next((workdir / "generated").glob("*/*.json")).read_text())
+    assert meta["design"]["stability"]["stable"] is False and meta["stability"]["stable"] is True
+    [line] = [x for x in out.splitlines() if "discrete stability" in x]
+    assert ": stable, spectral radius" in line and "UNSTABLE" not in line, line
+
+
 def test_simulate_list_has_a_line_per_scenario(capsys):
     """`simulate list`: one line per scenario, its name then the paper (or "beyond the paper")
     and the experiment."""

@@ -32,15 +32,17 @@ class DesignReport(dict):
         lines += report_lines({k: v for k, v in self.items() if k not in self.FIRST}, "")
         return "\n".join(lines)
 
-    def brief(self, params):
+    def brief(self, params, stability=None):
         """A few lines for ``build``: the gains ``params`` (name -> value) and why (the design's
-        choice and reason, or that they were given), then what the stability check found."""
+        choice and reason, or that they were given), then what the stability check found: the
+        report ``stability`` of the built target (its metadata's, after substeps "auto" was
+        resolved) when given, else the design's own check."""
         why = ("given (no design)" if self.get("given") else
                ": ".join(str(self[k]) for k in ("choice", "why") if k in self) or
                (str(self["summary"]).splitlines()[0] if "summary" in self else "the family's defaults"))
         gains = ", ".join(f"{k} = {_report_value(v)}" for k, v in params.items()) or "no parameters"
         lines = [f"{gains}: {why}"]
-        st = self.get("stability")
+        st = stability if stability is not None else self.get("stability")
         if isinstance(st, dict) and "stable" in st:
             top = "; ".join(f"{g} stable up to {_report_value(r['max_stable'])}"
                             for g, r in (st.get("gains") or {}).items() if isinstance(r, dict)
