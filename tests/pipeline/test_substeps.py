@@ -123,7 +123,7 @@ def test_auto_is_resolved_before_any_check():
         reference_observer(spec, substeps="auto")
 
 
-@pytest.mark.slow
+@pytest.mark.long           # 1-2 minutes (the gripper arm's stability search): make test-long
 def test_an_unlocked_gripper_is_named_with_the_fix(tmp_path, capsys, monkeypatch):
     """z1 from its URDF without locking jointGripper, at one sub-step: the refusal names the
     gripper joint, the friction on its small inertia (viscous 1 + Coulomb 1 N m over the 0.2 rad/s

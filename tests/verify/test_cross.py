@@ -39,7 +39,8 @@ def test_other_discretizations_match_reference(name, method, substeps, hold, spe
                                           ("lotfi_namvar", "seed002_2r"),
                                           ("su_nonsmooth", "seed002_2r"),
                                           ("ii_speed", "seed003_2r_abs"),
-                                          ("ii_aov", "seed003_2r_abs")])
+                                          # minutes (its quadrature kernel): the long tier
+                                          pytest.param("ii_aov", "seed003_2r_abs", marks=pytest.mark.long)])
 @pytest.mark.slow
 def test_cli_check_works_for_every_rigid_family(family, robot):
     """`python -m codegen check ROBOT --family F` (the generic cross-check with the family's own
