@@ -195,12 +195,34 @@ def _masked(mask, etd, other):
     return D * etd + (1 - D) * other if 0 < sum(mask) < len(mask) else (etd if sum(mask) else other)
 
 
-def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask):
+def model_parts(model):
+    """(configuration, velocity) with model(x, y_cfg, y, u, p) = velocity(x, y_cfg, y, u, p,
+    configuration(y_cfg, p)): the configuration's work (sin/cos, transforms, articulated inertias,
+    M, g) as its own Function, by ``casadi.extract_parametric`` (every largest subexpression of
+    y_cfg and p alone becomes an input of the velocity part)."""
+    x, yc, y, u, p = (ca.SX.sym(name, model.size1_in(i)) for i, name in enumerate(["x", "y_cfg", "y", "u", "p"]))
+    velocity, symbols, parts = ca.extract_parametric(model(x, yc, y, u, p), ca.vertcat(yc, p))
+    e = ca.vertcat(*symbols)
+    return (ca.Function("model_cfg", [yc, p], [ca.vertcat(*parts)], ["y_cfg", "p"], ["cfg"]),
+            ca.Function("model_vel", [x, yc, y, u, p, e], [velocity], ["x", "y_cfg", "y", "u", "p", "cfg"], ["m"]))
+
+
+def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, parts=None):
     """x+ of one "expmid" sub-step (module docstring): the model at the midpoint configuration,
     at the sub-step's start and at its predicted midpoint state, the rest of the flow by
-    ETD-RK4 with the midpoint model held."""
+    ETD-RK4 with the midpoint model held. ``parts``: the model's ``model_parts``, the
+    configuration's part then evaluated once for both calls (MX steps, where the C calls the
+    model instead of inlining it)."""
     y0, y_mid = y_of(t), y_of(t + c / 2)
-    m0 = spec.model(x, y_mid, y0, u, p)
+    if parts is None:
+        def model(xs, ys):
+            return spec.model(xs, y_mid, ys, u, p)
+    else:
+        e = parts[0](y_mid, p)
+
+        def model(xs, ys):
+            return parts[1](xs, y_mid, ys, u, p, e)
+    m0 = model(x, y0)
     if rate is None:
         theta, E, p1 = 0.5, 1, 1
     else:
@@ -211,7 +233,7 @@ def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask):
     D = ca.DM(mask)
     x_mid = _masked(mask, E * x + h / 2 * p1 * (n_theta + (rate if rate is not None else 0) * D * x),
                     x + h / 2 * n_theta)
-    m = spec.model(x_mid, y_mid, y_mid, u, p)
+    m = model(x_mid, y_mid)
     return integrator_step(lambda s, xs: spec.rhs_model(xs, y_of(s), u, p, m), x, t, h, "etdrk4", rate,
                            mask, clock=c)
 
@@ -227,9 +249,10 @@ def _advance(spec, x, y_of, u, p, dt, method, substeps, midpoint=False):
     rate = spec.rate(x, p) if (spec.rate is not None and method in ("etdrk4", "expmid")) else None
     mask = rate_mask(spec)
     split = midpoint and spec.rhs_split is not None
+    parts = model_parts(spec.model) if method == "expmid" and isinstance(x, ca.MX) else None
     for i in range(substeps):
         if method == "expmid":
-            x = _expmid_step(spec, x, y_of, u, p, i / substeps, h, 1 / substeps, rate, mask)
+            x = _expmid_step(spec, x, y_of, u, p, i / substeps, h, 1 / substeps, rate, mask, parts)
             continue
         y_cfg = y_of((i + 0.5) / substeps)
         flow = ((lambda s, xs: spec.rhs_split(xs, y_cfg, y_of(s), u, p)) if split else

@@ -170,16 +170,18 @@ def _model_calls(step):
 
 @pytest.mark.parametrize("substeps", [1, 2])
 def test_expmid_calls_the_model_twice_per_substep(spec_of, substeps):
-    """Calling the spec's functions (the C of a big observer), the expmid step calls the model
-    twice per sub-step (start and predicted midpoint, both at the midpoint configuration) and
-    only the cheap rest of the flow (rhs_model) in the predictor and the four ETD-RK4 stages;
-    the ETD-RK4 step calls the whole flow four times. A family without a model part (the
-    extended-state observer) gets the ETD-RK4 step."""
+    """Calling the spec's functions (the C of a big observer), the expmid step evaluates the
+    model's configuration part once per sub-step and its velocity part twice (start and
+    predicted midpoint, both at the midpoint configuration), and only the cheap rest of the
+    flow (rhs_model) in the predictor and the four ETD-RK4 stages; the ETD-RK4 step calls the
+    whole flow four times. A family without a model part (the extended-state observer) gets
+    the ETD-RK4 step."""
     from codegen.core.target import Discretization
     from codegen.discrete.discretize import discretize
     spec = spec_of("ur5")
     calls = _model_calls(discretize(spec, Discretization(method="expmid", substeps=substeps), inline=False))
-    assert calls.count("model") == 2 * substeps and calls.count("rhs_model") == 5 * substeps
+    assert calls.count("model_cfg") == substeps and calls.count("model_vel") == 2 * substeps
+    assert calls.count("model") == 0 and calls.count("rhs_model") == 5 * substeps
     assert "rhs_split" not in calls and "rhs" not in calls
     etd = _model_calls(discretize(spec, Discretization(substeps=substeps, method="etdrk4"), inline=False))
     assert etd.count("rhs_split") == 4 * substeps
@@ -187,6 +189,23 @@ def test_expmid_calls_the_model_twice_per_substep(spec_of, substeps):
     assert eso.model is None
     same = [discretize(eso, Discretization(method=m), inline=True) for m in ("expmid", "etdrk4")]
     assert same[0].n_instructions() == same[1].n_instructions()
+
+
+def test_model_parts_equal_the_model(spec_of):
+    """The model split into its configuration part (once per sub-step) and its velocity part
+    gives the model's own value; the configuration part sees only y_cfg and p."""
+    from codegen.discrete.discretize import model_parts
+    spec = spec_of("ur5")
+    cfg, vel = model_parts(spec.model)
+    assert cfg.name_in() == ["y_cfg", "p"]
+    rng = np.random.default_rng(0)
+    n = spec.robot.n
+    for _ in range(5):
+        x, yc, y, u = (rng.normal(size=n) for _ in range(4))
+        p = spec.p_default
+        whole = np.asarray(spec.model(x, yc, y, u, p)).ravel()
+        split = np.asarray(vel(x, yc, y, u, p, cfg(yc, p))).ravel()
+        assert np.allclose(split, whole, rtol=1e-14, atol=1e-14 * np.abs(whole).max())
 
 
 def test_expmid_step_is_exact_with_the_model_held():
