@@ -1,6 +1,6 @@
 // pin_aba: time pinocchio's own aba, rnea and crba on a URDF model.
 //
-// Usage: pin_aba [--blocks=N] [--block-ms=MS] [--seed=S] <urdf> [locked_joint[=value] ...]
+// Usage: pin_aba [--blocks=N] [--block-ms=MS] [--seed=S] [--calls=N] <urdf> [locked_joint[=value] ...]
 //
 // Locked joints are removed with pinocchio::buildReducedModel and held at the
 // neutral configuration (0 for revolute and prismatic joints), or at `value` when
@@ -8,7 +8,9 @@
 // drawn once from a fixed seed (q uniform in [-1, 1] then normalized, v and tau
 // uniform in [-1, 1]).  Each algorithm is timed as the median over `blocks`
 // blocks of calls, each block sized to take about `block-ms` milliseconds,
-// after a warm-up.  Prints one JSON line on stdout.
+// after a warm-up.  Prints one JSON line on stdout.  With --calls=N it only calls
+// aba N times, untimed (for an instruction counter: callgrind's totals at two N
+// differ by (N2 - N1) calls, the model loading cancels).
 //
 // Built with PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION (the default, as a CMake
 // user of pinocchio::pinocchio gets it) the algorithms run from the wheel's
@@ -134,6 +136,7 @@ int main(int argc, char ** argv)
   int blocks = 51;
   double block_ms = 15.0;
   unsigned seed = 12345u;
+  long calls = 0;
   std::vector<std::string> positional;
   for (int i = 1; i < argc; ++i)
   {
@@ -144,6 +147,8 @@ int main(int argc, char ** argv)
       block_ms = std::atof(a + 11);
     else if (std::strncmp(a, "--seed=", 7) == 0)
       seed = static_cast<unsigned>(std::strtoul(a + 7, nullptr, 10));
+    else if (std::strncmp(a, "--calls=", 8) == 0)
+      calls = std::atol(a + 8);
     else if (std::strncmp(a, "--", 2) == 0)
     {
       std::fprintf(stderr, "pin_aba: unknown option '%s'\n", a);
@@ -240,6 +245,17 @@ int main(int argc, char ** argv)
   // Eigen::Ref arguments match the explicit instantiations of the library.
   typedef Eigen::Ref<const Eigen::VectorXd> CRef;
   const CRef rq(q), rv(v), rtau(tau), ra(a);
+
+  if (calls > 0)
+  {
+    for (long i = 0; i < calls; ++i)
+    {
+      pinocchio::aba(model, data, rq, rv, rtau, pinocchio::Convention::LOCAL);
+      g_sink = g_sink + data.ddq[0];
+    }
+    std::printf("{\"calls\": %ld, \"nv\": %d, \"pin_mode\": \"%s\"}\n", calls, model.nv, kPinMode);
+    return 0;
+  }
 
   const Timing t_aba = time_median(
     [&]() {

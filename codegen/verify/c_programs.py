@@ -302,6 +302,29 @@ def time_pin(urdf, locked_joints=(), blocks=51, block_ms=15.0, work_dir=None, mo
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+def pin_aba_instructions(urdf, locked_joints=(), calls=(200, 1200), work_dir=None):
+    """Instructions per pinocchio ``aba`` call on ``urdf`` (valgrind's callgrind on
+    ``pin_aba --calls=N`` at the two ``calls``: the difference of the totals over the
+    difference of the calls, loading and start-up cancel); None without valgrind.
+    ``locked_joints`` as :func:`time_pin`."""
+    import re
+    import shutil
+    import tempfile
+    if shutil.which("valgrind") is None:
+        return None
+    exe = compile_pin_bench(work_dir)
+    args = ([f"{k}={float(v)!r}" for k, v in locked_joints.items()] if isinstance(locked_joints, dict)
+            else [str(k) for k in ((locked_joints,) if isinstance(locked_joints, str) else locked_joints)])
+    totals = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in calls:
+            out = Path(tmp) / f"cg{n}.out"
+            _run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", str(exe), f"--calls={int(n)}",
+                  resolve_urdf(urdf), *args], "pin_aba under callgrind")
+            totals.append(int(re.search(r"^summary:\s+(\d+)", out.read_text(), re.M).group(1)))
+    return (totals[1] - totals[0]) / (calls[1] - calls[0])
+
+
 # --------------------------------------------------------------------------------------------
 # CSV files
 

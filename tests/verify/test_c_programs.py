@@ -6,6 +6,7 @@ advances over the time to the next sample), so these tests depend on nothing but
 and a C compiler."""
 import json
 import subprocess
+import shutil
 
 import numpy as np
 import pytest
@@ -307,3 +308,17 @@ def test_pin_bench():
     with pytest.raises(c_programs.HarnessError, match="no joint named 'nope'"):
         c_programs.time_pin("robots/panda_description/urdf/panda.urdf", ["nope"], blocks=1,
                          block_ms=1)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(PIN_MISSING is not None or shutil.which("valgrind") is None,
+                    reason="pin_aba cannot be built or no valgrind")
+def test_pin_aba_instructions_per_call():
+    """callgrind's count per aba call does not depend on the numbers of calls it is taken from
+    (the program's loading cancels), and grows with the joints (panda 7, ur5 6)."""
+    panda = "robots/panda_description/urdf/panda.urdf"
+    fingers = ["panda_finger_joint1", "panda_finger_joint2"]
+    a = c_programs.pin_aba_instructions(panda, fingers, calls=(50, 250))
+    b = c_programs.pin_aba_instructions(panda, fingers, calls=(250, 650))
+    assert a == pytest.approx(b, rel=0.01)
+    assert c_programs.pin_aba_instructions("robots/ur_description/urdf/ur5_robot.urdf", calls=(50, 250)) < a
