@@ -100,9 +100,9 @@ def observer_rhs(robots=("ur5", "panda"), native=False):
     -------
     list of dict
         robot, ns_rhs, ns_step (default), ns_rk4_zoh_step, ns_pin_aba and the ratios RHS/aba,
-        step/aba and step/(RK4 zoh step); instructions_step and instructions_pin_aba, the
-        default step's and pinocchio aba's instructions per call (callgrind; None without
-        valgrind) and their ratio.
+        step/aba and step/(RK4 zoh step); instructions_step, instructions_rhs and
+        instructions_pin_aba, the default step's, the RHS's and pinocchio aba's instructions per
+        call (callgrind; None without valgrind) and the ratios to aba's.
     """
     from models import load_robot
 
@@ -120,15 +120,19 @@ def observer_rhs(robots=("ur5", "panda"), native=False):
         pin = c_programs.time_pin(src["path"], list(src.get("locked_joints", {})))
         ours = ns["default"]
         instructions = _instructions_per_step(_emit(spec, Discretization(dt=1e-3))[0], load_robot(name), 1e-3)
+        per_call = c_programs.instructions_per_call(_emit(spec, Discretization(dt=1e-3))[0]) or {}
         pin_instructions = c_programs.pin_aba_instructions(src["path"], list(src.get("locked_joints", {})))
         rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_step": ours["ns_per_step"],
                      "ns_rk4_zoh_step": ns["rk4_zoh"]["ns_per_step"], "ns_pin_aba": pin["ns_aba"],
                      "ratio_rhs_over_aba": ours["ns_per_rhs"] / pin["ns_aba"],
                      "ratio_step_over_aba": ours["ns_per_step"] / pin["ns_aba"],
                      "ratio_step_over_rk4_zoh": ours["ns_per_step"] / ns["rk4_zoh"]["ns_per_step"],
-                     "instructions_step": instructions, "instructions_pin_aba": pin_instructions,
+                     "instructions_step": instructions, "instructions_rhs": per_call.get("rhs"),
+                     "instructions_pin_aba": pin_instructions,
                      "ratio_instructions_step_over_aba": instructions and pin_instructions
-                     and instructions / pin_instructions})
+                     and instructions / pin_instructions,
+                     "ratio_instructions_rhs_over_aba": per_call.get("rhs") and pin_instructions
+                     and per_call["rhs"] / pin_instructions})
     return rows
 
 
@@ -470,8 +474,9 @@ def scaling(ns=(2, 6, 12, 24, 50), seed=0):
     and of the whole design (``observers.build`` with an empty design cache, the noise-aware gain
     and the stability check included), of emit and of the compile (fresh compile cache, the compiler's
     CPU), bytes of C, instructions per step (callgrind, ``_instructions_per_step``; None without
-    valgrind), ns per step and per RHS (timing program) and pinocchio's native ``aba`` (ns, and
-    instructions per call by callgrind).
+    valgrind), instructions per RHS and step/RHS in instructions (``instructions_per_call``), ns per
+    step and per RHS (timing program) and pinocchio's native ``aba`` (ns, and instructions per call by
+    callgrind).
 
     Parameters
     ----------
@@ -525,10 +530,12 @@ def scaling(ns=(2, 6, 12, 24, 50), seed=0):
             except CompileError:          # no Eigen headers: `make bench` installs them (.[bench])
                 pin_ns = pin_instructions = None
             step_instructions = _instructions_per_step(target, robot, 1e-3)
+            per_call = c_programs.instructions_per_call(target) or {}
             rows.append({"n": n, "sups_s": round(t_sups, 2), "design_s": round(t_design, 2), "emit_s": round(t_emit, 2),
                          "compile_s": round(cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime, 2),
                          "c_bytes": c_bytes, "step_instructions": step_instructions,
-                         "pin_aba_instructions": pin_instructions,
+                         "pin_aba_instructions": pin_instructions, "rhs_instructions": per_call.get("rhs"),
+                         "step_over_rhs_instructions": per_call.get("rhs") and per_call["step"] / per_call["rhs"],
                          "step_over_aba_instructions": step_instructions and pin_instructions
                          and step_instructions / pin_instructions,
                          "ns_step": timing["ns_per_step"], "ns_rhs": timing["ns_per_rhs"],
@@ -539,16 +546,19 @@ def scaling(ns=(2, 6, 12, 24, 50), seed=0):
 
 def scaling_markdown(rows):
     """The ``scaling`` rows as a markdown table (the README's bench section)."""
-    out = ["| n | sups s | design s | emit s | compile s | C kB | step instr | pin aba instr | step ns | RHS ns "
-           "| pin aba ns | step/RHS | step/aba (ns) | step/aba (instr) |", "|---" * 14 + "|"]
+    out = ["| n | sups s | design s | emit s | compile s | C kB | step instr | RHS instr | pin aba instr "
+           "| step/RHS (instr) | step/aba (instr) | step ns | RHS ns | pin aba ns | step/RHS (ns) | step/aba (ns) |",
+           "|---" * 16 + "|"]
     for r in rows:
         def fmt(x, f):
             return "-" if x is None else format(x, f)
         out.append(f"| {r['n']} | {r['sups_s']:.2f} | {r['design_s']:.2f} | {r['emit_s']:.2f} | {r['compile_s']:.1f} | "
                    f"{r['c_bytes'] / 1e3:.0f} | {fmt(r['step_instructions'], ',.0f')} | "
-                   f"{fmt(r.get('pin_aba_instructions'), ',.0f')} | {r['ns_step']:.0f} | "
+                   f"{fmt(r.get('rhs_instructions'), ',.0f')} | {fmt(r.get('pin_aba_instructions'), ',.0f')} | "
+                   f"{fmt(r.get('step_over_rhs_instructions'), '.2f')} | "
+                   f"{fmt(r.get('step_over_aba_instructions'), '.2f')} | {r['ns_step']:.0f} | "
                    f"{r['ns_rhs']:.0f} | {fmt(r['ns_pin_aba'], '.0f')} | {r['step_over_rhs']:.2f} | "
-                   f"{fmt(r['step_over_aba'], '.2f')} | {fmt(r.get('step_over_aba_instructions'), '.2f')} |")
+                   f"{fmt(r['step_over_aba'], '.2f')} |")
     return "\n".join(out)
 
 
@@ -597,13 +607,16 @@ def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, 
     Returns 0 (the CLI's exit status)."""
     rows = observer_rhs(robots, native)
     print(f"{'robot':8s} {'RHS ns':>9s} {'step ns':>9s} {'rk4/zoh ns':>11s} {'pin aba ns':>11s} {'RHS/aba':>8s} "
-          f"{'step/aba':>9s} {'step/rk4zoh':>12s} {'step instr':>11s} {'aba instr':>10s} {'ratio':>6s}"
+          f"{'step/aba':>9s} {'step/rk4zoh':>12s} {'step instr':>11s} {'RHS instr':>10s} {'aba instr':>10s} "
+          f"{'step/aba':>9s} {'RHS/aba':>8s}"
           "   (step: the default, expmid with first-order hold)")
     for r in rows:
         print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_step']:9.1f} {r['ns_rk4_zoh_step']:11.1f} "
               f"{r['ns_pin_aba']:11.1f} {r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f} "
               f"{r['ratio_step_over_rk4_zoh']:12.3f} {r['instructions_step'] or 0:11,.0f} "
-              f"{r['instructions_pin_aba'] or 0:10,.0f} {r['ratio_instructions_step_over_aba'] or 0:6.3f}")
+              f"{r['instructions_rhs'] or 0:10,.0f} {r['instructions_pin_aba'] or 0:10,.0f} "
+              f"{r['ratio_instructions_step_over_aba'] or 0:9.3f} {r['ratio_instructions_rhs_over_aba'] or 0:8.3f}")
+    print("(the last four columns: instructions per call, valgrind; the others: ns, this run's clock)")
     extra = {}
     benches = dict(SCENARIOS if scenarios else {}, **({"generate": generate_from_scratch} if generate else {}))
     for name, fn in benches.items():

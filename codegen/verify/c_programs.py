@@ -184,6 +184,51 @@ def time_target(target_dir, blocks=51, block_ms=15.0, work_dir=None, native=Fals
     return res
 
 
+def callgrind_calls(text, functions):
+    """{function: (calls, inclusive instructions)} of a callgrind output file's text: the call
+    edges into each named function summed over its callers (``calls=N`` lines and the cost line
+    after each, callees included). Names are matched exactly (C symbols) after callgrind's
+    ``(id) name`` compression."""
+    names, out, callee = {}, {f: [0, 0] for f in functions}, None
+    lines = text.splitlines()
+    for i, line in enumerate(lines):
+        if line.startswith("cfn="):
+            m = re.match(r"cfn=\((\d+)\)(?: (.*))?", line)
+            if m.group(2):
+                names[m.group(1)] = m.group(2)
+            callee = names.get(m.group(1))
+        elif line.startswith("calls=") and callee in out:
+            out[callee][0] += int(line[6:].split()[0])
+            out[callee][1] += int(lines[i + 1].split()[-1])
+        elif line.startswith("fn="):
+            m = re.match(r"fn=\((\d+)\)(?: (.*))?", line)
+            if m and m.group(2):
+                names[m.group(1)] = m.group(2)
+    return {f: tuple(v) for f, v in out.items()}
+
+
+def instructions_per_call(target_dir, work_dir=None, native=False):
+    """Instructions per ``<prefix>_step`` and per ``<prefix>_rhs`` call of a target (callgrind on
+    the timing program at its smallest blocks, callees such as libm included; the inputs
+    are the program's table of smooth signals); None without valgrind. Returns
+    {"step": ..., "rhs": ..., "calls_step": ..., "calls_rhs": ...}."""
+    import shutil
+    import tempfile
+    if shutil.which("valgrind") is None:
+        return None
+    prefix = target_info(target_dir)[0]
+    exe = compile_harness(target_dir, work_dir, native=native)["time_step"]
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "cg.out"
+        _run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", str(exe), "--blocks=1",
+              "--block-ms=0.001"], "time_step under callgrind")
+        counts = callgrind_calls(out.read_text(), [f"{prefix}_step", f"{prefix}_rhs"])
+    (ns, cs), (nr, cr) = counts[f"{prefix}_step"], counts[f"{prefix}_rhs"]
+    if not ns or not nr:
+        raise HarnessError(f"callgrind saw no call of {prefix}_step or {prefix}_rhs")
+    return {"step": cs / ns, "rhs": cr / nr, "calls_step": ns, "calls_rhs": nr}
+
+
 # --------------------------------------------------------------------------------------------
 # pinocchio peer benchmark
 

@@ -322,3 +322,26 @@ def test_pin_aba_instructions_per_call():
     b = c_programs.pin_aba_instructions(panda, fingers, calls=(250, 650))
     assert a == pytest.approx(b, rel=0.01)
     assert c_programs.pin_aba_instructions("robots/ur_description/urdf/ur5_robot.urdf", calls=(50, 250)) < a
+
+
+def test_callgrind_calls_reads_compressed_call_edges():
+    """Call edges into a function are summed over its callers, names given once and then
+    referred to by their (id), the cost line after ``calls=`` being the inclusive cost."""
+    text = "\n".join([
+        "events: Ir", "fn=(1) main", "0 10",
+        "cfn=(2) obs_step", "calls=3 0", "0 300",
+        "cfn=(3) obs_rhs", "calls=2 0", "0 50",
+        "fn=(2)", "0 40", "cfn=(3)", "calls=3 0", "0 75",
+        "fn=(4) other", "cfn=(2)", "calls=1 0", "0 100"])
+    got = c_programs.callgrind_calls(text, ["obs_step", "obs_rhs", "absent"])
+    assert got == {"obs_step": (4, 400), "obs_rhs": (5, 125), "absent": (0, 0)}
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="no valgrind")
+def test_instructions_per_call(fake, exe):
+    """The fake observer's step evaluates its RHS once (inlined by the compiler, so only the
+    timing loop's RHS calls are edges): per call, the step costs more than the RHS."""
+    d, build = fake
+    got = c_programs.instructions_per_call(d, work_dir=build)
+    assert got["calls_step"] > 0 and got["calls_rhs"] > 0
+    assert 0 < got["rhs"] < got["step"]
