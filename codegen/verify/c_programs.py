@@ -185,10 +185,10 @@ def time_target(target_dir, blocks=51, block_ms=15.0, work_dir=None, native=Fals
 
 
 def callgrind_calls(text, functions):
-    """{function: (calls, inclusive instructions)} of a callgrind output file's text: the call
-    edges into each named function summed over its callers (``calls=N`` lines and the cost line
-    after each, callees included). Names are matched exactly (C symbols) after callgrind's
-    ``(id) name`` compression."""
+    """{function: (calls, inclusive instructions)} of a callgrind output file's ``text``: the call
+    edges into each of the ``functions`` (C symbol names, matched exactly after callgrind's
+    ``(id) name`` compression) summed over its callers (``calls=N`` lines and the cost line after
+    each, callees included)."""
     names, out, callee = {}, {f: [0, 0] for f in functions}, None
     lines = text.splitlines()
     for i, line in enumerate(lines):
@@ -208,9 +208,10 @@ def callgrind_calls(text, functions):
 
 
 def instructions_per_call(target_dir, work_dir=None, native=False):
-    """Instructions per ``<prefix>_step`` and per ``<prefix>_rhs`` call of a target (callgrind on
-    the timing program at its smallest blocks, callees such as libm included; the inputs
-    are the program's table of smooth signals); None without valgrind. Returns
+    """Instructions per ``<prefix>_step`` and per ``<prefix>_rhs`` call of the target in
+    ``target_dir`` (callgrind on the timing program at its smallest blocks, callees such as libm
+    included; the inputs are the program's table of smooth signals); ``work_dir``, ``native``:
+    as in :func:`compile_harness`. None without valgrind, else
     {"step": ..., "rhs": ..., "calls_step": ..., "calls_rhs": ...}."""
     import shutil
     import tempfile
@@ -351,7 +352,7 @@ def pin_aba_instructions(urdf, locked_joints=(), calls=(200, 1200), work_dir=Non
     """Instructions per pinocchio ``aba`` call on ``urdf`` (valgrind's callgrind on
     ``pin_aba --calls=N`` at the two ``calls``: the difference of the totals over the
     difference of the calls, loading and start-up cancel); None without valgrind.
-    ``locked_joints`` as :func:`time_pin`."""
+    ``locked_joints`` as :func:`time_pin`; ``work_dir``: as in :func:`compile_pin_bench`."""
     import re
     import shutil
     import tempfile
