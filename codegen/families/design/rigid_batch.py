@@ -173,33 +173,27 @@ class TreeBatch:
         For j <= k (the only non-zero pairs with k <= j, by symmetry), with a = the deeper of i
         and k (0 unless one is the other's ancestor):
             B(e_j, e_k)_i = S_i . (IC_a (S_j x S_k) + S_j x* IC_a S_k + S_k x* IC_a S_j) / 2
+                          = (Y_ai . X_jk - X_ji . Y_ak - X_ki . Y_aj) / 2,
+            X_jk = S_j x S_k,  Y_ak = IC_a S_k                  (m . (s x* f) = -(s x m) . f)
         (the RNEA of the module docstring with v = e_j, w = e_k: A = (S_j x S_k) / 2 on the
         bodies i >= k, and the symmetrised velocity product on the same bodies). n^3 entries and
         O(n^3) work per configuration: for small n."""
         n = self.n
-        Sj, IC = self._spatial()
-
-        w, v = Sj[..., :3].transpose(2, 0, 1), Sj[..., 3:].transpose(2, 0, 1)   # (3, S, n)
-        F = np.einsum("smab,skb->asmk", IC, Sj)                             # IC_m S_k: (6, S, m, k)
-        Xw = cross(w[:, :, :, None], w[:, :, None, :])                      # S_j x S_k: (3, S, j, k)
-        Xv = cross(w[:, :, :, None], v[:, :, None, :]) + cross(v[:, :, :, None], w[:, :, None, :])
-        X = np.concatenate([Xw, Xv]).reshape(6, self.S, n * n).transpose(1, 0, 2)
-        G = (IC @ X[:, None]).reshape(self.S, n, 6, n, n).transpose(2, 0, 1, 3, 4)   # (6, S, m, j, k)
-        for (wj, vj), (fw, fv) in ((((w[:, :, None, :, None], v[:, :, None, :, None]),   # S_j x* IC_m S_k
-                                     (F[:3, :, :, None, :], F[3:, :, :, None, :]))),
-                                   (((w[:, :, None, None, :], v[:, :, None, None, :]),   # S_k x* IC_m S_j
-                                     (F[:3, :, :, :, None], F[3:, :, :, :, None])))):
-            G[:3] += cross(wj, fw) + cross(vj, fv)
-            G[3:] += cross(wj, fv)
-        G = G.transpose(1, 2, 3, 4, 0)                                      # (S, m, j, k, 6)
-        # a(i, k): k if i <= k, i if k < i, none otherwise
+        Sj, IC = self._spatial()                                            # (S, n, 6), (S, n, 6, 6)
+        w, v = Sj[..., None, :, :3], Sj[..., None, :, 3:]                   # S_k on axis 2
+        wj, vj = Sj[..., :, None, :3], Sj[..., :, None, 3:]                 # S_j on axis 1
+        X = np.concatenate([np.cross(wj, w), np.cross(wj, v) + np.cross(vj, w)], -1)   # (S, j, k, 6)
+        Y = IC @ Sj.transpose(0, 2, 1)[:, None]                             # (S, m, 6, k): IC_m S_k
         a = np.where(self.anc, np.arange(n)[None, :], np.arange(n)[:, None])   # a[i, k]
-        related = self.anc | self.anc.T
-        jk = self.anc                                                       # j <= k
         idx = np.arange(n)
-        H = G[:, a[:, None, :], idx[None, :, None], idx[None, None, :]]      # G[a(i, k), j, k]
-        T = 0.5 * np.einsum("sid,sijkd->sijk", Sj, H)
-        T = T * (jk[None, None] & related.T[None, :, None, :])
+        Yt = Y.transpose(0, 1, 3, 2)                                        # (S, m, k, 6)
+        ai = Yt[:, a, idx[:, None]]                                         # [s, i, k] = Y_{a(i,k) i}
+        ak = Yt[:, a, idx[None, :]]                                         # [s, i, k] = Y_{a(i,k) k}
+        aj = Y[:, a]                                                        # [s, i, k, :, j] = Y_{a(i,k) j}
+        T = (np.einsum("sikd,sjkd->sijk", ai, X) - np.einsum("sjid,sikd->sijk", X, ak)
+             - np.einsum("skid,sikdj->sijk", X, aj))
+        related = self.anc | self.anc.T
+        T *= 0.5 * (self.anc[None, None] & related.T[None, :, None, :])
         return T + T.transpose(0, 1, 3, 2) * (1 - np.eye(n))[None, None]
 
     def coriolis_products(self, rows, v):
