@@ -116,6 +116,45 @@ def test_c0_from_the_tree_equals_c0_from_the_christoffel_slices(n, tmp_path):
         assert np.all(c0 <= want * (1 + 1e-9)) and np.all(c0 >= 0.98 * want), np.c_[c0, want]
 
 
+def test_the_ascent_iterates_every_configuration_together(monkeypatch, tmp_path):
+    """Issue 23: c0's ascent beyond TENSOR_MAX joints iterates all configurations at once, the
+    memory bound splitting the pairs of each iteration into blocks, not the configurations into
+    chunks each iterated to the end (chunks x iterations calls: 5,316 calls of a few pairs each
+    for the 513 samples of a 50-joint chain); the blocks do not change c0."""
+    n, S = 9, 24
+    robot = load_urdf(write_chain(tmp_path / "c.urdf", _unaligned_chain(n, seed=4, types=("revolute",))))
+    model = cf.dynamics_model(robot)
+    batch = model.batch(cf.sample_points(robot, S - 1, 0))
+    whole = cf.c0_ascent(batch.coriolis_products, S, n, tol=1e-10, unit_starts=cf.LARGE_UNIT_STARTS, prune=True)
+    monkeypatch.setattr(cf, "MEMORY_BYTES", model.pair_bytes * n * 4)      # 4 n pairs a call
+    calls = []
+
+    def products(rows, v):
+        calls.append(np.asarray(rows).copy())
+        return batch.coriolis_products(rows, v)
+    c0, v = cf.c0_ascent(products, S, n, tol=1e-10, unit_starts=cf.LARGE_UNIT_STARTS, prune=True)
+    assert all(len(r) <= 4 * n for r in calls)
+    starts = S * (cf.LARGE_UNIT_STARTS + 2)
+    first = np.concatenate(calls[S // 4:S // 4 + -(-starts // (4 * n))])    # after the unit-vector choice
+    assert np.array_equal(np.unique(first), np.arange(S))
+    np.testing.assert_allclose(c0, whole[0], rtol=1e-15)
+    np.testing.assert_allclose(v, whole[1], rtol=0, atol=1e-15)
+
+
+def test_the_c0_sup_does_not_evaluate_the_mass_matrix(robot, monkeypatch):
+    """The sup of c0 (``extremes``' third) needs no lambda(M): ``at(..., eig=False)`` returns None
+    for them and never forms M(q)."""
+    stats = cf.ConfigurationStats.__new__(cf.ConfigurationStats)
+    stats.robot, stats._model, stats._budget = robot, cf.dynamics_model(robot), cf._Budget(robot, 600)
+    pts = cf.sample_points(robot, 6, 0)
+    full = stats.at(pts)
+    monkeypatch.setattr(TreeBatch, "mass_matrix", lambda *a, **k: pytest.fail("M(q) formed"))
+    lmin, lmax, c0, v = stats.at(pts, eig=False)
+    assert lmin is None and lmax is None
+    np.testing.assert_array_equal(c0, full[2])
+    np.testing.assert_array_equal(v, full[3])
+
+
 @pytest.mark.slow
 def test_fifty_joint_c0_stays_within_the_memory_bound(tmp_path):
     """F21 (issue 22): the former design allocated 24.8 GiB for 50 joints (the Christoffel tensor
