@@ -245,14 +245,24 @@ def _ascent(products, configs, starts, iters, tol, prune=False, budget=None):
 
 def tensor_products(T):
     """The ``c0_ascent`` products of a Christoffel tensor T (S, n, n, n), T[s, i, j, k] = C(q_s, e_k)_ij:
-    C(q, v) = sum_k T[:, :, k] v_k, then C v and C^T C v (2 n^3 per product: small n)."""
+    C(q, v) = sum_k T[:, :, k] v_k, then C v and C^T C v (2 n^3 per product: small n). The pairs
+    of one configuration share one product T_s [v_1 .. v_m] (no copy of T_s per pair)."""
     S, n = T.shape[:2]
     T = np.asarray(T, dtype=float).reshape(S, n * n, n)
 
     def products(rows, v):
-        C = (T[rows] @ v[:, :, None]).reshape(len(v), n, n)
-        c = (C @ v[:, :, None])[:, :, 0]
-        return c, (C.transpose(0, 2, 1) @ c[:, :, None])[:, :, 0]
+        rows = np.asarray(rows)
+        order = np.argsort(rows, kind="stable")
+        u, first, inv = np.unique(rows[order], return_index=True, return_inverse=True)
+        slot = np.empty(len(rows), dtype=int)
+        slot[order] = np.arange(len(rows)) - first[inv]                  # the pair's column in its group
+        group = np.empty(len(rows), dtype=int)
+        group[order] = inv
+        V = np.zeros((len(u), n, slot.max() + 1))
+        V[group, :, slot] = v
+        C = (T[u] @ V)[group, :, slot].reshape(len(v), n, n)              # C(q, v) of each pair
+        c = np.einsum("pij,pj->pi", C, v)
+        return c, np.einsum("pij,pi->pj", C, c)
     return products
 
 
@@ -303,9 +313,10 @@ class _SymbolicModel:
         S, n = len(Q), self.n
         return np.asarray(self._map(self._M, Q.T)(Q.T)).reshape(n, S, n).transpose(1, 0, 2)
 
-    def christoffel(self):
-        S, n = len(self.Q), self.n
-        sl = np.asarray(self._map(self._T, self.Q.T)(self.Q.T)).reshape(n, S, n, n)   # [i, s, k, j]
+    def christoffel(self, rows=slice(None)):
+        Q = self.Q[rows]
+        S, n = len(Q), self.n
+        sl = np.asarray(self._map(self._T, Q.T)(Q.T)).reshape(n, S, n, n)   # [i, s, k, j]
         return sl.transpose(1, 0, 3, 2)
 
     def coriolis_products(self, rows, v):
@@ -321,7 +332,7 @@ class _TreeModel:
     def __init__(self, robot):
         self.tree, n = robot.tree, robot.n
         self.pair_bytes, self.kin_bytes = 1600 * n, 8 * 40 * n
-        self.config_bytes = 8 * (60 * n + 40 * n * n + (16 * n ** 4 if n <= TENSOR_MAX else 0))
+        self.config_bytes = 8 * (60 * n + 40 * n * n + (16 * n ** 3 if n <= TENSOR_MAX else 0))
         self.pair_block = max(1, PAIR_ELEMENTS // n)
 
     def batch(self, Q):
@@ -356,16 +367,15 @@ class ConfigurationStats:
         """(lambda_min, lambda_max, c0, c0's maximiser v) at each row of pts, c0 from
         ``starts`` (default: unit vectors and random ones; None, None when ``c0`` is False) to
         relative tolerance ``tol``, lambda(M) unless ``eig`` is False (then None, None); pts (m, n)
-        rad, results (m,) each and v (m, n). Memory below MEMORY_BYTES: configurations in chunks,
-        beyond TENSOR_MAX joints the pairs of c0's ascent in blocks (``c0_ascent``)."""
+        rad, results (m,) each and v (m, n). Memory below MEMORY_BYTES: configurations in chunks
+        (their kinematics, the ascent's state, up to TENSOR_MAX joints their tensor), M(q) and the
+        tensor's temporaries in sub-chunks, the ascent's pairs in blocks (``c0_ascent``), all
+        pairs of a chunk iterated together."""
         pts = np.atleast_2d(np.asarray(pts, dtype=float))
         model, n = self._model, self.robot.n
         tensor = n <= TENSOR_MAX
         m = n + 2 if starts is None else np.shape(starts)[-2] if np.ndim(starts) > 1 else 1
-        if tensor:          # the tensor of each configuration and its ascent's pairs
-            chunk = int(MEMORY_BYTES // (model.config_bytes + (model.pair_bytes * m if c0 else 0)))
-        else:               # kinematics and the ascent's state; M (n^2) in sub-chunks
-            chunk = int(MEMORY_BYTES // (model.kin_bytes + 32 * m * n))
+        chunk = int(MEMORY_BYTES // (model.kin_bytes + 32 * m * n + (8 * n ** 3 if c0 and tensor else 0)))
         sub = max(1, int(MEMORY_BYTES // model.config_bytes))
         out = [np.empty(len(pts)) for _ in range(3)] + [np.empty((len(pts), n))]
         for lo in range(0, len(pts), max(1, chunk)):
@@ -377,8 +387,9 @@ class ConfigurationStats:
                 out[0][lo + a:lo + a + len(lam)], out[1][lo + a:lo + a + len(lam)] = lam[:, 0], lam[:, -1]
             part = starts[lo:hi] if starts is not None and np.ndim(starts) == 3 else starts
             if c0 and tensor:
+                T = np.concatenate([batch.christoffel(slice(a, min(hi - lo, a + sub))) for a in range(0, hi - lo, sub)])
                 out[2][lo:hi], out[3][lo:hi] = c0_ascent(
-                    tensor_products(batch.christoffel()), hi - lo, n, part, tol=tol,
+                    tensor_products(T), hi - lo, n, part, tol=tol,
                     pair_bytes=16 * n ** 3, budget=self._budget)
             elif c0:
                 out[2][lo:hi], out[3][lo:hi] = c0_ascent(

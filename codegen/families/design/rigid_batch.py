@@ -140,10 +140,11 @@ class TreeBatch:
         return self._ancf @ x
 
     # ------------------------------------------------------------ spatial algebra
-    def _spatial(self):
-        """(S_j (S, n, 6), the composite inertias IC_k = sum_{i >= k} I_i (S, n, 6, 6)), world
-        frame, motion (w, v) and force (moment, force) coordinates: I_i = [[J, h x], [-h x, m]]."""
-        J6, h = self.J6.transpose(2, 1, 0), self.hm.transpose(2, 1, 0)     # (S, n, 6), (S, n, 3)
+    def _spatial(self, rows=slice(None)):
+        """(S_j (S, n, 6), the composite inertias IC_k = sum_{i >= k} I_i (S, n, 6, 6)) at the
+        configurations ``rows``, world frame, motion (w, v) and force (moment, force) coordinates:
+        I_i = [[J, h x], [-h x, m]]."""
+        J6, h = self.J6[..., rows].transpose(2, 1, 0), self.hm[..., rows].transpose(2, 1, 0)   # (S, n, 6), (S, n, 3)
         J = J6[..., [[0, 3, 4], [3, 1, 5], [4, 5, 2]]]
         hx = np.zeros(h.shape + (3,))
         hx[..., 0, 1], hx[..., 0, 2], hx[..., 1, 2] = -h[..., 2], h[..., 1], -h[..., 0]
@@ -152,7 +153,7 @@ class TreeBatch:
         I6 = np.concatenate([np.concatenate([J, hx], -1),
                              np.concatenate([-hx, np.broadcast_to(mm * np.eye(3), J.shape)], -1)], -2)
         IC = np.einsum("ik,skab->siab", self._ancf, I6)                   # sum over descendants
-        return np.concatenate([self.sw, self.sv]).transpose(2, 1, 0), IC
+        return np.concatenate([self.sw[..., rows], self.sv[..., rows]]).transpose(2, 1, 0), IC
 
     def mass_matrix(self, rows=slice(None)):
         """M(q) (S, n, n) at the configurations ``rows`` (CRBA in world frame, armature on the
@@ -167,8 +168,9 @@ class TreeBatch:
         d = np.arange(n)
         M[:, d, d] = U[:, d, d] + self.armature
         return M
-    def christoffel(self):
-        """The Christoffel tensor T (S, n, n, n), T[s, i, j, k] = C(q_s, e_k)_ij = B(e_j, e_k)_i.
+    def christoffel(self, rows=slice(None)):
+        """The Christoffel tensor T (S, n, n, n) at the configurations ``rows``,
+        T[s, i, j, k] = C(q_s, e_k)_ij = B(e_j, e_k)_i.
 
         For j <= k (the only non-zero pairs with k <= j, by symmetry), with a = the deeper of i
         and k (0 unless one is the other's ancestor):
@@ -179,7 +181,7 @@ class TreeBatch:
         bodies i >= k, and the symmetrised velocity product on the same bodies). n^3 entries and
         O(n^3) work per configuration: for small n."""
         n = self.n
-        Sj, IC = self._spatial()                                            # (S, n, 6), (S, n, 6, 6)
+        Sj, IC = self._spatial(rows)                                        # (S, n, 6), (S, n, 6, 6)
         w, v = Sj[..., None, :, :3], Sj[..., None, :, 3:]                   # S_k on axis 2
         wj, vj = Sj[..., :, None, :3], Sj[..., :, None, 3:]                 # S_j on axis 1
         X = np.concatenate([np.cross(wj, w), np.cross(wj, v) + np.cross(vj, w)], -1)   # (S, j, k, 6)
