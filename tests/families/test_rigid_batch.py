@@ -1,7 +1,7 @@
 """The design's numeric dynamics (codegen.families.design.rigid_batch) against the symbolic model
-it replaces there: M(q), the Christoffel tensor and the products C(q, v) v, C(q, v)^T C(q, v) v on
-catalog arms, unaligned chains with prismatic joints and a branching tree; c0 computed from the
-tree equals c0 from the symbolic Christoffel slices; a 50-joint design stays within its memory
+it replaces there: M(q), the Christoffel tensor, the products C(q, v) v, C(q, v)^T C(q, v) v, g(q)
+and dg/dq on catalog arms, unaligned chains with prismatic joints and a branching tree; c0
+computed from the tree equals c0 from the symbolic Christoffel slices; a 50-joint design stays within its memory
 bound; a design over its CPU budget is refused naming --design k0= (docs/papers/seed000.md §0,
 docs/architecture.md)."""
 import tracemalloc
@@ -81,6 +81,8 @@ def test_mass_matrix_christoffel_and_products_match_the_symbolic_model(robot):
     slices = ca.Function("s", [q], [christoffel_slices(robot, q)])
     M, T = batch.mass_matrix(), batch.christoffel()
     c, h = batch.coriolis_products(np.arange(4), V)
+    g, dg = batch.gravity()
+    dgf = ca.Function("dg", [q], [ca.jacobian(robot.gravity(q), q)])
     for s in range(4):
         np.testing.assert_allclose(M[s], np.array(robot.M(Q[s])), rtol=0, atol=1e-13)
         # slices [i, k*n + j] = C(q, e_k)[i, j];  T[i, j, k] = C(q, e_k)[i, j]
@@ -90,6 +92,8 @@ def test_mass_matrix_christoffel_and_products_match_the_symbolic_model(robot):
         np.testing.assert_allclose(c[s], C @ V[s], rtol=0, atol=1e-12 * max(1, np.abs(C @ V[s]).max()))
         np.testing.assert_allclose(h[s], C.T @ C @ V[s], rtol=0,
                                    atol=1e-12 * max(1, np.abs(C.T @ C @ V[s]).max()))
+        np.testing.assert_allclose(g[s], np.array(robot.g(Q[s])).ravel(), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(dg[s], np.array(dgf(Q[s])), rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("n", [5, 14])

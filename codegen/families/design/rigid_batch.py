@@ -19,6 +19,9 @@ over configurations, vectors and bodies:
         E_j = S_j x* sum_{i >= j} I_i W_i,
         h_k = (V_k . E_k + S_k . sum_{i >= k} [v_i E_i + I_i (W_i x V_i) - W_i x* I_i V_i]) / 2
     M(q)_jk = S_j . IC_k S_k  for j <= k, IC_k = sum_{i >= k} I_i   (CRBA, plus the armature)
+    g(q)_j  = -S_j . (H_j x g0, m_j g0),  m_j, H_j = sum_{i >= j} (m_i, m_i com_i)   (RNEA at rest)
+    dg_j/dq_k from dS_j/dq_k = S_k x S_j (k <= j), dH_j/dq_k = a_k x H_a + m_a v_k (a the deeper
+              of j, k; S_k = [a_k; v_k]), O(n^2) per configuration in (n, 3) (3, n) products
 
 C is the Christoffel one (C(q, a) b = C(q, b) a, docs/papers/seed000.md §0). Each
 (configuration, vector) pair costs O(n) (chains: cumulative sums; trees: ancestor masks,
@@ -84,6 +87,7 @@ class TreeBatch:
                 anc[:, i] |= anc[:, b.parent]
         self.anc, self._ancf = anc, anc.astype(float)
         self.mass = np.array([b.mass for b in bodies])
+        self.g0 = np.array(tree.gravity, dtype=float)
         self.armature = np.array([b.armature for b in bodies])
         R = np.empty((S, n, 3, 3))
         p = np.empty((S, n, 3))
@@ -168,6 +172,27 @@ class TreeBatch:
         d = np.arange(n)
         M[:, d, d] = U[:, d, d] + self.armature
         return M
+    def gravity(self, rows=slice(None)):
+        """(g(q) (S, n), dg/dq (S, n, n)) at the configurations ``rows`` (module docstring):
+        dg_j/dq_k = -[k <= j] ((a_k x a_j) . (H_j x g0) + m_j ((a_k x v_j + v_k x a_j) . g0))
+                    - [a = j] ((a_j . H_j)(a_k . g0) - (a_j . a_k)(H_j . g0) + m_j a_j . (v_k x g0))
+                    - [a = k != j] ((a_j . H_k)(a_k . g0) - (a_j . a_k)(H_k . g0) + m_k a_j . (v_k x g0))."""
+        sw, sv = (x[..., rows].transpose(2, 1, 0) for x in (self.sw, self.sv))    # (S, n, 3)
+        H = self._up(self.hm[..., rows]).transpose(2, 1, 0)
+        mc, g0 = self._up(self._m)[:, 0], self.g0
+        g = -(np.einsum("snd,snd->sn", sw, np.cross(H, g0)) + mc * (sv @ g0))
+        T = lambda x: x.transpose(0, 2, 1)                                 # noqa: E731
+        R = mc[:, None] * np.cross(sv, g0)                                 # m_k v_k x g0
+        # k <= j: (a_k x a_j) . (H_j x g0) = a_k . (a_j x (H_j x g0)), m_j (a_k x v_j + v_k x a_j) . g0
+        below = (np.cross(sw, np.cross(H, g0)) + R) @ T(sw) + (mc[:, None] * np.cross(sw, g0)) @ T(sv)
+        gram, beta, gamma = sw @ T(sw), sw @ g0, H @ g0
+        alpha = np.einsum("snd,snd->sn", sw, H)
+        at_j = alpha[:, :, None] * beta[:, None, :] - gamma[:, :, None] * gram + (mc[:, None] * np.cross(g0, sw)) @ T(sv)
+        at_k = (sw @ T(H)) * beta[:, None, :] - gram * gamma[:, None, :] + sw @ T(R)
+        anc = self.anc
+        dg = -(anc.T * (below + at_j) + (anc & ~np.eye(self.n, dtype=bool)) * at_k)
+        return g, dg
+
     def christoffel(self, rows=slice(None)):
         """The Christoffel tensor T (S, n, n, n) at the configurations ``rows``,
         T[s, i, j, k] = C(q_s, e_k)_ij = B(e_j, e_k)_i.
