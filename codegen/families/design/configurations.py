@@ -12,8 +12,9 @@ of a symmetric bilinear form is the max of its quadratic form) is computed by gr
 needs only the products C(q, v) v and C(q, v)^T C(q, v) v: up to TENSOR_MAX joints from the
 Christoffel tensor (n^3 entries per configuration), beyond from O(n) recursions
 (codegen.families.design.rigid_batch for robots with a kinematic tree). M(q) and those products
-are evaluated numerically in chunks of configurations below MEMORY_BYTES, and a design's sups
-stop with DesignBudgetError (naming --design k0=) after DESIGN_BUDGET_S CPU seconds.
+are evaluated numerically below MEMORY_BYTES (configurations in chunks, the pairs of one ascent
+iteration in blocks), and a design's sups stop with DesignBudgetError (naming --design k0=) after
+DESIGN_BUDGET_S CPU seconds.
 """
 from __future__ import annotations
 
@@ -107,7 +108,7 @@ def refine_max(fun, robot, points, vals, refine=3, starts=None):
 
 
 # CPU seconds a design's sups over configurations may take (every catalog robot: < 2 s; a generic
-# 50-joint chain: ~60 s); beyond, DesignBudgetError
+# 50-joint chain: ~20 s); beyond, DesignBudgetError
 DESIGN_BUDGET_S = 300.0
 
 
