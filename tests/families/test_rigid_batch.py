@@ -1,7 +1,7 @@
 """The design's numeric dynamics (codegen.families.design.rigid_batch) against the symbolic model
-it replaces there: M(q), the Christoffel tensor and the products C(q, v) v, C(q, v)^T C(q, v) v on
-catalog arms, unaligned chains with prismatic joints and a branching tree; c0 computed from the
-tree equals c0 from the symbolic Christoffel slices; a 50-joint design stays within its memory
+it replaces there: M(q), the Christoffel tensor, the products C(q, v) v, C(q, v)^T C(q, v) v, g(q)
+and dg/dq on catalog arms, unaligned chains with prismatic joints and a branching tree; c0
+computed from the tree equals c0 from the symbolic Christoffel slices; a 50-joint design stays within its memory
 bound; a design over its CPU budget is refused naming --design k0= (docs/papers/seed000.md §0,
 docs/architecture.md)."""
 import tracemalloc
@@ -81,6 +81,8 @@ def test_mass_matrix_christoffel_and_products_match_the_symbolic_model(robot):
     slices = ca.Function("s", [q], [christoffel_slices(robot, q)])
     M, T = batch.mass_matrix(), batch.christoffel()
     c, h = batch.coriolis_products(np.arange(4), V)
+    g, dg = batch.gravity()
+    dgf = ca.Function("dg", [q], [ca.jacobian(robot.gravity(q), q)])
     for s in range(4):
         np.testing.assert_allclose(M[s], np.array(robot.M(Q[s])), rtol=0, atol=1e-13)
         # slices [i, k*n + j] = C(q, e_k)[i, j];  T[i, j, k] = C(q, e_k)[i, j]
@@ -90,6 +92,8 @@ def test_mass_matrix_christoffel_and_products_match_the_symbolic_model(robot):
         np.testing.assert_allclose(c[s], C @ V[s], rtol=0, atol=1e-12 * max(1, np.abs(C @ V[s]).max()))
         np.testing.assert_allclose(h[s], C.T @ C @ V[s], rtol=0,
                                    atol=1e-12 * max(1, np.abs(C.T @ C @ V[s]).max()))
+        np.testing.assert_allclose(g[s], np.array(robot.g(Q[s])).ravel(), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(dg[s], np.array(dgf(Q[s])), rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("n", [5, 14])
@@ -114,6 +118,45 @@ def test_c0_from_the_tree_equals_c0_from_the_christoffel_slices(n, tmp_path):
         np.testing.assert_allclose(c0, want, rtol=1e-12)
     else:
         assert np.all(c0 <= want * (1 + 1e-9)) and np.all(c0 >= 0.98 * want), np.c_[c0, want]
+
+
+def test_the_ascent_iterates_every_configuration_together(monkeypatch, tmp_path):
+    """Issue 23: c0's ascent beyond TENSOR_MAX joints iterates all configurations at once, the
+    memory bound splitting the pairs of each iteration into blocks, not the configurations into
+    chunks each iterated to the end (chunks x iterations calls: 5,316 calls of a few pairs each
+    for the 513 samples of a 50-joint chain); the blocks do not change c0."""
+    n, S = 9, 24
+    robot = load_urdf(write_chain(tmp_path / "c.urdf", _unaligned_chain(n, seed=4, types=("revolute",))))
+    model = cf.dynamics_model(robot)
+    batch = model.batch(cf.sample_points(robot, S - 1, 0))
+    whole = cf.c0_ascent(batch.coriolis_products, S, n, tol=1e-10, unit_starts=cf.LARGE_UNIT_STARTS, prune=True)
+    monkeypatch.setattr(cf, "MEMORY_BYTES", model.pair_bytes * n * 4)      # 4 n pairs a call
+    calls = []
+
+    def products(rows, v):
+        calls.append(np.asarray(rows).copy())
+        return batch.coriolis_products(rows, v)
+    c0, v = cf.c0_ascent(products, S, n, tol=1e-10, unit_starts=cf.LARGE_UNIT_STARTS, prune=True)
+    assert all(len(r) <= 4 * n for r in calls)
+    starts = S * (cf.LARGE_UNIT_STARTS + 2)
+    first = np.concatenate(calls[S // 4:S // 4 + -(-starts // (4 * n))])    # after the unit-vector choice
+    assert np.array_equal(np.unique(first), np.arange(S))
+    np.testing.assert_allclose(c0, whole[0], rtol=1e-15)
+    np.testing.assert_allclose(v, whole[1], rtol=0, atol=1e-15)
+
+
+def test_the_c0_sup_does_not_evaluate_the_mass_matrix(robot, monkeypatch):
+    """The sup of c0 (``extremes``' third) needs no lambda(M): ``at(..., eig=False)`` returns None
+    for them and never forms M(q)."""
+    stats = cf.ConfigurationStats.__new__(cf.ConfigurationStats)
+    stats.robot, stats._model, stats._budget = robot, cf.dynamics_model(robot), cf._Budget(robot, 600)
+    pts = cf.sample_points(robot, 6, 0)
+    full = stats.at(pts)
+    monkeypatch.setattr(TreeBatch, "mass_matrix", lambda *a, **k: pytest.fail("M(q) formed"))
+    lmin, lmax, c0, v = stats.at(pts, eig=False)
+    assert lmin is None and lmax is None
+    np.testing.assert_array_equal(c0, full[2])
+    np.testing.assert_array_equal(v, full[3])
 
 
 @pytest.mark.slow

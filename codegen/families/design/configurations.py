@@ -12,8 +12,9 @@ of a symmetric bilinear form is the max of its quadratic form) is computed by gr
 needs only the products C(q, v) v and C(q, v)^T C(q, v) v: up to TENSOR_MAX joints from the
 Christoffel tensor (n^3 entries per configuration), beyond from O(n) recursions
 (codegen.families.design.rigid_batch for robots with a kinematic tree). M(q) and those products
-are evaluated numerically in chunks of configurations below MEMORY_BYTES, and a design's sups
-stop with DesignBudgetError (naming --design k0=) after DESIGN_BUDGET_S CPU seconds.
+are evaluated numerically below MEMORY_BYTES (configurations in chunks, the pairs of one ascent
+iteration in blocks), and a design's sups stop with DesignBudgetError (naming --design k0=) after
+DESIGN_BUDGET_S CPU seconds.
 """
 from __future__ import annotations
 
@@ -107,7 +108,7 @@ def refine_max(fun, robot, points, vals, refine=3, starts=None):
 
 
 # CPU seconds a design's sups over configurations may take (every catalog robot: < 2 s; a generic
-# 50-joint chain: ~60 s); beyond, DesignBudgetError
+# 50-joint chain: ~20 s); beyond, DesignBudgetError
 DESIGN_BUDGET_S = 300.0
 
 
@@ -144,11 +145,14 @@ MEMORY_BYTES = 64 * 2 ** 20
 # each neighbour warm-started from its point's maximiser [ASSUMPTION: a local ascent either way;
 # tested against the full start set in tests/families/test_rigid_batch.py]
 TENSOR_MAX = 7
+# pairs per call of the tree's products: n times the pairs below PAIR_ELEMENTS keeps each (3, n,
+# pairs) temporary in cache (measured: 26 us per pair at n = 50 against 60 us at 1000 pairs)
+PAIR_ELEMENTS = 6000
 LARGE_UNIT_STARTS, PRUNE_EVERY, PRUNE_RATIO, LARGE_TOL, LARGE_REFINE = 3, 8, 0.98, 1e-10, 2
 
 
 def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, tol=1e-13,
-              pair_bytes=None, unit_starts=None, prune=False, budget=None):
+              pair_bytes=None, unit_starts=None, prune=False, budget=None, block=None):
     """c0(q_s) = max_{|v|=1} ||C(q_s, v) v||_2 for S configurations (docs/papers/seed000.md §0), from
     the products of the Coriolis matrix only (no Christoffel tensor).
 
@@ -157,9 +161,9 @@ def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, to
     settles (relative ``tol``), from ``starts`` or else from unit vectors plus ``extra_starts``
     random ones; the best start is kept. The unit vectors: all n, or the ``unit_starts`` with
     the largest ||C(q_s, e_k) e_k|| at each configuration (one product each), so that a
-    configuration costs O(n) products, not O(n^2). Pairs are independent:
-    they are processed in chunks of configurations whose ``pair_bytes`` per pair stay below
-    MEMORY_BYTES.
+    configuration costs O(n) products, not O(n^2). Pairs are independent: ``products`` is
+    called on at most ``block`` pairs at a time (default: those whose ``pair_bytes`` stay below
+    MEMORY_BYTES).
 
     Parameters
     ----------
@@ -173,6 +177,7 @@ def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, to
     prune : bool, drop the starts below PRUNE_RATIO of their configuration's best every
         PRUNE_EVERY iterations (a start that far behind is taken not to overtake)
     budget : optional _Budget, checked every iteration
+    block : optional int, most pairs per call of ``products`` (at most the memory bound's)
 
     Returns
     -------
@@ -181,21 +186,29 @@ def c0_ascent(products, S, n, starts=None, extra_starts=2, iters=500, seed=0, to
     if starts is None:
         starts = np.vstack([np.eye(n), np.random.default_rng(seed).normal(size=(extra_starts, n))])
     starts = np.asarray(starts, dtype=float)
-    per_config = starts.ndim == 3
     starts = np.atleast_2d(starts) / np.linalg.norm(np.atleast_2d(starts), axis=-1, keepdims=True)
-    m = unit_starts + extra_starts if unit else starts.shape[-2]
-    chunk = max(1, int(MEMORY_BYTES // ((pair_bytes or 1600 * n) * max(m, n if unit else 0))))
-    c0s, vs = np.empty(S), np.empty((S, n))
-    for lo in range(0, S, chunk):
-        configs = np.arange(lo, min(S, lo + chunk))
-        V = starts[configs] if per_config else np.broadcast_to(starts, (len(configs),) + starts.shape)
-        if unit:            # the unit_starts unit vectors of largest ||C(q, e_k) e_k||
+    V = starts if starts.ndim == 3 else np.broadcast_to(starts, (S,) + starts.shape)
+    size = max(1, int(MEMORY_BYTES // (pair_bytes or 1600 * n)))
+    products = _in_blocks(products, min(size, block or size))
+    if unit:            # the unit_starts unit vectors of largest ||C(q, e_k) e_k||
+        norms = np.empty((S, n))
+        for lo in range(0, S, max(1, size // n)):
+            configs = np.arange(lo, min(S, lo + max(1, size // n)))
             c, _ = products(np.repeat(configs, n), np.tile(np.eye(n), (len(configs), 1)))
-            top = np.argsort(-np.linalg.norm(c, axis=1).reshape(len(configs), n), axis=1, kind="stable")
-            top = np.sort(top[:, :unit_starts], axis=1)
-            V = np.concatenate([np.eye(n)[top], V[:, n:]], axis=1)
-        c0s[configs], vs[configs] = _ascent(products, configs, V, iters, tol, prune, budget)
-    return c0s, vs
+            norms[configs] = np.linalg.norm(c, axis=1).reshape(len(configs), n)
+        top = np.sort(np.argsort(-norms, axis=1, kind="stable")[:, :unit_starts], axis=1)
+        V = np.concatenate([np.eye(n)[top], V[:, n:]], axis=1)
+    return _ascent(products, np.arange(S), V, iters, tol, prune, budget)
+
+
+def _in_blocks(products, size):
+    """``products`` called on at most ``size`` pairs at a time, the results concatenated."""
+    def blocked(rows, v):
+        if len(rows) <= size:
+            return products(rows, v)
+        parts = [products(rows[i:i + size], v[i:i + size]) for i in range(0, len(rows), size)]
+        return np.concatenate([c for c, _ in parts]), np.concatenate([h for _, h in parts])
+    return blocked
 
 
 def _ascent(products, configs, starts, iters, tol, prune=False, budget=None):
@@ -233,14 +246,24 @@ def _ascent(products, configs, starts, iters, tol, prune=False, budget=None):
 
 def tensor_products(T):
     """The ``c0_ascent`` products of a Christoffel tensor T (S, n, n, n), T[s, i, j, k] = C(q_s, e_k)_ij:
-    C(q, v) = sum_k T[:, :, k] v_k, then C v and C^T C v (2 n^3 per product: small n)."""
+    C(q, v) = sum_k T[:, :, k] v_k, then C v and C^T C v (2 n^3 per product: small n). The pairs
+    of one configuration share one product T_s [v_1 .. v_m] (no copy of T_s per pair)."""
     S, n = T.shape[:2]
     T = np.asarray(T, dtype=float).reshape(S, n * n, n)
 
     def products(rows, v):
-        C = (T[rows] @ v[:, :, None]).reshape(len(v), n, n)
-        c = (C @ v[:, :, None])[:, :, 0]
-        return c, (C.transpose(0, 2, 1) @ c[:, :, None])[:, :, 0]
+        rows = np.asarray(rows)
+        order = np.argsort(rows, kind="stable")
+        u, first, inv = np.unique(rows[order], return_index=True, return_inverse=True)
+        slot = np.empty(len(rows), dtype=int)
+        slot[order] = np.arange(len(rows)) - first[inv]                  # the pair's column in its group
+        group = np.empty(len(rows), dtype=int)
+        group[order] = inv
+        V = np.zeros((len(u), n, slot.max() + 1))
+        V[group, :, slot] = v
+        C = (T[u] @ V)[group, :, slot].reshape(len(v), n, n)              # C(q, v) of each pair
+        c = np.einsum("pij,pj->pi", C, v)
+        return c, np.einsum("pij,pi->pj", C, c)
     return products
 
 
@@ -276,7 +299,7 @@ class _SymbolicModel:
         self.n, self._M = n, robot.M
         self._P = ca.Function("Cprod", [q, v], [c, ca.mtimes(C.T, c)])
         self._T = ca.Function("Cslices", [q], [christoffel_slices(robot, q)]) if n <= TENSOR_MAX else None
-        self.pair_bytes, self.config_bytes = 64 * n * n, 64 * n ** 3
+        self.pair_bytes, self.config_bytes, self.kin_bytes, self.pair_block = 64 * n * n, 64 * n ** 3, 8 * n, None
 
     def batch(self, Q):
         self.Q = np.atleast_2d(Q)
@@ -286,13 +309,15 @@ class _SymbolicModel:
         P = args[0].shape[1]
         return f if P == 1 else f.map(P)
 
-    def mass_matrix(self):
-        S, n = len(self.Q), self.n
-        return np.asarray(self._map(self._M, self.Q.T)(self.Q.T)).reshape(n, S, n).transpose(1, 0, 2)
+    def mass_matrix(self, rows=slice(None)):
+        Q = self.Q[rows]
+        S, n = len(Q), self.n
+        return np.asarray(self._map(self._M, Q.T)(Q.T)).reshape(n, S, n).transpose(1, 0, 2)
 
-    def christoffel(self):
-        S, n = len(self.Q), self.n
-        sl = np.asarray(self._map(self._T, self.Q.T)(self.Q.T)).reshape(n, S, n, n)   # [i, s, k, j]
+    def christoffel(self, rows=slice(None)):
+        Q = self.Q[rows]
+        S, n = len(Q), self.n
+        sl = np.asarray(self._map(self._T, Q.T)(Q.T)).reshape(n, S, n, n)   # [i, s, k, j]
         return sl.transpose(1, 0, 3, 2)
 
     def coriolis_products(self, rows, v):
@@ -307,8 +332,9 @@ class _TreeModel:
 
     def __init__(self, robot):
         self.tree, n = robot.tree, robot.n
-        self.pair_bytes = 1600 * n
-        self.config_bytes = 8 * (60 * n + 40 * n * n + (16 * n ** 4 if n <= TENSOR_MAX else 0))
+        self.pair_bytes, self.kin_bytes = 1600 * n, 8 * 40 * n
+        self.config_bytes = 8 * (60 * n + 40 * n * n + (16 * n ** 3 if n <= TENSOR_MAX else 0))
+        self.pair_block = max(1, PAIR_ELEMENTS // n)
 
     def batch(self, Q):
         return TreeBatch(self.tree, Q)
@@ -338,37 +364,46 @@ class ConfigurationStats:
         self.points = sample_points(robot, samples, seed)
         self.lmin, self.lmax, self.c0s, self._v = self.at(self.points)
 
-    def at(self, pts, starts=None, c0=True, tol=1e-13):
+    def at(self, pts, starts=None, c0=True, tol=1e-13, eig=True):
         """(lambda_min, lambda_max, c0, c0's maximiser v) at each row of pts, c0 from
         ``starts`` (default: unit vectors and random ones; None, None when ``c0`` is False) to
-        relative tolerance ``tol``; pts (m, n) rad, results (m,) each and v (m, n). Configurations
-        in chunks of MEMORY_BYTES."""
+        relative tolerance ``tol``, lambda(M) unless ``eig`` is False (then None, None); pts (m, n)
+        rad, results (m,) each and v (m, n). Memory below MEMORY_BYTES: configurations in chunks
+        (their kinematics, the ascent's state, up to TENSOR_MAX joints their tensor), M(q) and the
+        tensor's temporaries in sub-chunks, the ascent's pairs in blocks (``c0_ascent``), all
+        pairs of a chunk iterated together."""
         pts = np.atleast_2d(np.asarray(pts, dtype=float))
         model, n = self._model, self.robot.n
+        tensor = n <= TENSOR_MAX
         m = n + 2 if starts is None else np.shape(starts)[-2] if np.ndim(starts) > 1 else 1
-        chunk = max(1, int(MEMORY_BYTES // (model.config_bytes + (model.pair_bytes * m if c0 else 0))))
+        chunk = int(MEMORY_BYTES // (model.kin_bytes + 32 * m * n + (8 * n ** 3 if c0 and tensor else 0)))
+        sub = max(1, int(MEMORY_BYTES // model.config_bytes))
         out = [np.empty(len(pts)) for _ in range(3)] + [np.empty((len(pts), n))]
-        for lo in range(0, len(pts), chunk):
-            hi = min(len(pts), lo + chunk)
+        for lo in range(0, len(pts), max(1, chunk)):
+            hi = min(len(pts), lo + max(1, chunk))
             self._budget.check()
             batch = model.batch(pts[lo:hi])
-            lam = np.linalg.eigvalsh(batch.mass_matrix())
-            out[0][lo:hi], out[1][lo:hi] = lam[:, 0], lam[:, -1]
+            for a in range(0, hi - lo, sub) if eig else ():
+                lam = np.linalg.eigvalsh(batch.mass_matrix(slice(a, min(hi - lo, a + sub))))
+                out[0][lo + a:lo + a + len(lam)], out[1][lo + a:lo + a + len(lam)] = lam[:, 0], lam[:, -1]
             part = starts[lo:hi] if starts is not None and np.ndim(starts) == 3 else starts
-            if c0 and n <= TENSOR_MAX:
+            if c0 and tensor:
+                T = np.concatenate([batch.christoffel(slice(a, min(hi - lo, a + sub))) for a in range(0, hi - lo, sub)])
                 out[2][lo:hi], out[3][lo:hi] = c0_ascent(
-                    tensor_products(batch.christoffel()), hi - lo, n, part, tol=tol,
+                    tensor_products(T), hi - lo, n, part, tol=tol,
                     pair_bytes=16 * n ** 3, budget=self._budget)
             elif c0:
                 out[2][lo:hi], out[3][lo:hi] = c0_ascent(
                     batch.coriolis_products, hi - lo, n, part, tol=max(tol, LARGE_TOL),
                     pair_bytes=model.pair_bytes, unit_starts=LARGE_UNIT_STARTS, prune=True,
-                    budget=self._budget)
-        return (out[0], out[1], out[2], out[3]) if c0 else (out[0], out[1], None, None)
+                    budget=self._budget, block=model.pair_block)
+        lam = (out[0], out[1]) if eig else (None, None)
+        return lam + ((out[2], out[3]) if c0 else (None, None))
 
-    def maximise(self, fun, refine=3, c0=True, starts=None):
+    def maximise(self, fun, refine=3, c0=True, starts=None, eig=True):
         """max_q fun(lmin, lmax, c0) (vectorised): best samples (and ``starts``, configurations),
-        then a pattern search from each, c0 (when ``c0``: fun uses it) at each neighbour started
+        then a pattern search from each, lambda(M) (when ``eig``: fun uses lmin or lmax, else they
+        are None) and c0 (when ``c0``: fun uses it) at each neighbour, c0 started
         from the maximiser v at the point it neighbours (warm, one start; the maximisers of
         several samples at every neighbour gave the same gains to 1e-11 relative on ur5 and
         panda) and resolved to 1e-10 relative; ``refine`` best samples are refined (beyond
@@ -382,14 +417,14 @@ class ConfigurationStats:
         P, V, W = self.points[order], vals[order], self._v[order]
         if starts is not None and len(starts):
             starts = np.atleast_2d(starts)
-            lmin, lmax, c0s, v = self.at(starts, W[:1], c0, tol=1e-10)
+            lmin, lmax, c0s, v = self.at(starts, W[:1], c0, tol=1e-10, eig=eig)
             P, V = np.vstack([P, starts]), np.concatenate([V, fun(lmin, lmax, c0s)])
             W = np.vstack([W, v if c0 else np.repeat(W[:1], len(starts), axis=0)])
         last = {}
 
         def f(Q):
             parent = np.arange(len(Q)) // (len(Q) // len(W))
-            lmin, lmax, c0s, v = self.at(Q, W[parent][:, None, :], c0, tol=1e-10)
+            lmin, lmax, c0s, v = self.at(Q, W[parent][:, None, :], c0, tol=1e-10, eig=eig)
             last["v"] = v
             return fun(lmin, lmax, c0s)
 
@@ -405,7 +440,7 @@ class ConfigurationStats:
         ``refine`` best samples (``maximise``)."""
         return (-self.maximise(lambda lmin, lmax, c0: -lmin, refine, c0=False)[0],
                 self.maximise(lambda lmin, lmax, c0: lmax, refine, c0=False)[0],
-                self.maximise(lambda lmin, lmax, c0: c0, refine)[0])
+                self.maximise(lambda lmin, lmax, c0: c0, refine, eig=False)[0])
 
 
 def entrywise_sup(f, robot, points, refine, max_refine=64):

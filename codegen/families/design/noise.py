@@ -294,30 +294,29 @@ def nicosia_tomei_noise_gains(dt, sigma, g_rms, uncertainty, trace_minv2, mu_min
     return kd, kp, error(kd, kp)
 
 
-def gravity_statistics(M, g, dg, points):
+def gravity_statistics(chunks):
     """Statistics of the model over sampled configurations (for the predictions above).
 
     Parameters
     ----------
-    M, g, dg : casadi.Function q -> M(q) (n, n), g(q) (n,), dg/dq (n, n)
-    points : (S, n) configurations
+    chunks : iterable of (Ms (S, n, n), gs (S, n), dgs (S, n, n)), M(q), g(q) and dg/dq at the
+        configurations, in chunks
 
     Returns
     -------
     dict: minv_g_rms (rms |M^-1 g|, rad/s^2), minv_dg_rms (rms ||M^-1 dg/dq||_F, 1/s^2), g_rms
     (rms |g|, N m), trace_minv2 (mean tr(M^-2)), mu_min (1 / max lambda_max(M)), mu_max
     (1 / min lambda_min(M))."""
-    S, n = points.shape
-    Ms = np.asarray(M.map(S)(points.T)).reshape(n, S, n).transpose(1, 0, 2)
-    gs = np.asarray(g.map(S)(points.T)).reshape(n, S).T
-    dgs = np.asarray(dg.map(S)(points.T)).reshape(n, S, n).transpose(1, 0, 2)
-    Minv_g = np.linalg.solve(Ms, gs[:, :, None])[:, :, 0]
-    lam = np.linalg.eigvalsh(Ms)
-    return {"minv_g_rms": float(np.sqrt(np.mean(np.sum(Minv_g ** 2, axis=1)))),
-            "minv_dg_rms": float(np.sqrt(np.mean(np.sum(np.linalg.solve(Ms, dgs) ** 2, axis=(1, 2))))),
-            "g_rms": float(np.sqrt(np.mean(np.sum(gs ** 2, axis=1)))),
-            "trace_minv2": float(np.mean(np.sum(lam ** -2.0, axis=1))),
-            "mu_min": float(1 / lam[:, -1].max()), "mu_max": float(1 / lam[:, 0].min())}
+    terms = []
+    for Ms, gs, dgs in chunks:      # per configuration: |M^-1 g|^2, ||M^-1 dg||_F^2, |g|^2, tr M^-2, lambda
+        lam = np.linalg.eigvalsh(Ms)
+        terms.append(np.column_stack([np.sum(np.linalg.solve(Ms, gs[:, :, None])[:, :, 0] ** 2, axis=1),
+                                      np.sum(np.linalg.solve(Ms, dgs) ** 2, axis=(1, 2)), np.sum(gs ** 2, axis=1),
+                                      np.sum(lam ** -2.0, axis=1), lam[:, 0], lam[:, -1]]))
+    t = np.concatenate(terms)
+    return {"minv_g_rms": float(np.sqrt(np.mean(t[:, 0]))), "minv_dg_rms": float(np.sqrt(np.mean(t[:, 1]))),
+            "g_rms": float(np.sqrt(np.mean(t[:, 2]))), "trace_minv2": float(np.mean(t[:, 3])),
+            "mu_min": float(1 / t[:, 5].max()), "mu_max": float(1 / t[:, 4].min())}
 
 
 def bias_balance_gain(n, dt, sigma, e_rms):

@@ -26,9 +26,10 @@ import casadi as ca
 import numpy as np
 
 from ...core.cache import cached_json, key_digest
-from .configurations import ConfigurationStats, sample_points
+from .configurations import MEMORY_BYTES, ConfigurationStats, sample_points
 from .noise import (NoiseAwareDesign, check_torque_uncertainty, check_uncertainty, convergence_floor,
                     gravity_statistics, reduced_order_noise_gain, sensor_sigma, torque_error_rms)
+from .rigid_batch import TreeBatch
 
 VERSION = 2          # of these designs (part of the disk-cache key)
 SAMPLES = 512        # sampled configurations
@@ -163,10 +164,22 @@ def scheduled_gains(robot, eta=1.0, vbar=2.0, r_max=6, samples=SAMPLES, seed=0):
 @lru_cache(maxsize=32)
 def model_statistics(robot, samples=SAMPLES, seed=0):
     """``noise.gravity_statistics`` of ``robot`` over ``samples`` configurations drawn with ``seed``
-    (the design's sample points)."""
-    q = ca.SX.sym("q", robot.n)
+    (the design's sample points): M, g and dg/dq from the kinematic tree when the robot has one
+    (codegen.families.design.rigid_batch, in chunks below MEMORY_BYTES), else from its CasADi
+    functions."""
+    points = sample_points(robot, samples, seed)
+    n = robot.n
+    if getattr(robot, "tree", None) is not None:
+        chunk = max(1, int(MEMORY_BYTES // (8 * (40 * n + 16 * n * n))))
+        return gravity_statistics(
+            (lambda b: (b.mass_matrix(),) + b.gravity())(TreeBatch(robot.tree, points[lo:lo + chunk]))
+            for lo in range(0, len(points), chunk))
+    q = ca.SX.sym("q", n)
     dg = ca.Function("dg", [q], [ca.jacobian(robot.gravity(q), q)])
-    return gravity_statistics(robot.M, robot.g, dg, sample_points(robot, samples, seed))
+    S = len(points)
+    return gravity_statistics([(np.asarray(robot.M.map(S)(points.T)).reshape(n, S, n).transpose(1, 0, 2),
+                                np.asarray(robot.g.map(S)(points.T)).reshape(n, S).T,
+                                np.asarray(dg.map(S)(points.T)).reshape(n, S, n).transpose(1, 0, 2))])
 
 
 @lru_cache(maxsize=32)

@@ -9,19 +9,23 @@ symbolic algorithms read) in world-frame spatial algebra (Featherstone ch. 2, 5,
 over configurations, vectors and bodies:
 
     S_j  = [a_j; p_j x a_j] (revolute), [0; a_j] (prismatic)   joint axis a_j through p_j (world)
+    I_i (w, u) = (J_i w + h_i x u, m_i u - h_i x w)             body inertia about the world origin
     V_i  = sum_{j <= i} S_j v_j                                 (j <= i: j is i or an ancestor)
     dS_j = V_j x S_j                                            (the rate of S_j along v)
     c(v) = C(q, v) v:  A_i = sum_{j <= i} dS_j v_j,   f_i = I_i A_i + V_i x* I_i V_i,
                        c_j = S_j . sum_{i >= j} f_i             (RNEA, no gravity, qdd = 0)
-    B(v, w) = C(q, v) w, the symmetric bilinear form with B(v, v) = c(v) (polarisation; the
-              Christoffel C is the one with C(q, a) b = C(q, b) a, docs/papers/seed000.md §0)
-    Mdot(q, v) w = dS_j . G_j + S_j . dG_j,  G_j = sum_{i >= j} I_i W_i,  W_i = sum_{j <= i} S_j w_j,
-              dG_j = sum_{i >= j} [V_i x* I_i W_i - I_i (V_i x W_i) + I_i sum_{k <= i} dS_k w_k]
-    C(q, v)^T w = Mdot(q, v) w - C(q, v) w                      (Mdot = C + C^T [S000 (3)])
-    M(q)_jk = S_j . (sum_{i >= k} I_i) S_k  for j <= k          (CRBA, plus the armature)
+    h = C(q, v)^T c = grad_v (c . C(q, v) v) / 2, with W_i = sum_{j <= i} S_j c_j (the adjoint
+        of the RNEA: c . C(q, v) v = sum_i W_i . f_i):
+        E_j = S_j x* sum_{i >= j} I_i W_i,
+        h_k = (V_k . E_k + S_k . sum_{i >= k} [v_i E_i + I_i (W_i x V_i) - W_i x* I_i V_i]) / 2
+    M(q)_jk = S_j . IC_k S_k  for j <= k, IC_k = sum_{i >= k} I_i   (CRBA, plus the armature)
+    g(q)_j  = -S_j . (H_j x g0, m_j g0),  m_j, H_j = sum_{i >= j} (m_i, m_i com_i)   (RNEA at rest)
+    dg_j/dq_k from dS_j/dq_k = S_k x S_j (k <= j), dH_j/dq_k = a_k x H_a + m_a v_k (a the deeper
+              of j, k; S_k = [a_k; v_k]), O(n^2) per configuration in (n, 3) (3, n) products
 
-Each (configuration, vector) pair costs O(n) (chains: O(n) with cumulative sums; trees:
-ancestor masks, O(n^2)); memory is linear in the batch, which the callers chunk.
+C is the Christoffel one (C(q, a) b = C(q, b) a, docs/papers/seed000.md §0). Each
+(configuration, vector) pair costs O(n) (chains: cumulative sums; trees: ancestor masks,
+O(n^2)); memory is linear in the batch, which the callers chunk.
 """
 from __future__ import annotations
 
@@ -30,24 +34,35 @@ import numpy as np
 
 def cross(a, b):
     """a x b for 3-vectors stored component-first: (3, ...) arrays."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    np.subtract(a[1] * b[2], a[2] * b[1], out=out[0])
-    np.subtract(a[2] * b[0], a[0] * b[2], out=out[1])
-    np.subtract(a[0] * b[1], a[1] * b[0], out=out[2])
+    out = np.empty(a.shape if a.shape == b.shape else np.broadcast_shapes(a.shape, b.shape))
+    np.multiply(a[1], b[2], out=out[0])
+    out[0] -= a[2] * b[1]
+    np.multiply(a[2], b[0], out=out[1])
+    out[1] -= a[0] * b[2]
+    np.multiply(a[0], b[1], out=out[2])
+    out[2] -= a[1] * b[0]
     return out
 
 
 def dot(a, b):
     """a . b for component-first 3-vectors: (...) array."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    out = a[0] * b[0]
+    out += a[1] * b[1]
+    out += a[2] * b[2]
+    return out
 
 
-def _rz(q):
-    """R_z(q) for an array of angles: (..., 3, 3)."""
-    c, s = np.cos(q), np.sin(q)
-    R = np.zeros(q.shape + (3, 3))
-    R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1], R[..., 2, 2] = c, -s, s, c, 1.0
-    return R
+def _inertia(J, h, m, w, u):
+    """I (w, u) = (J w + h x u, m u - h x w): the spatial inertia of mass m, first moment h and
+    rotational inertia J (components xx, yy, zz, xy, xz, yz) about the world origin, applied to
+    the motion (w, u), all component-first."""
+    ang = cross(h, u)
+    ang[0] += J[0] * w[0] + J[3] * w[1] + J[4] * w[2]
+    ang[1] += J[3] * w[0] + J[1] * w[1] + J[5] * w[2]
+    ang[2] += J[4] * w[0] + J[5] * w[1] + J[2] * w[2]
+    lin = m * u
+    lin -= cross(h, w)
+    return ang, lin
 
 
 class TreeBatch:
@@ -70,21 +85,30 @@ class TreeBatch:
         for i, b in enumerate(bodies):
             if b.parent >= 0:
                 anc[:, i] |= anc[:, b.parent]
-        self.anc = anc
+        self.anc, self._ancf = anc, anc.astype(float)
         self.mass = np.array([b.mass for b in bodies])
+        self.g0 = np.array(tree.gravity, dtype=float)
         self.armature = np.array([b.armature for b in bodies])
         R = np.empty((S, n, 3, 3))
         p = np.empty((S, n, 3))
+        cq, sq = np.cos(Q), np.sin(Q)
         for i, b in enumerate(bodies):
             E, r = np.array(b.E), np.array(b.r)
-            Rl, pl = (R[:, b.parent], p[:, b.parent]) if b.parent >= 0 else (np.eye(3), np.zeros(3))
-            RE = Rl @ E
-            p[:, i] = pl + Rl @ r
-            if b.kind == "R":
-                R[:, i] = RE @ _rz(Q[:, i])
+            if b.parent >= 0:
+                Rl = R[:, b.parent]
+                RE = Rl @ E
+                p[:, i] = p[:, b.parent] + Rl @ r
+            else:
+                RE = np.broadcast_to(E, (S, 3, 3))
+                p[:, i] = r
+            if b.kind == "R":                                              # R = RE R_z(q)
+                c, s = cq[:, i, None], sq[:, i, None]
+                R[:, i, :, 0] = c * RE[:, :, 0] + s * RE[:, :, 1]
+                R[:, i, :, 1] = c * RE[:, :, 1] - s * RE[:, :, 0]
+                R[:, i, :, 2] = RE[:, :, 2]
             else:
                 R[:, i] = RE
-                p[:, i] += RE[..., :, 2] * Q[:, i, None]
+                p[:, i] += RE[:, :, 2] * Q[:, i, None]
         a = R[..., :, 2]                                                   # axes (S, n, 3)
         revolute = np.array([b.kind == "R" for b in bodies])
         sw = np.where(revolute[:, None], a, 0.0)                           # S_j = [sw; sv]
@@ -95,95 +119,113 @@ class TreeBatch:
         Ic = Io - m[:, None, None] * (np.einsum("nk,nk->n", c_body, c_body)[:, None, None] * np.eye(3)
                                       - np.einsum("ni,nj->nij", c_body, c_body))
         com = p + np.einsum("snij,nj->sni", R, c_body)                    # (S, n, 3) world
-        Icw = R @ Ic @ R.transpose(0, 1, 3, 2)                             # (S, n, 3, 3) world, about com
-        # component-first copies: (3, S, n) vectors, (3, 3, S, n) inertias
-        self.sw, self.sv, self.com = (np.ascontiguousarray(x.transpose(2, 0, 1)) for x in (sw, sv, com))
-        self.Ic = np.ascontiguousarray(Icw.transpose(2, 3, 0, 1))
+        J = R @ Ic @ R.transpose(0, 1, 3, 2)                               # world, about the com
+        J += m[:, None, None] * (np.einsum("snk,snk->sn", com, com)[..., None, None] * np.eye(3)
+                                 - com[..., :, None] * com[..., None, :])  # about the world origin
+        # component-first, bodies then configurations: (3, n, S) vectors, J as (6, n, S) (xx, yy,
+        # zz, xy, xz, yz), so that the sums over bodies run on contiguous rows
+        self.sw, self.sv = (np.ascontiguousarray(x.transpose(2, 1, 0)) for x in (sw, sv))
+        self.hm = np.ascontiguousarray((m[:, None] * com).transpose(2, 1, 0))
+        self.J6 = np.ascontiguousarray(np.stack([J[..., 0, 0], J[..., 1, 1], J[..., 2, 2], J[..., 0, 1],
+                                                 J[..., 0, 2], J[..., 1, 2]]).transpose(0, 2, 1))
+        self._m = m[:, None]
 
     # ------------------------------------------------------------ tree sums
     def _down(self, x):
-        """sum over j <= i (i and its ancestors) of x[..., j], bodies on the last axis."""
+        """sum over j <= i (i and its ancestors) of x[..., j, :], bodies on the axis before last."""
         if self.chain:
-            return np.cumsum(x, axis=-1)
-        return x @ self.anc.astype(float)
+            return np.cumsum(x, axis=-2)
+        return self._ancf.T @ x
 
     def _up(self, x):
-        """sum over i >= j (j and its descendants) of x[..., i], bodies on the last axis."""
+        """sum over i >= j (j and its descendants) of x[..., i, :], bodies on the axis before last."""
         if self.chain:
-            return np.cumsum(x[..., ::-1], axis=-1)[..., ::-1]
-        return x @ self.anc.T.astype(float)
+            return np.cumsum(x[..., ::-1, :], axis=-2)[..., ::-1, :]
+        return self._ancf @ x
 
     # ------------------------------------------------------------ spatial algebra
-    def _spatial(self):
-        """(S_j (S, n, 6), the composite inertias IC_k = sum_{i >= k} I_i (S, n, 6, 6)), world
-        frame, motion (w, v) and force (moment, force) coordinates."""
-        c, m = self.com.transpose(1, 2, 0), self.mass
-        Ic = self.Ic.transpose(2, 3, 0, 1)
-        cx = np.zeros(c.shape + (3,))
-        cx[..., 0, 1], cx[..., 0, 2], cx[..., 1, 2] = -c[..., 2], c[..., 1], -c[..., 0]
-        cx[..., 1, 0], cx[..., 2, 0], cx[..., 2, 1] = c[..., 2], -c[..., 1], c[..., 0]
-        mm = m[:, None, None]
-        I6 = np.concatenate([np.concatenate([Ic - mm * (cx @ cx), mm * cx], -1),
-                             np.concatenate([-mm * cx, np.broadcast_to(mm * np.eye(3), Ic.shape)], -1)], -2)
-        IC = np.einsum("ik,skab->siab", self.anc.astype(float), I6)          # sum over descendants
-        return np.concatenate([self.sw, self.sv]).transpose(1, 2, 0), IC
+    def _spatial(self, rows=slice(None)):
+        """(S_j (S, n, 6), the composite inertias IC_k = sum_{i >= k} I_i (S, n, 6, 6)) at the
+        configurations ``rows``, world frame, motion (w, v) and force (moment, force) coordinates:
+        I_i = [[J, h x], [-h x, m]]."""
+        J6, h = self.J6[..., rows].transpose(2, 1, 0), self.hm[..., rows].transpose(2, 1, 0)   # (S, n, 6), (S, n, 3)
+        J = J6[..., [[0, 3, 4], [3, 1, 5], [4, 5, 2]]]
+        hx = np.zeros(h.shape + (3,))
+        hx[..., 0, 1], hx[..., 0, 2], hx[..., 1, 2] = -h[..., 2], h[..., 1], -h[..., 0]
+        hx[..., 1, 0], hx[..., 2, 0], hx[..., 2, 1] = h[..., 2], -h[..., 1], h[..., 0]
+        mm = self.mass[:, None, None]
+        I6 = np.concatenate([np.concatenate([J, hx], -1),
+                             np.concatenate([-hx, np.broadcast_to(mm * np.eye(3), J.shape)], -1)], -2)
+        IC = np.einsum("ik,skab->siab", self._ancf, I6)                   # sum over descendants
+        return np.concatenate([self.sw[..., rows], self.sv[..., rows]]).transpose(2, 1, 0), IC
 
-    def mass_matrix(self):
-        """M(q) (S, n, n) at the configurations (CRBA in world frame, armature on the diagonal):
-        M_jk = S_j . IC_k S_k for j <= k."""
+    def mass_matrix(self, rows=slice(None)):
+        """M(q) (S, n, n) at the configurations ``rows`` (CRBA in world frame, armature on the
+        diagonal): M_jk = S_j . IC_k S_k for j <= k, IC_k S_k from the composite mass, first
+        moment and rotational inertia (O(n) per configuration, then one (n, 6) (6, n) product)."""
         n = self.n
-        Sj, IC = self._spatial()
-        U = np.einsum("sjd,skde,ske->sjk", Sj, IC, Sj) * self.anc
+        sw, sv = self.sw[..., rows], self.sv[..., rows]
+        Fw, Fv = _inertia(self._up(self.J6[..., rows]), self._up(self.hm[..., rows]), self._up(self._m), sw, sv)
+        U = np.concatenate([sw, sv]).transpose(2, 1, 0) @ np.concatenate([Fw, Fv]).transpose(2, 0, 1)
+        U *= self.anc
         M = U + U.transpose(0, 2, 1)
-        M[:, np.arange(n), np.arange(n)] *= 0.5
-        M[:, np.arange(n), np.arange(n)] += self.armature
+        d = np.arange(n)
+        M[:, d, d] = U[:, d, d] + self.armature
         return M
+    def gravity(self, rows=slice(None)):
+        """(g(q) (S, n), dg/dq (S, n, n)) at the configurations ``rows`` (module docstring):
+        dg_j/dq_k = -[k <= j] ((a_k x a_j) . (H_j x g0) + m_j ((a_k x v_j + v_k x a_j) . g0))
+                    - [a = j] ((a_j . H_j)(a_k . g0) - (a_j . a_k)(H_j . g0) + m_j a_j . (v_k x g0))
+                    - [a = k != j] ((a_j . H_k)(a_k . g0) - (a_j . a_k)(H_k . g0) + m_k a_j . (v_k x g0))."""
+        sw, sv = (x[..., rows].transpose(2, 1, 0) for x in (self.sw, self.sv))    # (S, n, 3)
+        H = self._up(self.hm[..., rows]).transpose(2, 1, 0)
+        mc, g0 = self._up(self._m)[:, 0], self.g0
+        g = -(np.einsum("snd,snd->sn", sw, np.cross(H, g0)) + mc * (sv @ g0))
+        T = lambda x: x.transpose(0, 2, 1)                                 # noqa: E731
+        R = mc[:, None] * np.cross(sv, g0)                                 # m_k v_k x g0
+        # k <= j: (a_k x a_j) . (H_j x g0) = a_k . (a_j x (H_j x g0)), m_j (a_k x v_j + v_k x a_j) . g0
+        below = (np.cross(sw, np.cross(H, g0)) + R) @ T(sw) + (mc[:, None] * np.cross(sw, g0)) @ T(sv)
+        gram, beta, gamma = sw @ T(sw), sw @ g0, H @ g0
+        alpha = np.einsum("snd,snd->sn", sw, H)
+        at_j = alpha[:, :, None] * beta[:, None, :] - gamma[:, :, None] * gram + (mc[:, None] * np.cross(g0, sw)) @ T(sv)
+        at_k = (sw @ T(H)) * beta[:, None, :] - gram * gamma[:, None, :] + sw @ T(R)
+        anc = self.anc
+        dg = -(anc.T * (below + at_j) + (anc & ~np.eye(self.n, dtype=bool)) * at_k)
+        return g, dg
 
-    def christoffel(self):
-        """The Christoffel tensor T (S, n, n, n), T[s, i, j, k] = C(q_s, e_k)_ij = B(e_j, e_k)_i.
+    def christoffel(self, rows=slice(None)):
+        """The Christoffel tensor T (S, n, n, n) at the configurations ``rows``,
+        T[s, i, j, k] = C(q_s, e_k)_ij = B(e_j, e_k)_i.
 
         For j <= k (the only non-zero pairs with k <= j, by symmetry), with a = the deeper of i
         and k (0 unless one is the other's ancestor):
             B(e_j, e_k)_i = S_i . (IC_a (S_j x S_k) + S_j x* IC_a S_k + S_k x* IC_a S_j) / 2
+                          = (Y_ai . X_jk - X_ji . Y_ak - X_ki . Y_aj) / 2,
+            X_jk = S_j x S_k,  Y_ak = IC_a S_k                  (m . (s x* f) = -(s x m) . f)
         (the RNEA of the module docstring with v = e_j, w = e_k: A = (S_j x S_k) / 2 on the
         bodies i >= k, and the symmetrised velocity product on the same bodies). n^3 entries and
         O(n^3) work per configuration: for small n."""
         n = self.n
-        Sj, IC = self._spatial()
-
-        w, v = Sj[..., :3].transpose(2, 0, 1), Sj[..., 3:].transpose(2, 0, 1)   # (3, S, n)
-        F = np.einsum("smab,skb->asmk", IC, Sj)                             # IC_m S_k: (6, S, m, k)
-        Xw = cross(w[:, :, :, None], w[:, :, None, :])                      # S_j x S_k: (3, S, j, k)
-        Xv = cross(w[:, :, :, None], v[:, :, None, :]) + cross(v[:, :, :, None], w[:, :, None, :])
-        X = np.concatenate([Xw, Xv]).reshape(6, self.S, n * n).transpose(1, 0, 2)
-        G = (IC @ X[:, None]).reshape(self.S, n, 6, n, n).transpose(2, 0, 1, 3, 4)   # (6, S, m, j, k)
-        for (wj, vj), (fw, fv) in ((((w[:, :, None, :, None], v[:, :, None, :, None]),   # S_j x* IC_m S_k
-                                     (F[:3, :, :, None, :], F[3:, :, :, None, :]))),
-                                   (((w[:, :, None, None, :], v[:, :, None, None, :]),   # S_k x* IC_m S_j
-                                     (F[:3, :, :, :, None], F[3:, :, :, :, None])))):
-            G[:3] += cross(wj, fw) + cross(vj, fv)
-            G[3:] += cross(wj, fv)
-        G = G.transpose(1, 2, 3, 4, 0)                                      # (S, m, j, k, 6)
-        # a(i, k): k if i <= k, i if k < i, none otherwise
+        Sj, IC = self._spatial(rows)                                        # (S, n, 6), (S, n, 6, 6)
+        w, v = Sj[..., None, :, :3], Sj[..., None, :, 3:]                   # S_k on axis 2
+        wj, vj = Sj[..., :, None, :3], Sj[..., :, None, 3:]                 # S_j on axis 1
+        X = np.concatenate([np.cross(wj, w), np.cross(wj, v) + np.cross(vj, w)], -1)   # (S, j, k, 6)
+        Y = IC @ Sj.transpose(0, 2, 1)[:, None]                             # (S, m, 6, k): IC_m S_k
         a = np.where(self.anc, np.arange(n)[None, :], np.arange(n)[:, None])   # a[i, k]
-        related = self.anc | self.anc.T
-        jk = self.anc                                                       # j <= k
         idx = np.arange(n)
-        H = G[:, a[:, None, :], idx[None, :, None], idx[None, None, :]]      # G[a(i, k), j, k]
-        T = 0.5 * np.einsum("sid,sijkd->sijk", Sj, H)
-        T = T * (jk[None, None] & related.T[None, :, None, :])
+        Yt = Y.transpose(0, 1, 3, 2)                                        # (S, m, k, 6)
+        ai = Yt[:, a, idx[:, None]]                                         # [s, i, k] = Y_{a(i,k) i}
+        ak = Yt[:, a, idx[None, :]]                                         # [s, i, k] = Y_{a(i,k) k}
+        aj = Y[:, a]                                                        # [s, i, k, :, j] = Y_{a(i,k) j}
+        T = (np.einsum("sikd,sjkd->sijk", ai, X) - np.einsum("sjid,sikd->sijk", X, ak)
+             - np.einsum("skid,sikdj->sijk", X, aj))
+        related = self.anc | self.anc.T
+        T *= 0.5 * (self.anc[None, None] & related.T[None, :, None, :])
         return T + T.transpose(0, 1, 3, 2) * (1 - np.eye(n))[None, None]
 
-    def _inertia(self, w, v, rows=slice(None), cols=slice(None)):
-        """I_i (w, v) = (Ic w + com x m v_c, m v_c), v_c = v + w x com, for the spatial inertias of
-        the bodies ``cols`` at the configurations ``rows`` (component-first motion (w, v))."""
-        com, Ic, m = self.com[:, rows][..., cols], self.Ic[:, :, rows][..., cols], self.mass[cols]
-        lin = m * (v + cross(w, com))
-        ang = np.einsum("ij...,j...->i...", Ic, np.broadcast_to(w, lin.shape)) + cross(com, lin)
-        return ang, lin
-
     def coriolis_products(self, rows, v):
-        """(C(q, v) v, C(q, v)^T C(q, v) v) for the pairs (configuration rows[k], vector v[k]).
+        """(C(q, v) v, C(q, v)^T C(q, v) v) for the pairs (configuration rows[k], vector v[k]):
+        the RNEA c(v) and its adjoint h (module docstring).
 
         Parameters
         ----------
@@ -192,40 +234,34 @@ class TreeBatch:
         Returns
         -------
         (c (P, n), h (P, n))."""
-        sw, sv = self.sw[:, rows], self.sv[:, rows]
-        com, Ic, m = self.com[:, rows], self.Ic[:, :, rows], self.mass
+        sw, sv, J, hm, m = self.sw[..., rows], self.sv[..., rows], self.J6[..., rows], self.hm[..., rows], self._m
         down, up = self._down, self._up
-
-        def inertia(w, u):
-            lin = m * (u + cross(w, com))
-            return np.einsum("ij...,j...->i...", Ic, w) + cross(com, lin), lin
-
-        def forces(Aw, Av, Xw, Xv, Yw, Yv):
-            """I A + (X x* I Y + Y x* I X) / 2 per body (the symmetrised velocity product)."""
-            fw, fv = inertia(Aw, Av)
-            for (aw, av), (bw, bv) in (((Xw, Xv), (Yw, Yv)), ((Yw, Yv), (Xw, Xv))):
-                nw, nv = inertia(bw, bv)
-                fw += 0.5 * (cross(aw, nw) + cross(av, nv))
-                fv += 0.5 * cross(aw, nv)
-            return fw, fv
-
-        def torque(fw, fv):
-            return dot(sw, up(fw)) + dot(sv, up(fv))
-
+        v = np.ascontiguousarray(np.asarray(v, dtype=float).T)
         Vw, Vv = down(sw * v), down(sv * v)                                # body velocities V_i
-        dSw, dSv = cross(Vw, sw), cross(Vw, sv) + cross(Vv, sw)            # dS_j = V_j x S_j
-        c = torque(*forces(down(dSw * v), down(dSv * v), Vw, Vv, Vw, Vv))
-        Ww, Wv = down(sw * c), down(sv * c)                                # W_i for w = c
-        dcw, dcv = down(dSw * c), down(dSv * c)                            # sum dS_j c_j
-        # B(v, c): A = (sum dS_j c_j + sum dS^c_j v_j) / 2 with dS^c_j = W_j x S_j
-        Aw = 0.5 * (dcw + down(cross(Ww, sw) * v))
-        Av = 0.5 * (dcv + down((cross(Ww, sv) + cross(Wv, sw)) * v))
-        B = torque(*forces(Aw, Av, Vw, Vv, Ww, Wv))
-        # Mdot(q, v) c = dS . G + S . dG
-        gw, gv = inertia(Ww, Wv)
-        iw, iv = inertia(cross(Vw, Ww), cross(Vw, Wv) + cross(Vv, Ww))     # I (V x W)
-        kw, kv = inertia(dcw, dcv)
-        dgw = cross(Vw, gw) + cross(Vv, gv) - iw + kw
-        dgv = cross(Vw, gv) - iv + kv
-        Mdc = dot(dSw, up(gw)) + dot(dSv, up(gv)) + dot(sw, up(dgw)) + dot(sv, up(dgv))
-        return c, Mdc - B
+        dSw, dSv = cross(Vw, sw), cross(Vw, sv)                            # dS_j = V_j x S_j
+        dSv += cross(Vv, sw)
+        pw, pv = _inertia(J, hm, m, Vw, Vv)                                # I V
+        fw, fv = _inertia(J, hm, m, down(dSw * v), down(dSv * v))          # I A
+        fw += cross(Vw, pw)                                                # + V x* I V
+        fw += cross(Vv, pv)
+        fv += cross(Vw, pv)
+        c = dot(sw, up(fw))
+        c += dot(sv, up(fv))
+        Ww, Wv = down(sw * c), down(sv * c)                                # W_i
+        Gw, Gv = (up(x) for x in _inertia(J, hm, m, Ww, Wv))               # sum_{i >= j} I_i W_i
+        Ew, Ev = cross(sw, Gw), cross(sw, Gv)                              # E_j = S_j x* G_j
+        Ew += cross(sv, Gv)
+        Xv = cross(Ww, Vv)                                                 # W x V
+        Xv += cross(Wv, Vw)
+        rw, rv = _inertia(J, hm, m, cross(Ww, Vw), Xv)                     # I (W x V)
+        rw -= cross(Ww, pw)                                                # - W x* I V
+        rw -= cross(Wv, pv)
+        rv -= cross(Ww, pv)
+        rw += Ew * v
+        rv += Ev * v
+        h = dot(Vw, Ew)
+        h += dot(Vv, Ev)
+        h += dot(sw, up(rw))
+        h += dot(sv, up(rv))
+        h *= 0.5
+        return c.T, h.T
