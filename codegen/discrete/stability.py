@@ -279,6 +279,19 @@ def sample_times(disc):
     return sorted(d for d in dts if lo <= d <= hi)
 
 
+def _expanded(f):
+    """An MX Function (a step that calls its model) as one SX Function: CasADi's SX machine
+    evaluates it about twice as fast (a generic 24-joint chain: 0.38 s against 0.8 s per
+    linearisation, the expansion 0.5 s once), and the search for a gain's bound evaluates it
+    a dozen times. A Function that cannot be expanded stays as it is."""
+    if not f.is_a("MXFunction"):
+        return f
+    try:
+        return f.expand()
+    except RuntimeError:
+        return f
+
+
 class _Linearisation:
     """The step's Jacobian and the exact flow's growth at the working points, for any p and
     sample times (one mapped call for all of them)."""
@@ -297,7 +310,7 @@ class _Linearisation:
         self._base = (Y, EST)
         self.Y, self.U, self.EST = (np.repeat(a, self.K, axis=0) for a in (Y, U, EST))
         self.S = len(self.Y)
-        self._jac, self._maps, self._output = step_jacobians(spec, disc), {}, None
+        self._jac, self._maps, self._output = _expanded(step_jacobians(spec, disc)), {}, None
         self.init = spec.init.map(len(Y))
         self.phases = None if spec.phases is None else spec.phases.map(len(Y))
 
@@ -514,11 +527,20 @@ def _max_stable(lin, p, idx, dts, precision="double"):
     unstable value was found); (None, True) when unstable even at 0."""
     v0 = _gain_value(p, idx)
     base = p[idx] / v0 if v0 > 0 else np.ones(len(idx))
+    order = list(range(len(dts)))[::-1]       # the sample time that failed last is tried first
 
     def ok(v):
         q = p.copy()
         q[idx] = base * v
-        return lin.stable(q, dts) and lin.precise(q, precision)
+        # lin.stable(q, dts) (an unstable value costs one sample time's linearisation, not all)
+        for group in (order[:1], order[1:]):
+            excess = lin.radii(q, [dts[i] for i in group])[2] if group else []
+            bad = [i for i, e in zip(group, excess) if not e <= 1 + TOL]
+            if bad:
+                order.remove(bad[0])
+                order.insert(0, bad[0])
+                return False
+        return lin.precise(q, precision)
     if not ok(0.0):
         return None, True
     return _largest(ok, 0.0, v0 if v0 > 0 else 1.0, round(math.log(GROWTH, 4)))
