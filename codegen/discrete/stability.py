@@ -177,11 +177,12 @@ class StabilityReport:
         """{time parameter: {"value", "max"}} of the clocks that do not reach their time."""
         return {t: c for t, c in self.clocks.items() if not c["value"] <= c["max"]}
 
-    def message(self, family, form="python"):
+    def message(self, family, form="python", auto=False):
         """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius,
         the cause (the stiff mode's joint and why it is stiff) and the fixes, as Python arguments
         (``form`` "python": ``substeps="auto"``, ``dt=``, ``locked_joints=``) or command-line flags
-        ("cli": ``--substeps auto``, ``--dt``, ``--lock``)."""
+        ("cli": ``--substeps auto``, ``--dt``, ``--lock``); ``auto``: the substeps were chosen
+        automatically already (choosing them is then no fix)."""
         if form not in ("python", "cli"):
             raise ValueError(f"form must be 'python' or 'cli', got {form!r}")
         cli = form == "cli"
@@ -226,7 +227,7 @@ class StabilityReport:
                              f"or dt_max <= {limit} (longer intervals are split)")
             else:
                 fixes.append(f"or --dt {limit} (or less)" if cli else f"or dt <= {limit}")
-        if grows and not self.negative:       # sub-steps cannot make a negative gain stable
+        if grows and not self.negative and not auto:   # sub-steps cannot make a negative gain stable
             fixes.append("or --substeps auto to choose them" if cli else 'or substeps="auto" to choose them')
         if stiff.get("lock") and grows and not self.negative:
             j = stiff["lock"]
@@ -656,10 +657,11 @@ def require_stable(spec, disc, p=None, precision="double"):
     return report
 
 
-def _refusal(spec, report, prefix=""):
-    """UnstableDiscretization of ``report`` for ``spec``, in Python's words and the CLI's."""
-    return UnstableDiscretization(f"{spec.family}: {prefix}" + report.message(spec.family),
-                                  f"{spec.family}: {prefix}" + report.message(spec.family, form="cli"))
+def _refusal(spec, report, prefix="", auto=False):
+    """UnstableDiscretization of ``report`` for ``spec``, in Python's words and the CLI's
+    (``auto``: refused by ``auto_substeps``, which does not suggest itself)."""
+    return UnstableDiscretization(f"{spec.family}: {prefix}" + report.message(spec.family, auto=auto),
+                                  f"{spec.family}: {prefix}" + report.message(spec.family, form="cli", auto=auto))
 
 
 def auto_substeps(spec, disc, p=None, limit=SUBSTEPS_MAX):
@@ -706,14 +708,14 @@ def _fewest(spec, disc, p, limit):
     if report.stable:
         return disc
     if report.negative or not report.substeps_needed or report.imprecise or report.late:
-        raise _refusal(spec, report)                 # sub-steps cannot fix these
+        raise _refusal(spec, report, auto=True)      # sub-steps cannot fix these
     m = report.substeps_needed * disc.substeps
     while m <= limit:
         candidate = replace(disc, substeps=m)
         if check(spec, candidate, p).stable:
             return candidate
         m += 1
-    raise _refusal(spec, report, f"no substeps <= {limit} is stable; ")
+    raise _refusal(spec, report, f"no substeps <= {limit} is stable; ", auto=True)
 
 
 def widest_range(spec, disc, p=None):
