@@ -721,7 +721,9 @@ def _fewest(spec, disc, p, limit):
 def widest_range(spec, disc, p=None):
     """``disc`` (stable with its range up to dt_max = dt) with dt_max declared as the largest sample
     time in [dt, DT_MAX_FACTOR dt] at which its substeps are stable over [dt_min, dt_max]
-    (bisection to 2^-16, rounded down to three significant digits).
+    (bisection to 2^-16, rounded down to three significant digits). The bisection's result is
+    cached as ``check``'s reports are (each of its points costs as much as a check: 100 s for
+    panda's identified model at 50 sub-steps, every time ``compare`` ran).
 
     Parameters
     ----------
@@ -737,15 +739,20 @@ def widest_range(spec, disc, p=None):
     """
     from dataclasses import replace
     p = np.asarray(spec.p_default if p is None else p, dtype=float).reshape(spec.np)
-    lin = _Linearisation(spec, disc)
-    top = DT_MAX_FACTOR * disc.dt
 
-    def ok(h):
-        return lin.stable(p, sample_times(replace(disc, dt_max=h)))
-    lo, hi = disc.dt, top
-    for _ in range(BISECTIONS):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    def bisect():
+        lin = _Linearisation(spec, disc)
+
+        def ok(h):
+            return lin.stable(p, sample_times(replace(disc, dt_max=h)))
+        lo, hi = disc.dt, DT_MAX_FACTOR * disc.dt
+        for _ in range(BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+        return lo
+    key = {"version": VERSION, "widest_range": DT_MAX_FACTOR, "spec": _digest(spec), "disc": disc.to_dict(),
+           "p": p.tolist(), "points": POINTS, "bisections": BISECTIONS}
+    lo = float(cached_json("stability", key, bisect))
     scale = 10.0 ** (math.floor(math.log10(lo)) - 2)
     h = max(disc.dt, float(f"{math.floor(lo / scale) * scale:.3g}"))
     widest = replace(disc, dt_max=h)

@@ -347,3 +347,17 @@ def test_auto_substeps_refused_does_not_suggest_itself():
     assert "--dt " in err.value.cli_message and "auto" not in err.value.cli_message
     fixed = check(spec, Discretization(dt=5e-3, substeps=1))
     assert 'substeps="auto" to choose them' in fixed.message(spec.family)
+
+
+def test_widest_range_is_computed_once(monkeypatch):
+    """auto_substeps' bisection for dt_max is cached as the check's reports are: compare ran it
+    again each time (100 s for panda's identified model at 50 sub-steps); the second call does
+    not linearise the step."""
+    import codegen.discrete.stability as stability
+    spec = observers.build("reduced_order", load_robot("seed000_2r"), k0=1000.0)
+    first = stability.widest_range(spec, RK4_AT_DT)
+
+    def fail(*args, **kwargs):
+        raise AssertionError("linearised again")
+    monkeypatch.setattr(stability, "_Linearisation", fail)
+    assert stability.widest_range(spec, RK4_AT_DT) == first
