@@ -519,3 +519,18 @@ def test_a_pause_in_the_log_resets_the_observer():
     assert "reset after 1 interval(s) longer than 2 s" in note
     for part in (slice(500, 1000), slice(1500, 2000)):                # 0.5 s after each start
         assert np.max(np.abs(est[part] - QD[part])) < 1e-2
+
+
+def test_figures_fit_every_muted_name(tmp_path):
+    """compare's figures with six muted methods, the robot's velocity signal among them: the one
+    legend entry of the muted curves used to be one line wider than the figure (matplotlib's
+    "Tight layout not applied" on the user's terminal, the legend and the x label cut off)."""
+    import warnings
+
+    from codegen.evaluate.sim import plots
+    t = np.linspace(0.0, 1.0, 50)
+    names = ["reduced_order_switched", "reduced_order", "extended_state", "nicosia_tomei", "butterworth", SIGNAL]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plots.error_norms(tmp_path / "errors.png", t, {"kalman_model": np.abs(np.sin(t)) + 1e-3},
+                          muted={k: np.abs(np.cos(t)) + 1e-3 for k in names})
