@@ -177,11 +177,12 @@ class StabilityReport:
         """{time parameter: {"value", "max"}} of the clocks that do not reach their time."""
         return {t: c for t, c in self.clocks.items() if not c["value"] <= c["max"]}
 
-    def message(self, family, form="python"):
+    def message(self, family, form="python", auto=False):
         """One line: the gain(s) (or the name ``family`` when none), dt, method, spectral radius,
         the cause (the stiff mode's joint and why it is stiff) and the fixes, as Python arguments
         (``form`` "python": ``substeps="auto"``, ``dt=``, ``locked_joints=``) or command-line flags
-        ("cli": ``--substeps auto``, ``--dt``, ``--lock``)."""
+        ("cli": ``--substeps auto``, ``--dt``, ``--lock``); ``auto``: the substeps were chosen
+        automatically already (choosing them is then no fix)."""
         if form not in ("python", "cli"):
             raise ValueError(f"form must be 'python' or 'cli', got {form!r}")
         cli = form == "cli"
@@ -226,7 +227,7 @@ class StabilityReport:
                              f"or dt_max <= {limit} (longer intervals are split)")
             else:
                 fixes.append(f"or --dt {limit} (or less)" if cli else f"or dt <= {limit}")
-        if grows and not self.negative:       # sub-steps cannot make a negative gain stable
+        if grows and not self.negative and not auto:   # sub-steps cannot make a negative gain stable
             fixes.append("or --substeps auto to choose them" if cli else 'or substeps="auto" to choose them')
         if stiff.get("lock") and grows and not self.negative:
             j = stiff["lock"]
@@ -678,10 +679,11 @@ def require_stable(spec, disc, p=None, precision="double"):
     return report
 
 
-def _refusal(spec, report, prefix=""):
-    """UnstableDiscretization of ``report`` for ``spec``, in Python's words and the CLI's."""
-    return UnstableDiscretization(f"{spec.family}: {prefix}" + report.message(spec.family),
-                                  f"{spec.family}: {prefix}" + report.message(spec.family, form="cli"))
+def _refusal(spec, report, prefix="", auto=False):
+    """UnstableDiscretization of ``report`` for ``spec``, in Python's words and the CLI's
+    (``auto``: refused by ``auto_substeps``, which does not suggest itself)."""
+    return UnstableDiscretization(f"{spec.family}: {prefix}" + report.message(spec.family, auto=auto),
+                                  f"{spec.family}: {prefix}" + report.message(spec.family, form="cli", auto=auto))
 
 
 def auto_substeps(spec, disc, p=None, limit=SUBSTEPS_MAX):
@@ -728,20 +730,22 @@ def _fewest(spec, disc, p, limit):
     if report.stable:
         return disc
     if report.negative or not report.substeps_needed or report.imprecise or report.late:
-        raise _refusal(spec, report)                 # sub-steps cannot fix these
+        raise _refusal(spec, report, auto=True)      # sub-steps cannot fix these
     m = report.substeps_needed * disc.substeps
     while m <= limit:
         candidate = replace(disc, substeps=m)
         if check(spec, candidate, p).stable:
             return candidate
         m += 1
-    raise _refusal(spec, report, f"no substeps <= {limit} is stable; ")
+    raise _refusal(spec, report, f"no substeps <= {limit} is stable; ", auto=True)
 
 
 def widest_range(spec, disc, p=None):
     """``disc`` (stable with its range up to dt_max = dt) with dt_max declared as the largest sample
     time in [dt, DT_MAX_FACTOR dt] at which its substeps are stable over [dt_min, dt_max]
-    (bisection to 2^-16, rounded down to three significant digits).
+    (bisection to 2^-16, rounded down to three significant digits). The bisection's result is
+    cached as ``check``'s reports are (each of its points costs as much as a check: 100 s for
+    panda's identified model at 50 sub-steps, every time ``compare`` ran).
 
     Parameters
     ----------
@@ -757,15 +761,20 @@ def widest_range(spec, disc, p=None):
     """
     from dataclasses import replace
     p = np.asarray(spec.p_default if p is None else p, dtype=float).reshape(spec.np)
-    lin = _Linearisation(spec, disc)
-    top = DT_MAX_FACTOR * disc.dt
 
-    def ok(h):
-        return lin.stable(p, sample_times(replace(disc, dt_max=h)))
-    lo, hi = disc.dt, top
-    for _ in range(BISECTIONS):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    def bisect():
+        lin = _Linearisation(spec, disc)
+
+        def ok(h):
+            return lin.stable(p, sample_times(replace(disc, dt_max=h)))
+        lo, hi = disc.dt, DT_MAX_FACTOR * disc.dt
+        for _ in range(BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+        return lo
+    key = {"version": VERSION, "widest_range": DT_MAX_FACTOR, "spec": _digest(spec), "disc": disc.to_dict(),
+           "p": p.tolist(), "points": POINTS, "bisections": BISECTIONS}
+    lo = float(cached_json("stability", key, bisect))
     scale = 10.0 ** (math.floor(math.log10(lo)) - 2)
     h = max(disc.dt, float(f"{math.floor(lo / scale) * scale:.3g}"))
     widest = replace(disc, dt_max=h)

@@ -327,7 +327,17 @@ def parse_observer(text):
 def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None):
     """Estimate (N, nest) of an observer spec over samples Y, U with the default discretisation
     at dt: compiled C (the loop in C) or the numpy reference; (estimate of NaN, message) when
-    the observer fails.
+    the observer fails or no discretisation of it is stable.
+
+    Two things of a real log the step at the median dt cannot take are handled here, each said
+    in the note:
+
+    * a stiff mode that no ``SUBSTEPS_MAX`` sub-steps of dt hold (an identified friction's sharp
+      sign on a light wrist, at a log's 5 ms steps): with substeps "auto" and stamps, the
+      observer is designed at dt / SUBSTEPS_MAX instead and each interval of the log is split
+      into sub-intervals by the C (at most ``SPLIT_MAX`` of them, as any gap beyond dt_max);
+    * an interval longer than the observer's ``dt_limit`` (SPLIT_MAX x dt_max: a pause in the
+      logging): the observer is reset from the first sample after it, as after an outage.
 
     Parameters
     ----------
@@ -350,18 +360,42 @@ def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None):
     -------
     (estimate (N, nest), note str)
     """
+    from dataclasses import replace
+
+    from ..core.target import SUBSTEPS_MAX, discretization
+    from ..discrete.stability import UnstableDiscretization
     from ..pipeline.load import ObserverError
     from .sim.blocks import block
-    from ..core.target import discretization
+    # the fewest stable sub-steps (xarm7 at 1 kHz needs 6)
+    disc = discretization(None, **{"substeps": "auto", **(stepping or {}), "dt": dt})
+    notes = []
     try:
-        # the fewest stable sub-steps (xarm7 at 1 kHz needs 6)
-        obs = block(spec, discretization(None, **{"substeps": "auto", **(stepping or {}), "dt": dt}),
-                    reference=reference)
-        obs.reset(Y[0])
-        # each step over the log's own elapsed time (a gap beyond dt_max split inside the C)
-        return (obs.run(Y, U) if t is None else obs.run(Y, U, t=t)), ""
-    except (ObserverError, FloatingPointError) as e:
+        try:
+            obs = block(spec, disc, reference=reference)
+        except UnstableDiscretization:
+            if disc.substeps != "auto" or t is None:
+                raise
+            obs = block(spec, replace(disc, dt=dt / SUBSTEPS_MAX), reference=reference)
+            notes.append(f"no substeps <= {SUBSTEPS_MAX} of the median step {dt:.3g} s is stable: designed at "
+                         f"{obs.dt:.3g} s, each interval split into sub-intervals of at most {obs.dt_range[1]:.3g} s")
+        est = np.empty((len(Y), spec.nest))
+        cuts = [0, len(Y)] if t is None else _segments(t, obs.dt_limit)
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            obs.reset(Y[a])
+            # each step over the log's own elapsed time (a gap beyond dt_max split inside the C)
+            est[a:b] = obs.run(Y[a:b], U[a:b]) if t is None else obs.run(Y[a:b], U[a:b], t=t[a:b])
+        if len(cuts) > 2:
+            notes.append(f"reset after {len(cuts) - 2} interval(s) longer than {obs.dt_limit:.3g} s "
+                         f"(split_max x dt_max)")
+        return est, "; ".join(notes)
+    except (ObserverError, FloatingPointError, UnstableDiscretization) as e:
         return np.full((len(Y), spec.nest), np.nan), str(e)
+
+
+def _segments(t, limit):
+    """Indices [0, k_1, ..., N] cutting the stamps ``t`` (N,) (s) before each sample that
+    follows an interval longer than ``limit`` (s)."""
+    return [0, *(np.flatnonzero(np.diff(t) > limit) + 1).tolist(), len(t)]
 
 
 def tune(name, Y, t, truth, t_ss, dt, grid=None, valid=None):

@@ -928,17 +928,23 @@ def _refusal(arm, poor, std_beta, bound, d, train):
     names_ = ", ".join(arm.joint_names[j] for j in joints)
     what = (f"joint{'s' if len(joints) > 1 else ''} {names_} do{'es' if len(joints) == 1 else ''} not move"
             if still else f"the motion of joint{'s' if len(joints) > 1 else ''} {names_} does not excite them enough")
-    # a std falls as 1/sqrt(duration): how much longer a log of the same motion would have to be
+    # a std falls as 1/sqrt(samples): how many more samples of the same motion (a longer log, or
+    # the same one at a higher rate: a log at 200 Hz needs 5 x the duration of one at 1 kHz)
     longer = float(np.max(std_beta[poor]) / bound) ** 2
     duration = float(np.ptp(d.t[train]))
-    more = ("" if still else
-            f", or record {longer:.2g} x longer ({longer * duration:.3g} s of the same motion), or accept "
-            f"the worst at {np.max(std_beta[poor]):.2g} (--max-rel-std {np.max(std_beta[poor]) * 1.01:.2g})")
-    return (f"recording: the log does not determine the model: {len(poor)} of {len(arm.indep)} identifiable "
+    rate = float(np.count_nonzero(train)) / duration
+    excite = f"python -m codegen excite {src} --out traj.csv"
+    accept = (f"accept the worst at {np.max(std_beta[poor]):.2g} "
+              f"(--max-rel-std {np.max(std_beta[poor]) * 1.01:.2g})")
+    head = (f"recording: the log does not determine the model: {len(poor)} of {len(arm.indep)} identifiable "
             f"parameter combinations have a relative std above {bound:g} ({which}"
-            f"{'; ...' if len(poor) > len(worst) else ''}); {what} ({motion}). Record a log along an "
-            f"excitation trajectory (python -m codegen excite {src} --out traj.csv) and identify on it"
-            + (", or lock a joint that cannot move (--lock JOINT=VALUE)" if still else more))
+            f"{'; ...' if len(poor) > len(worst) else ''}); {what} ({motion}). ")
+    if still:
+        return (head + f"Record a log along an excitation trajectory ({excite}) and identify on it, or lock a "
+                f"joint that cannot move (--lock JOINT=VALUE)")
+    return (head + f"Record {longer:.2g} x the samples of the same motion ({longer * duration:.3g} s at this "
+            f"log's {rate:.3g} samples/s, or {duration:.3g} s at {longer * rate:.3g} samples/s), or a log "
+            f"along an excitation trajectory if this one is not ({excite}), or {accept}")
 
 
 def _report(arm, effect, t, t_split, train, test, x, residual, sigma, std_post, std_data, std_beta, cond,

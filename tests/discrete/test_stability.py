@@ -331,3 +331,33 @@ def test_auto_substeps_refuses_what_substeps_cannot_fix_at_once():
     with pytest.raises(UnstableDiscretization, match="rounding error") as err:
         auto_substeps(spec, RK4)
     assert "no substeps" not in str(err.value)
+
+
+def test_auto_substeps_refused_does_not_suggest_itself():
+    """A stiff friction no SUBSTEPS_MAX sub-steps hold: the refusal of "auto" names the step that
+    would do (dt <=) and no longer "or substeps="auto" to choose them", which was just tried; a
+    fixed substeps count's refusal still suggests it."""
+    robot = load_robot(urdf=Path(__file__).parents[1] / "data" / "two_link.urdf").with_friction(
+        coulomb=[2.0, 2.0], width=1e-3)
+    spec = observers.build("reduced_order", robot)
+    disc = Discretization(dt=5e-3, substeps="auto")
+    with pytest.raises(UnstableDiscretization, match="no substeps <= 64 is stable") as err:
+        auto_substeps(spec, disc)
+    assert "dt <= " in str(err.value) and "auto" not in str(err.value)
+    assert "--dt " in err.value.cli_message and "auto" not in err.value.cli_message
+    fixed = check(spec, Discretization(dt=5e-3, substeps=1))
+    assert 'substeps="auto" to choose them' in fixed.message(spec.family)
+
+
+def test_widest_range_is_computed_once(monkeypatch):
+    """auto_substeps' bisection for dt_max is cached as the check's reports are: compare ran it
+    again each time (100 s for panda's identified model at 50 sub-steps); the second call does
+    not linearise the step."""
+    import codegen.discrete.stability as stability
+    spec = observers.build("reduced_order", load_robot("seed000_2r"), k0=1000.0)
+    first = stability.widest_range(spec, RK4_AT_DT)
+
+    def fail(*args, **kwargs):
+        raise AssertionError("linearised again")
+    monkeypatch.setattr(stability, "_Linearisation", fail)
+    assert stability.widest_range(spec, RK4_AT_DT) == first

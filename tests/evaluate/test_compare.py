@@ -466,3 +466,71 @@ def test_compare_an_elastic_robots_log(tmp_path, capsys):
     assert set(rows) == {"ciccarella_germani", "kalman", "backward"}
     assert rows["ciccarella_germani"]["rms"] < 1e-3 and abs(rows["ciccarella_germani"]["gain"] - 1) < 1e-3
     assert re.search(r"^(use ciccarella_germani|no observer beats)", out.splitlines()[-2], re.M)
+
+
+def _friction_log(robot, t):
+    """(Y, U, QD) of demo_trajectory's sines of ``robot`` at the stamps ``t`` (s), U the torque of
+    its model with its friction (inverse_dynamics_function)."""
+    from codegen.verify.trajectory import demo_trajectory, inverse_dynamics_function
+    fine, Q, QD, TAU = demo_trajectory(robot, T=float(t[-1]) + 1e-3, dt=1e-4, seed=2)
+    k = np.rint(t / 1e-4).astype(int)
+    return Q[k], TAU[k], QD[k]
+
+
+def test_a_stiff_friction_no_substeps_hold_runs_on_a_finer_step():
+    """An identified friction's sharp sign (Coulomb 2 N m, width 1e-3 rad/s) on a light link at a
+    log's 5 ms steps: no substeps <= 64 of the median step is stable (compare used to stop the
+    whole comparison on this one family); the observer is designed at dt / 64 and each interval
+    split, said in the note, and follows the velocity."""
+    from codegen.core.target import SUBSTEPS_MAX
+    from codegen.discrete.stability import UnstableDiscretization, auto_substeps
+    from codegen.core.target import discretization
+    from codegen.evaluate.compare import run_observer
+    from codegen.families import observers
+    robot = load_robot(urdf=Path(__file__).parents[1] / "data" / "two_link.urdf").with_friction(
+        viscous=[0.5, 0.5], coulomb=[2.0, 2.0], width=1e-3)
+    spec = observers.build("reduced_order", robot)
+    dt = 5e-3
+    with pytest.raises(UnstableDiscretization, match=f"no substeps <= {SUBSTEPS_MAX} is stable"):
+        auto_substeps(spec, discretization(None, substeps="auto", dt=dt))
+    rng = np.random.default_rng(0)
+    t = np.round(np.cumsum(rng.uniform(1e-3, 9e-3, 400)), 4)        # 1-9 ms apart, 2 s
+    Y, U, QD = _friction_log(robot, t)
+    est, note = run_observer(spec, Y, U, float(np.median(np.diff(t))), t=t)
+    assert np.all(np.isfinite(est)), note
+    assert "each interval split" in note and f"no substeps <= {SUBSTEPS_MAX}" in note
+    late = t >= 1.0
+    assert np.sqrt(np.mean((est[late] - QD[late]) ** 2)) < 1e-2
+
+
+def test_a_pause_in_the_log_resets_the_observer():
+    """A log with a 3 s pause (longer than split_max x dt_max = 2 s at 1 kHz): compare used to stop
+    with "reset the observer after an outage that long", which its user cannot do; the observer
+    is reset from the first sample after the pause, said in the note, and converges again."""
+    from codegen.evaluate.compare import run_observer
+    from codegen.families import observers
+    robot = load_robot(urdf=Path(__file__).parents[1] / "data" / "two_link.urdf")
+    spec = observers.build("reduced_order", robot)
+    t = np.arange(2000) * 1e-3
+    t[1000:] += 3.0
+    Y, U, QD = _friction_log(robot, t)
+    est, note = run_observer(spec, Y, U, 1e-3, t=t)
+    assert np.all(np.isfinite(est)), note
+    assert "reset after 1 interval(s) longer than 2 s" in note
+    for part in (slice(500, 1000), slice(1500, 2000)):                # 0.5 s after each start
+        assert np.max(np.abs(est[part] - QD[part])) < 1e-2
+
+
+def test_figures_fit_every_muted_name(tmp_path):
+    """compare's figures with six muted methods, the robot's velocity signal among them: the one
+    legend entry of the muted curves used to be one line wider than the figure (matplotlib's
+    "Tight layout not applied" on the user's terminal, the legend and the x label cut off)."""
+    import warnings
+
+    from codegen.evaluate.sim import plots
+    t = np.linspace(0.0, 1.0, 50)
+    names = ["reduced_order_switched", "reduced_order", "extended_state", "nicosia_tomei", "butterworth", SIGNAL]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plots.error_norms(tmp_path / "errors.png", t, {"kalman_model": np.abs(np.sin(t)) + 1e-3},
+                          muted={k: np.abs(np.cos(t)) + 1e-3 for k in names})

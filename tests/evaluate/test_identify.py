@@ -281,6 +281,30 @@ def test_refuses_a_log_where_a_joint_does_not_move(gripper, gripper_traj, grippe
     assert "python -m codegen excite --urdf" in msg and "--lock finger_left=0.01" in msg
 
 
+@pytest.mark.slow
+def test_a_refusal_counts_samples_not_seconds(gripper, gripper_case):
+    """A log at a fifth of the rate (a real arm's log 5 ms apart) is refused for the same motion:
+    the remedy names the samples it lacks, as a longer log at its own rate or the same duration at
+    a higher one, and the higher rate it names is the same whatever the log's own rate (the stds
+    fall as 1/sqrt(samples)). The excitation trajectory is proposed only if the log is not one."""
+    import re
+    from dataclasses import replace
+    _, _, rec, _ = gripper_case
+    rates = {}
+    for k in (1, 5):
+        sub = replace(rec, t=rec.t[::k], q=rec.q[::k], tau=rec.tau[::k])
+        with pytest.raises(idf.IdentificationError) as e:
+            idf.identify(sub, gripper, max_rel_std=1e-3, cutoff=2.0)
+        msg = str(e.value)
+        m = re.search(r"Record ([\d.e+]+) x the samples of the same motion \(([\d.e+]+) s at this log's "
+                      r"([\d.e+]+) samples/s, or ([\d.e+]+) s at ([\d.e+]+) samples/s\)", msg)
+        assert m, msg
+        assert "or a log along an excitation trajectory if this one is not (python -m codegen excite" in msg
+        rates[k] = float(m.group(3)), float(m.group(5))
+    assert rates[5][0] == pytest.approx(rates[1][0] / 5, rel=0.05)
+    assert rates[5][1] == pytest.approx(rates[1][1], rel=0.3)
+
+
 def test_bad_input(gripper, gripper_case):
     _, _, rec, _ = gripper_case
     with pytest.raises(ValueError, match="test_fraction"):

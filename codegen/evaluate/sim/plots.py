@@ -107,7 +107,7 @@ def panels(path, x, rows, title="", cols=1, cell=(8.0, 2.6), xlabel="t [s]"):
                              sharex=True)
     for ax, p in zip(axes.flat, rows):
         for i, y in enumerate((p.muted or {}).values()):
-            ax.plot(x[:len(y)], y, **MUTED, label=f"others: {', '.join(p.muted)}" if i == 0 else None)
+            ax.plot(x[:len(y)], y, **MUTED, label=_others(p.muted) if i == 0 else None)
         for (label, y), ls in zip(p.curves.items(), cycle(LINES)):
             ax.plot(x[:len(y)], y, linestyle=ls, lw=1.0, label=label)
         if "y" in p.log:
@@ -128,6 +128,13 @@ def panels(path, x, rows, title="", cols=1, cell=(8.0, 2.6), xlabel="t [s]"):
     if title:
         fig.suptitle(title, fontsize=10)
     return _save(fig, path)
+
+
+def _others(names, width=30):
+    """The muted curves' one legend entry, "others: a, b, ...", wrapped at ``width`` characters
+    (on one line, six of compare's names made the legend wider than the figure)."""
+    import textwrap
+    return textwrap.fill(f"others: {', '.join(names)}", width, break_long_words=False)
 
 
 def per_joint(path, t, truth, estimates, ylabel="qd{} [rad/s]", truth_label="true", title="", zoom=None):
