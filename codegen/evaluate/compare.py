@@ -388,7 +388,11 @@ def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None):
             notes.append(f"reset after {len(cuts) - 2} interval(s) longer than {obs.dt_limit:.3g} s "
                          f"(split_max x dt_max)")
         return est, "; ".join(notes)
-    except (ObserverError, FloatingPointError, UnstableDiscretization) as e:
+    except UnstableDiscretization as e:
+        if disc.substeps != "auto":
+            raise             # the user's own stepping: refused in the CLI's words, not a row of NaN
+        return np.full((len(Y), spec.nest), np.nan), str(e)
+    except (ObserverError, FloatingPointError) as e:
         return np.full((len(Y), spec.nest), np.nan), str(e)
 
 
