@@ -327,7 +327,8 @@ def parse_observer(text):
 def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None):
     """Estimate (N, nest) of an observer spec over samples Y, U with the default discretisation
     at dt: compiled C (the loop in C) or the numpy reference; (estimate of NaN, message) when
-    the observer fails or no discretisation of it is stable.
+    the observer fails; UnstableDiscretization when no discretisation of it is stable (the
+    refusal at dt).
 
     Two things of a real log the step at the median dt cannot take are handled here, each said
     in the note:
@@ -372,10 +373,13 @@ def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None):
     try:
         try:
             obs = block(spec, disc, reference=reference)
-        except UnstableDiscretization:
+        except UnstableDiscretization as at_dt:
             if disc.substeps != "auto" or t is None:
-                raise
-            obs = block(spec, replace(disc, dt=dt / SUBSTEPS_MAX), reference=reference)
+                raise                   # stepping the user chose: refused in its own words
+            try:
+                obs = block(spec, replace(disc, dt=dt / SUBSTEPS_MAX), reference=reference)
+            except UnstableDiscretization:
+                raise at_dt from None
             notes.append(f"no substeps <= {SUBSTEPS_MAX} of the median step {dt:.3g} s is stable: designed at "
                          f"{obs.dt:.3g} s, each interval split into sub-intervals of at most {obs.dt_range[1]:.3g} s")
         est = np.empty((len(Y), spec.nest))
@@ -388,10 +392,6 @@ def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None):
             notes.append(f"reset after {len(cuts) - 2} interval(s) longer than {obs.dt_limit:.3g} s "
                          f"(split_max x dt_max)")
         return est, "; ".join(notes)
-    except UnstableDiscretization as e:
-        if disc.substeps != "auto":
-            raise             # the user's own stepping: refused in the CLI's words, not a row of NaN
-        return np.full((len(Y), spec.nest), np.nan), str(e)
     except (ObserverError, FloatingPointError) as e:
         return np.full((len(Y), spec.nest), np.nan), str(e)
 
