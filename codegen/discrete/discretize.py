@@ -64,8 +64,8 @@ th = phi_2(-a h/2) / phi_1(-a h/2) (1/2 without a rate) and y_m = y(t + h/2):
 Both model evaluations are at the one configuration y_m: M(y_m), g(y_m) and the rest of the
 configuration's work (sin/cos, transforms, articulated inertias) are computed once, the
 velocity's (C, F) twice, against four times under "etdrk4" (inlined, by common subexpressions;
-when the step calls the model, by ``model_parts``: a configuration call and two velocity calls). The prediction is exact for forcing linear in
-time and the last line for the reduced-order families (F = m - k0 x2hat: linear forcing, rate
+when the step calls the model, by ``model_parts``: a configuration call and two velocity
+calls). The prediction is exact for forcing linear in time and the last line for the reduced-order families (F = m - k0 x2hat: linear forcing, rate
 k0), so a ramp gives est = v for any k0 dt; the model's variation over the step enters at
 O(h^3) per step. The step has no memory (the discrete map is x -> x+), so the stability check
 linearises it as any other. Families without a model part get "etdrk4". Measured against
