@@ -119,8 +119,9 @@ def observer_rhs(robots=("ur5", "panda"), native=False):
             ns[key] = c_programs.time_target(target)
         pin = c_programs.time_pin(src["path"], list(src.get("locked_joints", {})))
         ours = ns["default"]
-        instructions = _instructions_per_step(_emit(spec, Discretization(dt=1e-3))[0], load_robot(name), 1e-3)
-        per_call = c_programs.instructions_per_call(_emit(spec, Discretization(dt=1e-3))[0]) or {}
+        default = _emit(spec, Discretization(dt=1e-3))[0]     # the folder the rk4_zoh emit reused
+        instructions = _instructions_per_step(default, load_robot(name), 1e-3)
+        per_call = c_programs.instructions_per_call(default) or {}
         pin_instructions = c_programs.pin_aba_instructions(src["path"], list(src.get("locked_joints", {})))
         rows.append({"robot": name, "ns_rhs": ours["ns_per_rhs"], "ns_step": ours["ns_per_step"],
                      "ns_rk4_zoh_step": ns["rk4_zoh"]["ns_per_step"], "ns_pin_aba": pin["ns_aba"],
