@@ -480,7 +480,7 @@ def cmd_identify(args):
     robot = _robot_of(args)
     ident = identify(read_csv(args.log, robot.joint_names), robot, cutoff=args.cutoff,
                      test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
-                     max_rel_std=args.max_rel_std, progress=True)
+                     max_rel_std=args.max_rel_std, v_stick=args.v_stick, progress=True)
     ident.write(Path(args.out or work_dir() / "identify"))
     print(ident.text, end="")
     return 0
@@ -642,6 +642,9 @@ def parser():
             x.add_argument("--max-rel-std", type=float, default=idf.DEFAULT_MAX_REL_STD,
                            help="refuse a log leaving a parameter combination's relative std above this "
                                 f"(default {idf.DEFAULT_MAX_REL_STD:g})")
+            x.add_argument("--v-stick", type=float, default=idf.DEFAULT_V_STICK,
+                           help="rad/s: a joint's samples slower than this are left out of the fit (it may "
+                                f"stick under dry friction; default {idf.DEFAULT_V_STICK:g}, 0 keeps every one)")
             x.add_argument("--out", metavar="DIR", help="folder of the identified URDF and report (default build/identify)")
     return ap
 
