@@ -491,26 +491,41 @@ def _distance(a, b):
     return float(np.linalg.norm(d, 2)) if np.all(np.isfinite(d)) else math.inf
 
 
-def _largest(ok, lo, hi, grow):
+def _largest(ok, lo, hi, grow, probe=None):
     """(largest v >= lo with ok(v), True) -- ok(lo) assumed: while ok(hi), hi x4 (at most
     ``grow`` times; (the last hi, False) if never unstable), then bisect. From lo = 0, when the
     bisection finds nothing above 0 (hi far beyond the limit: a gain of 1e300), hi / 4 at a
-    time (at most ``SHRINK`` times) until ok, then bisect again."""
-    if ok(hi):
+    time (at most ``SHRINK`` times) until ok, then bisect again.
+
+    ``probe`` (default ok): what the growth tests, a cheaper part of ok (not probe(v) implies
+    not ok(v)); the value returned then passes ok itself, or the search is redone with ok alone."""
+    test = probe or ok
+    passed = set()
+
+    def good(v):
+        if ok(v):
+            passed.add(v)
+            return True
+        return False
+    start, first = lo, hi
+    if test(hi):
         for _ in range(grow):
             lo, hi = hi, 4 * hi
-            if not ok(hi):
+            if not test(hi):
                 break
         else:
-            return hi, False
-    start = lo
-    lo, hi = _bisect(ok, lo, hi)
+            if probe is None or good(hi):
+                return hi, False
+            return _largest(ok, start, first, grow)
+    lo, hi = _bisect(good, lo, hi)
     if lo == 0 == start:
         for _ in range(SHRINK):
-            if ok(hi / 4):
-                lo, hi = _bisect(ok, hi / 4, hi)
+            if good(hi / 4):
+                lo, hi = _bisect(good, hi / 4, hi)
                 break
             hi /= 4
+    if probe is not None and lo != start and lo not in passed and not good(lo):
+        return _largest(ok, start, first, grow)
     return lo, True
 
 
@@ -530,11 +545,12 @@ def _max_stable(lin, p, idx, dts, precision="double"):
     base = p[idx] / v0 if v0 > 0 else np.ones(len(idx))
     order = list(range(len(dts)))[::-1]       # the sample time that failed last is tried first
 
-    def ok(v):
+    def ok(v, every=True):
         q = p.copy()
         q[idx] = base * v
-        # lin.stable(q, dts) (an unstable value costs one sample time's linearisation, not all)
-        for group in (order[:1], order[1:]):
+        # lin.stable(q, dts) (an unstable value costs one sample time's linearisation, not all);
+        # the growth (every=False) tries only the sample time that failed last
+        for group in ((order[:1], order[1:]) if every else (order[:1],)):
             excess = lin.radii(q, [dts[i] for i in group])[2] if group else []
             bad = [i for i, e in zip(group, excess) if not e <= 1 + TOL]
             if bad:
@@ -544,7 +560,7 @@ def _max_stable(lin, p, idx, dts, precision="double"):
         return lin.precise(q, precision)
     if not ok(0.0):
         return None, True
-    return _largest(ok, 0.0, v0 if v0 > 0 else 1.0, round(math.log(GROWTH, 4)))
+    return _largest(ok, 0.0, v0 if v0 > 0 else 1.0, round(math.log(GROWTH, 4)), probe=lambda v: ok(v, False))
 
 
 def clock_limit(dt, dt_min, precision="double"):
