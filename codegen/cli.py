@@ -337,6 +337,37 @@ def _compare_robot(args):
                                     elastic=elastic, J=_numbers(args.J, "--J"), K=_numbers(args.K, "--K")))
 
 
+def _torque_uncertainty(text, robot):
+    """``compare --torque-uncertainty``: None when not given; a path to `identify`'s report.json
+    (its held-out residual after identification, N m per joint), else one number for every joint
+    or one per joint, comma-separated (N m). ValueError naming the option otherwise."""
+    if text is None:
+        return None
+    path = Path(text)
+    if path.suffix == ".json" or path.is_file():
+        try:
+            after = json.loads(path.read_text())["residual_rms"]["after"]
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            raise ValueError(f"--torque-uncertainty {text}: not a readable identify report.json (its "
+                             f"residual_rms.after per joint): {e}") from None
+        missing = [j for j in robot.joint_names if j not in after]
+        if missing:
+            raise ValueError(f"--torque-uncertainty {text}: the report has no residual for "
+                             f"{', '.join(missing)} (identified on another robot?)")
+        values = [after[j] for j in robot.joint_names]
+    else:
+        try:
+            values = [float(v) for v in text.split(",")]
+        except ValueError:
+            raise ValueError(f"--torque-uncertainty: expected N m (one number, or {robot.n} comma-separated) "
+                             f"or identify's report.json, got {text!r}") from None
+    from .families.design.kalman_model import check_torque_uncertainty
+    try:
+        return [float(v) for v in check_torque_uncertainty(values, robot.n)]
+    except ValueError as e:
+        raise ValueError(f"--torque-uncertainty {text}: {e}") from None
+
+
 def _compare_source(args):
     """(Recording, robot, title) of ``compare``'s source: a mujoco-* scenario run with the
     sensor and mismatch options, a MuJoCo run of the robot of ``--robot`` / ``--urdf`` (no
@@ -388,7 +419,8 @@ def cmd_compare(args):
             families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
             bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
             cmp = compare(rec, robot, families=families, t_ss=args.t_ss, level=args.level,
-                          design=design_inputs(args.quantization, args.noise, args.mismatch),
+                          design=design_inputs(args.quantization, args.noise, args.mismatch,
+                                               _torque_uncertainty(args.torque_uncertainty, robot)),
                           baseline_names=bl, reference=args.reference, title=title,
                           ref_cutoff=args.ref_cutoff or DEFAULT_CUTOFF, progress=True, stepping=stepping)
     except (RecordingError, ValueError, KeyError) as e:
@@ -481,8 +513,11 @@ def cmd_identify(args):
     ident = identify(read_csv(args.log, robot.joint_names), robot, cutoff=args.cutoff,
                      test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
                      max_rel_std=args.max_rel_std, v_stick=args.v_stick, progress=True)
-    ident.write(Path(args.out or work_dir() / "identify"))
+    paths = ident.write(Path(args.out or work_dir() / "identify"))
     print(ident.text, end="")
+    lock = "".join(f" --lock {k}={v:g}" for k, v in (robot.source.get("locked_joints") or {}).items())
+    print(f"\nthe observers with this model, on a log of the robot: python -m codegen compare LOG.csv "
+          f"--urdf {paths['urdf']}{lock} --torque-uncertainty {paths['report_json']}")
     return 0
 
 
@@ -597,6 +632,10 @@ def parser():
     cp.add_argument("--noise", type=float, help="Gaussian noise std (rad; scenario default 0)")
     cp.add_argument("--mismatch", type=float, default=0.0,
                     help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
+    cp.add_argument("--torque-uncertainty", metavar="NM|FILE",
+                    help="the model's torque error the designs take (N m: one number or one per joint, "
+                         "comma-separated; or identify's report.json: its held-out residual); kalman_model "
+                         "then uses the model, not only the motion (default: not stated)")
     cp.add_argument("--T", type=float, help="length of a MuJoCo run (s, default 20)")
     cp.add_argument("--t-ss", type=float, help="start of the steady-state window (s, on the log's clock; "
                     "default the middle of the run)")

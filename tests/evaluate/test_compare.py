@@ -534,3 +534,30 @@ def test_figures_fit_every_muted_name(tmp_path):
         warnings.simplefilter("error")
         plots.error_norms(tmp_path / "errors.png", t, {"kalman_model": np.abs(np.sin(t)) + 1e-3},
                           muted={k: np.abs(np.cos(t)) + 1e-3 for k in names})
+
+
+@pytest.mark.slow
+def test_compare_takes_the_identified_torque_residual(log, tmp_path, capsys):
+    """--torque-uncertainty: identify's report.json (its held-out residual per joint) or N m; the
+    designs take it (kalman_model's model variant, its torque stds the report's); a report of
+    another robot, a wrong count or a negative value is one line naming the option."""
+    from codegen.cli import main
+    rec, _ = log
+    robot = load_robot(ROBOT)
+    path = rec.write_csv(tmp_path / "log.csv")
+    report = tmp_path / "report.json"
+    residual = dict(zip(robot.joint_names, (0.31, 0.12)))
+    report.write_text(json.dumps({"residual_rms": {"after": residual, "before": {}}}))
+    assert main(["compare", str(path), "--robot", ROBOT, "--observers", "kalman_model", "--baselines",
+                 "kalman", "--torque-uncertainty", str(report), "--out", str(tmp_path / "out")]) == 0
+    row = next(r for r in json.loads((tmp_path / "out" / "compare.json").read_text())["rows"]
+               if r["name"] == "kalman_model")
+    assert [row["params"][f"sigma_tau_{j}"] for j in robot.joint_names] == [0.31, 0.12]
+    capsys.readouterr()
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({"residual_rms": {"after": {"shoulder": 0.3}}}))
+    for value, message in ((str(other), "the report has no residual for q1, q2"), ("0.3,0.2,0.1", "2 finite stds"),
+                           ("-1", "2 finite stds > 0"), ("abc", "expected N m")):
+        assert main(["compare", str(path), "--robot", ROBOT, "--torque-uncertainty", value]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "--torque-uncertainty" in err and message in err and "\n" not in err, err

@@ -329,6 +329,11 @@ def test_cli_identify(gripper_case, tmp_path, capsys):
                  "--out", str(tmp_path / "out")]) == 0
     out = capsys.readouterr().out
     assert "held-out torque residual" in out and "gripper_arm_identified.urdf" in out
+    # the next step, runnable as printed: compare with the identified URDF and its residual
+    assert (f"python -m codegen compare LOG.csv --urdf {tmp_path / 'out' / 'gripper_arm_identified.urdf'} "
+            f"--lock finger_left=0.01 --lock finger_right=0.01 --torque-uncertainty "
+            f"{tmp_path / 'out' / 'report.json'}") in out
+    assert "left out of the fit where a joint sticks (|qd| <= 0.05 rad/s)" in out
     assert (tmp_path / "out" / "gripper_arm_identified.friction.json").is_file()
     # a file without torques: one line, status 2
     (tmp_path / "q.csv").write_text("t,q_shoulder_yaw,q_shoulder_pitch,q_elbow\n0,0,0,0\n0.001,0,0,0\n")
