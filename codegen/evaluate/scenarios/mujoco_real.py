@@ -194,7 +194,7 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
         Run the observers with the numpy reference instead of the compiled C.
     max_rel_std : float, optional
         Identification's refusal bound (default ``identify``'s, 0.05: the 10 s logs of seed 0
-        leave ur5's worst combination at 0.041, panda's at 0.048, kinova's at 0.41, refused).
+        leave ur5's worst combination at 0.042, panda's at 0.049, kinova's at 0.43, refused).
     progress : bool
         Progress bars on stderr.
 
