@@ -361,3 +361,28 @@ def test_widest_range_is_computed_once(monkeypatch):
         raise AssertionError("linearised again")
     monkeypatch.setattr(stability, "_Linearisation", fail)
     assert stability.widest_range(spec, RK4_AT_DT) == first
+
+
+def test_the_bound_search_grows_on_its_probe_and_returns_what_ok_accepts():
+    """_largest with a cheaper probe (the gain's growth on one sample time): the probe alone
+    decides the growth, ok is asked only of the bracket and of the value returned; where the probe
+    passes values ok refuses, the value returned is still ok's (the search redone with ok)."""
+    from codegen.discrete.stability import BISECTIONS, _largest
+    calls = []
+
+    def counted(limit):
+        def ok(v):
+            calls.append(v)
+            return v <= limit
+        return ok
+    # stable everywhere searched: 10 growths on the probe, one call of ok (the value returned)
+    v, found = _largest(counted(1e9), 0.0, 1.0, 10, probe=lambda v: True)
+    assert (v, found) == (4.0 ** 10, False) and calls == [4.0 ** 10]
+    # the probe fails where ok does: the same bracket and bound as ok alone, fewer calls of ok
+    calls.clear()
+    alone = _largest(lambda v: v <= 10.0, 0.0, 1.0, 10)
+    assert _largest(counted(10.0), 0.0, 1.0, 10, probe=lambda v: v <= 10.0) == alone
+    assert len(calls) == BISECTIONS and 10 * (1 - 2.0 ** -12) < alone[0] <= 10
+    # a probe weaker than ok (it passes 10 < v <= 1000): the result is ok's bound all the same
+    v, found = _largest(counted(10.0), 0.0, 1.0, 10, probe=lambda v: v <= 1000.0)
+    assert (v, found) == alone
