@@ -185,3 +185,20 @@ def test_a_design_over_its_budget_is_refused_naming_the_gain_option(monkeypatch,
     with pytest.raises(cf.DesignBudgetError, match=r"--design k0=") as e:
         ro.reduced_order_gain(robot, eta=1.0, v_max=2.0, samples=16, seed=123)
     assert "\n" not in str(e.value) and "slow (6 joints)" in str(e.value)
+
+
+def test_tensor_products_with_one_pair_per_configuration_or_several():
+    """c0's products from a Christoffel tensor, C(q_s, v) = sum_k T[s, :, :, k] v_k: (C v, C^T C v)
+    for pairs with one vector per configuration (rows increasing: one matrix product each) and
+    for pairs that share configurations in any order, both against the sum written out."""
+    rng = np.random.default_rng(5)
+    S, n = 6, 4
+    T = rng.normal(size=(S, n, n, n))
+    products = cf.tensor_products(T)
+    for rows in (np.arange(S), np.array([0, 2, 3, 5]), np.array([3, 1, 3, 0, 5, 1, 1])):
+        v = rng.normal(size=(len(rows), n))
+        C = np.einsum("pijk,pk->pij", T[rows], v)
+        c = np.einsum("pij,pj->pi", C, v)
+        got_c, got_h = products(rows, v)
+        np.testing.assert_allclose(got_c, c, rtol=1e-13, atol=1e-13)
+        np.testing.assert_allclose(got_h, np.einsum("pij,pi->pj", C, c), rtol=1e-13, atol=1e-13)

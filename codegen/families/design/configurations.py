@@ -253,6 +253,10 @@ def tensor_products(T):
 
     def products(rows, v):
         rows = np.asarray(rows)
+        if len(rows) < 2 or np.all(rows[1:] > rows[:-1]):         # one pair per configuration
+            C = (T[rows] @ np.asarray(v, dtype=float)[:, :, None]).reshape(len(rows), n, n)
+            c = np.einsum("pij,pj->pi", C, v)
+            return c, np.einsum("pij,pi->pj", C, c)
         order = np.argsort(rows, kind="stable")
         u, first, inv = np.unique(rows[order], return_index=True, return_inverse=True)
         slot = np.empty(len(rows), dtype=int)
