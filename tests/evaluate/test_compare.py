@@ -234,7 +234,7 @@ def test_a_robot_at_rest_is_refused_before_the_runs(tmp_path, capsys):
     robot = load_robot(ROBOT)
     t = np.arange(0.0, 4.0, 1e-3)
     q0 = np.array([0.3, -0.2])
-    rest = Recording(t=t, q=np.tile(q0, (len(t), 1)), tau=np.tile(np.ravel(robot.gravity(q0)), (len(t), 1)),
+    rest = Recording(t=t, q=np.tile(q0, (len(t), 1)), tau=np.tile(np.asarray(robot.gravity(q0), dtype=float).ravel(), (len(t), 1)),
                      qd=np.zeros((len(t), 2)), joint_names=list(robot.joint_names))
     start = time.perf_counter()
     with pytest.raises(ValueError, match="rec: the robot does not move .*record a run with motion"):

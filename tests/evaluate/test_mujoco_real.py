@@ -384,7 +384,7 @@ def test_identifies_kinova_friction(tmp_path):
     """kinova's 10 s excitation on the real plant: the default refusal names its wrist's inertial
     combinations (its velocity limits, 0.63-0.84 rad/s, leave them at a relative std of ~0.4);
     accepted anyway, every joint's viscous and Coulomb friction is within 10 % of the plant's
-    (measured 0.4-7.7 %; 47-170 % off on five joints when the prior held friction at the joint's
+    (measured 0.4-7.7 %; 48-170 % off on five joints when the prior held friction at the joint's
     rigid-body torque scale and stuck rows were fitted) and the held-out residual within 2x the
     sensor's noise."""
     from dataclasses import replace
