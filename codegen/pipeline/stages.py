@@ -123,7 +123,8 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
         observer stable over the elapsed times [dt_min, dt_max] (``resolve_substeps``); a number:
         exactly that many, refused when unstable.
     out_dir : path, optional
-        Where the generated folder goes (default build/targets in the working folder).
+        Where the generated folder goes (default build/targets/<digest of the target> in the
+        working folder: one folder per target).
     prefix : str, optional
         Symbol prefix and folder name (default ``<robot>_<family>[_<variant>]``).
     native : bool
@@ -161,8 +162,12 @@ def compile_observer(spec, discretization=None, *, dt=None, method=None, substep
     else:
         target = spec.target(discretization, name=prefix, inline=inline, precision=precision or "double",
                              **over)
-    made = make(target, out_dir or (work_dir() / "targets"), spec=spec, native=native, cflags=cflags,
-                check=check)
+    if out_dir is None:
+        from ..core.cache import key_digest
+        # a folder per target: two targets under one prefix compiled at once (two processes, two
+        # test workers, a float and a double build) never replace each other's folder mid-build
+        out_dir = work_dir() / "targets" / key_digest(target.to_dict())[:16]
+    made = make(target, out_dir, spec=spec, native=native, cflags=cflags, check=check)
     obs = load(made.folder, made.lib)
     obs.spec = spec
     return obs

@@ -347,3 +347,24 @@ def test_cmake_and_makefile_build_the_verified_bits(spec_of, tmp_path):
     assert np.all(np.isfinite(est["verified"].view(np.float64)))
     ulps = {route: int(np.abs(e - est["verified"]).max()) for route, e in est.items()}
     assert set(ulps.values()) == {0}, f"largest difference to the verified build, in ulp: {ulps}"
+
+
+def test_compile_observer_keeps_a_folder_per_target(tmp_path, monkeypatch):
+    """Two targets under one prefix (two methods here; a float and a double build alike) compiled
+    by compile_observer get a folder each under build/targets: neither replaces the other's, so
+    two processes or test workers building them at once cannot swap a folder mid-build (it raised
+    FolderTaken, 'replaced by another build while this one compiled it'); the same target again
+    reuses its folder."""
+    from codegen import compile_observer
+    from codegen.families import observers
+    from models import load_robot
+    monkeypatch.setenv("CODEGEN_BUILD", str(tmp_path))
+    spec = observers.build("reduced_order", load_robot("seed000_2r"))
+    est = [compile_observer(spec, method=m, prefix="same").run(np.full((5, 2), 0.1), np.zeros((5, 2)))
+           for m in ("rk4", "expmid")]
+    folders = sorted((tmp_path / "targets").glob("*/same"))
+    assert len(folders) == 2 and all(np.all(np.isfinite(e)) for e in est)
+    assert {json.loads((f / "same.json").read_text())["target"]["discretization"]["method"]
+            for f in folders} == {"rk4", "expmid"}
+    compile_observer(spec, method="rk4", prefix="same")
+    assert sorted((tmp_path / "targets").glob("*/same")) == folders

@@ -74,7 +74,7 @@ def block(spec, disc, *, reference=False, prefix=None, inline="auto", out_dir=No
     inline : "auto" or bool
         Code shape of the C step (codegen.discrete.discretize).
     out_dir : path, optional
-        Folder of the generated target (default build/targets in the working folder).
+        Folder of the generated target (default: compile_observer's, one per target under build/targets).
 
     Returns
     -------
