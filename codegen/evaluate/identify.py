@@ -37,7 +37,8 @@ friction, ``w`` the Coulomb smoothing width (rad/s).
    Wensing ("Smooth parameterization of rigid-body inertia", RA-L 2022), friction ``f_v, f_c >= 0``,
    by ``scipy.optimize.least_squares`` from the URDF's values, with a Gaussian prior toward the
    URDF (relative std ``prior`` of each parameter's scale; friction's in units of the joint's
-   effort limit, of which the URDF says nothing), which decides what the log does not excite; rows weighted by the torque noise of each joint, estimated from the residual;
+   effort limit, of which the URDF says nothing), which decides what the log does not excite;
+   rows weighted by the torque noise of each joint, estimated from the residual;
 5. the held-out residual before (URDF as shipped, no friction) and after.
 
 Why not an SDP: cvxpy is not a dependency, and the log-Cholesky form turns the same
@@ -695,7 +696,8 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
         3.6 % of the plant's; at the models' 0.2 it was 2-52 % off). None: the robot's
         ``coulomb_width`` if it has one, else ``DEFAULT_COULOMB_WIDTH``.
     prior : float
-        Relative std of the URDF's values as a prior (in units of each parameter's scale).
+        Relative std of the URDF's values as a prior (in units of each parameter's scale; of the
+        joint's effort limit for friction and offset).
     v_stick : float
         rad/s: a joint's rows where its smoothed velocity is at most this are left out of the fit
         (a joint stuck by dry friction holds an unknown torque); 0 keeps every row.
