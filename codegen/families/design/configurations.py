@@ -251,12 +251,10 @@ def tensor_products(T):
     S, n = T.shape[:2]
     T = np.asarray(T, dtype=float).reshape(S, n * n, n)
 
-    def products(rows, v):
-        rows = np.asarray(rows)
+    def matrices(rows, v):
+        """C(q_rows[k], v[k]) (P, n, n)."""
         if len(rows) < 2 or np.all(rows[1:] > rows[:-1]):         # one pair per configuration
-            C = (T[rows] @ np.asarray(v, dtype=float)[:, :, None]).reshape(len(rows), n, n)
-            c = np.einsum("pij,pj->pi", C, v)
-            return c, np.einsum("pij,pi->pj", C, c)
+            return (T[rows] @ np.asarray(v, dtype=float)[:, :, None]).reshape(len(rows), n, n)
         order = np.argsort(rows, kind="stable")
         u, first, inv = np.unique(rows[order], return_index=True, return_inverse=True)
         slot = np.empty(len(rows), dtype=int)
@@ -265,7 +263,10 @@ def tensor_products(T):
         group[order] = inv
         V = np.zeros((len(u), n, slot.max() + 1))
         V[group, :, slot] = v
-        C = (T[u] @ V)[group, :, slot].reshape(len(v), n, n)              # C(q, v) of each pair
+        return (T[u] @ V)[group, :, slot].reshape(len(v), n, n)
+
+    def products(rows, v):
+        C = matrices(np.asarray(rows), v)
         c = np.einsum("pij,pj->pi", C, v)
         return c, np.einsum("pij,pi->pj", C, c)
     return products
