@@ -22,7 +22,7 @@
  *   - the status is one the header documents;
  *   - a dt outside (0, SPLIT_MAX * DT_MAX] (NaN, Inf, <= 0, huge) gives ERR_BAD_ARG; otherwise
  *     a non-finite argument gives ERR_NONFINITE_INPUT, a finite one never does;
- *   - a non-zero status leaves the state (x, p, y_prev, u_prev, primed, t_last, stamped)
+ *   - a non-zero status leaves the state (x, p, y_prev, u_prev, m_prev, primed, t_last, stamped)
  *     byte-identical; run() and run_t() failing at sample k set *n_done = k and roll the state
  *     back to its entry;
  *   - OK: outputs and the new state are finite; run() equals as many step() calls, run_t()
@@ -105,7 +105,8 @@ static int same_state(const OBS_STATE *a, const OBS_STATE *b)
 {
     return memcmp(a->x, b->x, sizeof a->x) == 0 && memcmp(a->p, b->p, sizeof a->p) == 0
         && memcmp(a->y_prev, b->y_prev, sizeof a->y_prev) == 0
-        && memcmp(a->u_prev, b->u_prev, sizeof a->u_prev) == 0 && a->primed == b->primed
+        && memcmp(a->u_prev, b->u_prev, sizeof a->u_prev) == 0
+        && memcmp(a->m_prev, b->m_prev, sizeof a->m_prev) == 0 && a->primed == b->primed
         && memcmp(&a->t_last, &b->t_last, sizeof a->t_last) == 0 && a->stamped == b->stamped;
 }
 

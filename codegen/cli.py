@@ -541,8 +541,9 @@ def _robot_options(p):
 def _stepping_options(p):
     """How the observers step, as `build` takes it (and `compare`): --method, --hold, --substeps."""
     a = p.add_argument
-    a("--method", choices=METHODS, help="integrator (default expmid: the model at one configuration per sub-step, "
-                                        "the gain term integrated exactly; etdrk4, rk4, euler)")
+    a("--method", choices=METHODS, help="integrator (default expmid1: the model once per sub-step, at its midpoint "
+                                        "configuration, the gain term integrated exactly; expmid: the model twice; "
+                                        "etdrk4, rk4, euler)")
     a("--hold", choices=HOLDS, help="measurement hold between samples (default foh; see codegen.discrete.discretize)")
     a("--substeps", type=_substeps, help='integrator sub-steps per sample, or "auto" (the default): the '
       "fewest that make the discrete observer stable")

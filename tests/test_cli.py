@@ -230,7 +230,7 @@ def test_build_prints_the_designed_gains_and_why(capsys, workdir):
     spec = observers.build("reduced_order", load_robot("seed000_2r"))
     k0, report = spec.params["k0"], spec.design
     assert f"k0 = {k0:.6g}: {report['choice']}: {report['why']}" in out
-    assert "discrete stability at dt 0.001 s (expmid, foh, 1 substeps): stable" in out
+    assert "discrete stability at dt 0.001 s (expmid1, foh, 1 substeps): stable" in out
     assert 'print(codegen.load("' in out
     text = str(report)
     assert not text.startswith("{") and f"why: {report['why']}" in text and "stability:\n" in text
@@ -240,9 +240,9 @@ def test_build_prints_the_designed_gains_and_why(capsys, workdir):
 
 
 def test_build_prints_the_stability_of_what_it_built(capsys, workdir):
-    """The damped arm's noise-aware gain is unstable under expmid at one sub-step over the default
-    range (the design's own check says so); "auto" makes the built target stable (it declares a
-    shorter dt_max): `build` prints the built target's check, not the design's."""
+    """The damped arm's noise-aware gain is unstable under expmid1 at one sub-step over the default
+    range (the design's own check says so); "auto" makes the built target stable (more sub-steps
+    and a shorter dt_max): `build` prints the built target's check, not the design's."""
     code, out, err = run(capsys, "build", "--urdf", ROOT / "tests" / "data" / "damped_arm.urdf")
     assert code == 0, err
     meta = json.loads(next((workdir / "generated").glob("*/*.json")).read_text())

@@ -13,7 +13,7 @@ import numbers
 import re
 from dataclasses import asdict, dataclass, field, replace
 
-METHODS = ("euler", "rk4", "etdrk4", "expmid")
+METHODS = ("euler", "rk4", "etdrk4", "expmid", "expmid1")
 AUTO = "auto"          # substeps: the fewest that make the discrete observer stable
 HOLDS = ("zoh", "foh")
 PRECISIONS = ("double", "float")
@@ -90,15 +90,17 @@ class Discretization:
     ----------
     dt : float
         Sample time (s), > 0 and finite.
-    method : {"expmid", "etdrk4", "rk4", "euler"}
+    method : {"expmid1", "expmid", "etdrk4", "rk4", "euler"}
         Integrator used over each sub-step. "etdrk4": exponential time
         differencing RK4 (Cox & Matthews 2002) for families that declare a linear gain rate a
         (flow g(x, y, u, p) - a x on some states): the linear part is integrated exactly, RK4
-        sees only the smooth remainder; families without a rate get classical RK4. "expmid" (the
-        default): the model (M, C, g, F) evaluated once per sub-step, at the sub-step's midpoint (the state
-        there predicted with the model's last value), the gain and injection terms by ETD-RK4
-        with it held (families that declare their model part, ObserverSpec.model; the others
-        get "etdrk4"; codegen.discrete.discretize).
+        sees only the smooth remainder; families without a rate get classical RK4. "expmid":
+        the model (M, C, g, F) at one configuration per sub-step, its midpoint, evaluated at the
+        sub-step's start and at its midpoint state predicted from it, the gain and injection
+        terms by ETD-RK4 with the midpoint model held (families that declare their model part,
+        ObserverSpec.model; the others get "etdrk4"; codegen.discrete.discretize). "expmid1"
+        (the default): the same with the model evaluated once per sub-step, the prediction made
+        with the model's last value, which the step keeps as memory (in the C's state struct).
     hold : {"foh", "zoh"}
         How the measurement behaves between samples: "zoh" holds y and u over [t_k, t_k+1];
         "foh" brings the state from t_k-1 to t_k with y linear in between and u_k-1 held,
@@ -119,7 +121,7 @@ class Discretization:
     """
 
     dt: float = 1e-3
-    method: str = "expmid"
+    method: str = "expmid1"
     hold: str = "foh"
     substeps: int = 1
     dt_min: float | None = None

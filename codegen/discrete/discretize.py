@@ -50,7 +50,7 @@ sampled with y held settles at a/(1 - R(-a)) qd with a = k0 dt and R the method'
 function (RK4: R(-a) = 1 - a + a^2/2 - a^3/6 + a^4/24; exact: e^-a), a bias the linear hold
 removes for every method.
 
-``"expmid"`` (the default), the exponential midpoint rule, for a family that declares its model
+``"expmid"``, the exponential midpoint rule, for a family that declares its model
 part (``spec.model``, ``spec.rhs_model``: the flow is f(t, x) = F(t, x, m), m = model(x, y_cfg, y)
 the forward dynamics, M, C, g and F, at the configuration y_cfg and the velocity x and y give
 it; F is linear in x and in y(t): the gain and injection terms). With E = e^(-a h/2),
@@ -73,6 +73,24 @@ linearises it as any other. Families without a model part get "etdrk4". Measured
 moves the reduced-order and switched observers by at most 1.8 % of their own RMS error; the
 extended-state observer, with the model held over the step, moved by 12 % on ur5 without
 noise (3.5x on MuJoCo), so it declares no model part and keeps ETD-RK4.
+
+``"expmid1"`` (the default, codegen.core.target.DEFAULT_DISCRETIZATION): ``"expmid"`` with the
+model evaluated once per sub-step. The prediction of x_mid takes the model's last value m_-
+(the previous sub-step's m) in place of m0; m, the model at the predicted midpoint, is held as
+before and becomes the memory. The step's signature carries it:
+
+    step(x, y_prev, y, u_prev, u, p, dt, m_prev) -> (x_next, est, m_next)
+
+(m_prev and m_next with ``memory_size`` entries: the model's size under "expmid1", none under the
+other methods). The C keeps it in its state struct beside y_prev; zeros after init and set_state
+(the prediction then has no model for one sample; under the first-order hold the first sample
+after init integrates nothing, dt = 0, and sets the memory to the model there). The stability
+check linearises the map (x, m_prev) -> (x_next, m_next) (``step_jacobians``), so the memory's
+effect is seen: on the model's own axis x' = -lambda x the method is stable for lambda h <= 1 (the
+midpoint rule: 2), and a stiff damping or friction mode asks for more sub-steps. Measured against
+"etdrk4" (docs/architecture.md §4.1): the reduced-order and switched observers move by at most
+0.05 % of their own RMS error on the built-in trajectory and 2.8 % on MuJoCo's ur5 and panda; the
+model held from the start state, without the memory, moved them by 10-11.5 %.
 """
 from __future__ import annotations
 
@@ -90,6 +108,10 @@ from ..core.target import HOLDS, METHODS, Discretization  # noqa: F401  (re-expo
 # (the largest inlined default, panda reduced-order, has 7188; I&I AOV on ur5, 13320, was 0.74 MB
 # of C for the two kernels at 15000).
 INLINE_LIMIT = 10000
+
+# the methods that hold a family's model part over a sub-step (ObserverSpec.model); "expmid1" keeps
+# the model's last value as the step's memory
+MODEL_METHODS = ("expmid", "expmid1")
 
 _SERIES_TERMS = 17     # phi_k by its Taylor series for |z| < 1: remainder < 1/20! relative
 
@@ -180,9 +202,16 @@ def _etdrk4_step(f, x, t, h, a, mask, c):
                 x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
 
 
-def _symbols(spec, sym):
+def memory_size(spec, method):
+    """Entries of the step's memory under the integrator ``method`` for ``spec``: the model's last
+    value (``spec.model_size``) under "expmid1", 0 otherwise (a family without a model part gets
+    ETD-RK4, which keeps none)."""
+    return spec.model_size if method == "expmid1" else 0
+
+
+def _symbols(spec, sym, nm=0):
     return (sym("x", spec.nx), sym("y_prev", spec.ny), sym("y", spec.ny),
-            sym("u_prev", spec.nu), sym("u", spec.nu), sym("p", spec.np), sym("dt", 1))
+            sym("u_prev", spec.nu), sym("u", spec.nu), sym("p", spec.np), sym("dt", 1), sym("m_prev", nm))
 
 
 def rate_mask(spec):
@@ -208,13 +237,16 @@ def model_parts(model):
             ca.Function("model_vel", [x, yc, y, u, p, e], [velocity], ["x", "y_cfg", "y", "u", "p", "cfg"], ["m"]))
 
 
-def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, parts=None):
-    """x+ of one "expmid" sub-step (module docstring): the model at the midpoint configuration,
-    at the sub-step's start and at its predicted midpoint state, the rest of the flow by
-    ETD-RK4 with the midpoint model held. ``parts``: the model's ``model_parts``, the
+def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, parts=None, m_last=None):
+    """(x+, m) of one "expmid" sub-step (module docstring): the model at the midpoint
+    configuration, at the sub-step's start and at its predicted midpoint state, the rest of the
+    flow by ETD-RK4 with the midpoint model m held. ``parts``: the model's ``model_parts``, the
     configuration's part then evaluated once for both calls (MX steps, where the C calls the
-    model instead of inlining it)."""
+    model instead of inlining it). ``m_last`` ("expmid1"): the model's last value, in place of
+    the model at the start in the predictor (one model evaluation)."""
     y0, y_mid = y_of(t), y_of(t + c / 2)
+    if m_last is not None:
+        parts = None
     if parts is None:
         def model(xs, ys):
             return spec.model(xs, y_mid, ys, u, p)
@@ -223,7 +255,7 @@ def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, parts=None):
 
         def model(xs, ys):
             return parts[1](xs, y_mid, ys, u, p, e)
-    m0 = model(x, y0)
+    m0 = model(x, y0) if m_last is None else m_last
     if rate is None:
         theta, E, p1 = 0.5, 1, 1
     else:
@@ -236,30 +268,34 @@ def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, parts=None):
                     x + h / 2 * n_theta)
     m = model(x_mid, y_mid)
     return integrator_step(lambda s, xs: spec.rhs_model(xs, y_of(s), u, p, m), x, t, h, "etdrk4", rate,
-                           mask, clock=c)
+                           mask, clock=c), m
 
 
-def _advance(spec, x, y_of, u, p, dt, method, substeps, midpoint=False):
-    """x advanced over dt (s, symbolic), y = y_of(s) at the fraction s in [0, 1] of the interval;
-    ``midpoint``: a family's model (``spec.rhs_split``) at the configuration y((i + 1/2)/substeps)
-    of each sub-step i, its output injection at y(s). ``"expmid"``: ``_expmid_step`` per
-    sub-step (ETD-RK4 for a family without a model part)."""
-    if method == "expmid" and spec.model is None:
+def _advance(spec, x, y_of, u, p, dt, method, substeps, midpoint=False, memory=None):
+    """(x, memory) advanced over dt (s, symbolic), y = y_of(s) at the fraction s in [0, 1] of the
+    interval; ``midpoint``: a family's model (``spec.rhs_split``) at the configuration
+    y((i + 1/2)/substeps) of each sub-step i, its output injection at y(s). ``"expmid"``:
+    ``_expmid_step`` per sub-step (ETD-RK4 for a family without a model part); ``"expmid1"``:
+    the same with the model's last value ``memory`` in its predictor, the memory then the
+    sub-step's model (other methods return ``memory`` as it came)."""
+    if method in MODEL_METHODS and spec.model is None:
         method = "etdrk4"
     h = dt / substeps
-    rate = spec.rate(x, p) if (spec.rate is not None and method in ("etdrk4", "expmid")) else None
+    rate = spec.rate(x, p) if (spec.rate is not None and method in ("etdrk4",) + MODEL_METHODS) else None
     mask = rate_mask(spec)
     split = midpoint and spec.rhs_split is not None
     parts = model_parts(spec.model) if method == "expmid" and isinstance(x, ca.MX) else None
     for i in range(substeps):
-        if method == "expmid":
-            x = _expmid_step(spec, x, y_of, u, p, i / substeps, h, 1 / substeps, rate, mask, parts)
+        if method in MODEL_METHODS:
+            x, m = _expmid_step(spec, x, y_of, u, p, i / substeps, h, 1 / substeps, rate, mask, parts,
+                                memory if method == "expmid1" else None)
+            memory = m if method == "expmid1" else memory
             continue
         y_cfg = y_of((i + 0.5) / substeps)
         flow = ((lambda s, xs: spec.rhs_split(xs, y_cfg, y_of(s), u, p)) if split else
                 (lambda s, xs: spec.rhs(xs, y_of(s), u, p)))
         x = integrator_step(flow, x, i / substeps, h, method, rate, mask, clock=1 / substeps)
-    return x
+    return x, memory
 
 
 def _linear(y_prev, y):
@@ -272,28 +308,32 @@ def _linear(y_prev, y):
 def _inline(spec, method, substeps, inline):
     if inline != "auto":
         return bool(inline)
-    stages = {"euler": 1, "rk4": 4, "etdrk4": 4, "expmid": 2 if spec.model is not None else 4}[method] * substeps
-    return spec.rhs.n_instructions() * stages <= INLINE_LIMIT
+    model = spec.model is not None
+    stages = {"euler": 1, "rk4": 4, "etdrk4": 4, "expmid": 2 if model else 4, "expmid1": 1 if model else 4}[method]
+    return spec.rhs.n_instructions() * stages * substeps <= INLINE_LIMIT
 
 
 def _pieces(spec, method, substeps, hold, inline, syms=None):
     inline = _inline(spec, method, substeps, inline)
-    x, yp, y, up, u, p, dt = syms or _symbols(spec, ca.SX.sym if inline else ca.MX.sym)
+    x, yp, y, up, u, p, dt, mp = syms or _symbols(spec, ca.SX.sym if inline else ca.MX.sym,
+                                                   memory_size(spec, method))
+    memory = mp if memory_size(spec, method) else None
     if hold == "zoh":
         xj = spec.jump(x, y, p) if spec.jump is not None else x
         est = spec.output(xj, y, u, p)
-        xn = _advance(spec, xj, lambda s: y, u, p, dt, method, substeps)
+        xn, mn = _advance(spec, xj, lambda s: y, u, p, dt, method, substeps, memory=memory)
         flow = (xj, xn)
     else:
-        # linear y over the last interval; dt = 0 collapses it to no step at all
-        xa = _advance(spec, x, _linear(yp, y), up, p, dt, method, substeps, midpoint=True)
+        # linear y over the last interval; dt = 0 collapses it to no step at all (the memory
+        # then takes the model at the sample)
+        xa, mn = _advance(spec, x, _linear(yp, y), up, p, dt, method, substeps, midpoint=True, memory=memory)
         xn = spec.jump(xa, y, p) if spec.jump is not None else xa
         est = spec.output(xn, y, u, p)
         flow = (x, xa)
-    return [x, yp, y, up, u, p, dt], xn, est, flow
+    return [x, yp, y, up, u, p, dt, mp], xn, est, flow, (mp if mn is None else mn)
 
 
-_NAMES_IN = ["x", "y_prev", "y", "u_prev", "u", "p", "dt"]
+_NAMES_IN = ["x", "y_prev", "y", "u_prev", "u", "p", "dt", "m_prev"]
 
 
 def _shared(outs):
@@ -318,18 +358,21 @@ def discretize(spec, disc, inline="auto"):
     Returns
     -------
     casadi.Function
-        ``step(x, y_prev, y, u_prev, u, p, dt) -> (x_next, est)``, dt (s) the time integrated
-        over (foh: since the last sample, 0 on the first; zoh: to the next sample).
+        ``step(x, y_prev, y, u_prev, u, p, dt, m_prev) -> (x_next, est, m_next)``, dt (s) the time
+        integrated over (foh: since the last sample, 0 on the first; zoh: to the next sample),
+        m_prev and m_next the step's memory (``memory_size``: the model's last value under
+        "expmid1", 0 entries otherwise; zeros after init, when the first sample's predictor
+        has no model).
     """
-    ins, xn, est, _ = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
-    return ca.Function("step", ins, _shared([xn, est]), _NAMES_IN, ["x_next", "est"])
+    ins, xn, est, _, mn = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
+    return ca.Function("step", ins, _shared([xn, est, mn]), _NAMES_IN, ["x_next", "est", "m_next"])
 
 
 def estimate(spec, disc, inline="auto"):
     """The estimate of ``discretize(spec, disc)`` as its own Function (same inputs, dt included),
     without advancing the state; ``spec`` the observer, ``disc`` its Discretization, ``inline``:
     True (SX), False (MX calls) or "auto" (SX when the unrolled step is small)."""
-    ins, _, est, _ = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
+    ins, _, est, _, _ = _pieces(spec, disc.method, disc.substeps, disc.hold, inline)
     return ca.Function("estimate", ins, _shared([est]), _NAMES_IN, ["est"])
 
 
@@ -353,14 +396,25 @@ def step_jacobians(spec, disc, inline="auto"):
         (the measurement held over the sample, so a split flow's midpoint
         configuration is y too: the step the observer takes there), and the continuous-time Jacobian
         J = drhs/dx of the flow at both ends x_a, x_b of the step's flow (a hybrid jump, before
-        or after it, is not part of the flow).
+        or after it, is not part of the flow). A step with memory (``memory_size``: "expmid1")
+        is linearised as the map (x, m) -> (x_next, m_next) of both, at the memory the held
+        measurement gives, m = model(x, y, y, u, p): Phi is then (nx + nm) x (nx + nm).
     """
     inline = _inline(spec, disc.method, disc.substeps, inline)
     sym = ca.SX.sym if inline else ca.MX.sym
-    x, y, u, p, dt = sym("x", spec.nx), sym("y", spec.ny), sym("u", spec.nu), sym("p", spec.np), sym("dt")
-    _, xn, _, (xa, xb) = _pieces(spec, disc.method, disc.substeps, disc.hold, inline,
-                                 syms=(x, y, y, u, u, p, dt))
+    nm = memory_size(spec, disc.method)
+    x, y, u, p, dt, m = (sym("x", spec.nx), sym("y", spec.ny), sym("u", spec.nu), sym("p", spec.np), sym("dt"),
+                         sym("m", nm))
+    _, xn, _, (xa, xb), mn = _pieces(spec, disc.method, disc.substeps, disc.hold, inline,
+                                     syms=(x, y, y, u, u, p, dt, m))
     J = ca.Function("J", [x, y, u, p], [ca.jacobian(spec.rhs(x, y, u, p), x)])
-    return ca.Function("step_jacobians", [x, y, u, p, dt],
-                       [ca.jacobian(xn, x), J(xa, y, u, p), J(xb, y, u, p)],
+    outs = [J(xa, y, u, p), J(xb, y, u, p)]
+    if nm:
+        both = ca.vertcat(x, m)
+        inner = ca.Function("memory_jacobians", [x, y, u, p, dt, m],
+                            [ca.jacobian(ca.vertcat(xn, mn), both), *outs])
+        outs = inner(x, y, u, p, dt, spec.model(x, y, y, u, p))
+    else:
+        outs = [ca.jacobian(xn, x), *outs]
+    return ca.Function("step_jacobians", [x, y, u, p, dt], list(outs),
                        ["x", "y", "u", "p", "dt"], ["Phi", "J0", "J1"])

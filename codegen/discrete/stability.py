@@ -336,13 +336,14 @@ class _Linearisation:
         """(Phi, J) (G, S, nx, nx) at parameters p and the G sample times ``dts``: the step's
         Jacobian and (J(x) + J(x_next)) / 2, whose exponential expm(dt J) is the exact linearised
         flow over the step to O(dt^3); None for J when anything is not finite."""
-        nx, S, G = self.spec.nx, self.S, len(dts)
+        S, G = self.S, len(dts)
         P = np.tile(np.asarray(p, float)[:, None], S)
         X = self.states(p)
         # a mapped matrix output is [A_1 A_2 ...] side by side; the points repeat per sample time
+        # (Phi is larger than J by the step's memory, "expmid1")
         T = np.repeat(np.asarray(dts, float), S)[None, :]
         with np.errstate(all="ignore"):
-            Phi, J0, J1 = (np.asarray(m).reshape(nx, G, S, nx).transpose(1, 2, 0, 3)
+            Phi, J0, J1 = (np.asarray(m).reshape(m.size1(), G, S, m.size1()).transpose(1, 2, 0, 3)
                            for m in self._map(G * S)(np.tile(X, G), np.tile(self.Y.T, G), np.tile(self.U.T, G),
                                                     np.tile(P, G), T))
             J = 0.5 * (J0 + J1)
@@ -387,7 +388,9 @@ class _Linearisation:
         error = None
         if accuracy is not None:
             g = list(dts).index(accuracy)
-            error = float(max(_distance(a, expm(accuracy * b)) for a, b in zip(Phi[g], J[g])))
+            # the state's block (a step's memory has no flow to compare with)
+            n = J.shape[-1]
+            error = float(max(_distance(a[:n, :n], expm(accuracy * b)) for a, b in zip(Phi[g], J[g])))
         return rho.max(axis=1), rho_c[rows, worst], excess[rows, worst], error
 
     def stable(self, p, dts):

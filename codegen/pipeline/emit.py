@@ -36,7 +36,7 @@ import numpy as np
 
 from ..core.atomic import locked, place_dir, replace_dir, write_error
 from ..core.version import __version__
-from ..discrete.discretize import discretize, estimate
+from ..discrete.discretize import discretize, estimate, memory_size
 from ..core.spec import ObserverSpec, real_number
 from ..discrete.stability import require_stable
 from ..core.target import AUTO, REAL_TYPES, SPLIT_MAX, STAMP_ULPS, sanitize
@@ -152,7 +152,8 @@ def metadata(spec, target, kernels, stability=None):
         "target": target.to_dict(),
         "robot": {"name": spec.robot.name, "n": spec.robot.n, "fingerprint": spec.robot.fingerprint,
                   "source": spec.robot_source},
-        "sizes": {"nx": spec.nx, "ny": spec.ny, "nu": spec.nu, "np": spec.np, "nest": spec.nest},
+        "sizes": {"nx": spec.nx, "ny": spec.ny, "nu": spec.nu, "np": spec.np, "nest": spec.nest,
+                  "nm": memory_size(spec, d.method)},
         "names": {"x": spec.x_names, "y": spec.y_names, "u": spec.u_names, "p": spec.p_names,
                   "est": spec.est_names},
         "p_default": [float(v) for v in spec.p_default],
@@ -455,8 +456,8 @@ def template_values(meta):
                                              else ""),
         "hold_foh": int(d["hold"] == "foh"),
         "hybrid_text": HYBRID_TEXT if d["hybrid"] else "",
-        **{n: s[n] for n in ("nx", "ny", "nu", "np", "nest")},
-        **{f"{v}_len": max(1, s["n" + v]) for v in ("x", "y", "u", "p", "est")},  # C: no empty arrays
+        **{n: s[n] for n in ("nx", "ny", "nu", "np", "nest")}, "nm": s.get("nm", 0),
+        **{f"{v}_len": max(1, s.get("n" + v, 0)) for v in ("x", "y", "u", "p", "est", "m")},  # C: no empty arrays
         **{key: max(v[key] for v in k.values()) for key in ("sz_arg", "sz_res")},
         **{key: max(1, max(v[key] for v in k.values())) for key in ("sz_iw", "sz_w")},
         "slot_macros": "\n".join(_slot_macros(P, meta["names"])), "status_enum": status,

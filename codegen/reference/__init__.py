@@ -161,6 +161,9 @@ class ReferenceObserver:
         self.p_default = as_vector("p_default", desc["p_default"], self.np)
         self._p = self.p_default.copy()
         self._x = None
+        # the step's memory under expmid1: the model's last value (zeros after reset and a set state)
+        self.nm = int(desc["rhs_model"]) if self.method == "expmid1" and self.model_split else 0
+        self._m = np.zeros(self.nm)
         self._y_last = None   # the last measurement (set by reset and step), for retuning
 
     # ------------------------------------------------------------ parameters
@@ -211,14 +214,20 @@ class ReferenceObserver:
         flow = lambda x: np.asarray(self.family.rhs(self.robot, x, y, u, p), float)  # noqa: E731
         phases = getattr(self.family, "phases", None)
         states = [x0] if phases is None else phases(self.robot, x0, y, p)
+        nx = self.nx
+
+        def step(v, h):                 # (x, memory) -> (x_next, memory_next)
+            _, xn, mn = self._advance(v[:nx], (y, u), y, u, h, v[nx:])
+            return np.concatenate([xn, mn])
         for h in sorted({self.dt_range[1], self.dt, self.dt_range[0]}, reverse=True):
             for phase, xs in enumerate(states):
                 try:
                     self._p = p
-                    step = lambda x, h=h: self._advance(x, (y, u), y, u, h)[1]            # noqa: E731
+                    # with memory: at the model's value at the held measurement
+                    v = np.concatenate([xs, self.family.model(self.robot, xs, y, y, u, p) if self.nm else []])
                     with np.errstate(all="ignore"):
-                        Phi = _jacobian(step, xs)
-                        J = 0.5 * (_jacobian(flow, xs) + _jacobian(flow, step(xs)))
+                        Phi = _jacobian(lambda v, h=h: step(v, h), v)
+                        J = 0.5 * (_jacobian(flow, xs) + _jacobian(flow, step(v, h)[:nx]))
                 finally:
                     self._p = saved
                 finite = np.all(np.isfinite(Phi)) and np.all(np.isfinite(J))
@@ -274,6 +283,7 @@ class ReferenceObserver:
     def state(self, x):
         """Set the state to ``x`` (nx,) (ValueError naming x on a bad size or value)."""
         self._x = as_vector("x", x, self.nx)
+        self._m = np.zeros(self.nm)
 
     def reset(self, y0, est0=None, p=None):
         """Start the observer: x = init(y0, est0, p).
@@ -299,38 +309,44 @@ class ReferenceObserver:
         if not np.all(np.isfinite(x0)):
             raise FloatingPointError(f"non-finite initial state {x0}")
         self._p, self._x, self._prev, self._y_last, self._stamp = p, x0, None, y0, None
+        self._m = np.zeros(self.nm)
         return self.state
 
-    def _flow(self, x, y_of_t, u, dt, midpoint=False):
-        """x advanced over dt with y = y_of_t(t) and u held; ``midpoint`` (first-order hold of a
-        family with ``rhs_split``): its model at y of each sub-step's midpoint, the rest at y(t);
-        expmid (a family with its model part apart): at y of each sub-step's midpoint always."""
+    def _flow(self, x, y_of_t, u, dt, m, midpoint=False):
+        """(x, m) advanced over dt with y = y_of_t(t) and u held; ``midpoint`` (first-order hold
+        of a family with ``rhs_split``): its model at y of each sub-step's midpoint, the rest at
+        y(t); expmid and expmid1 (a family with its model part apart): at y of each sub-step's
+        midpoint always, expmid1 with the model's last value m in its predictor (m returned as it
+        came by the other methods)."""
         p, robot, family = self._p, self.robot, self.family
         rate = family.rate(robot, x, p) if self._mask is not None else None
-        if self.method == "expmid" and self.model_split:     # the model at each sub-step's midpoint
-            return discretize.integrate_expmid(
-                lambda t, xi, m: family.rhs_model(robot, xi, y_of_t(t), u, p, m),
+        if self.method in ("expmid", "expmid1") and self.model_split:   # the model at each sub-step's midpoint
+            x, mem = discretize.integrate_expmid(
+                lambda t, xi, mi: family.rhs_model(robot, xi, y_of_t(t), u, p, mi),
                 lambda tm, t, xi: family.model(robot, xi, y_of_t(tm), y_of_t(t), u, p),
-                x, dt, self.substeps, rate, self._mask)
-        method = "etdrk4" if self.method == "expmid" else self.method   # expmid without a model part
+                x, dt, self.substeps, rate, self._mask, memory=m if self.nm else None)
+            return x, (m if mem is None else mem)
+        method = "etdrk4" if self.method in ("expmid", "expmid1") else self.method   # without a model part
         if midpoint and self.split:
             return discretize.integrate(
                 lambda t, xi, tm: family.rhs_split(robot, xi, y_of_t(tm), y_of_t(t), u, p),
-                x, dt, method, self.substeps, rate, self._mask, midpoint=True)
+                x, dt, method, self.substeps, rate, self._mask, midpoint=True), m
         return discretize.integrate(lambda t, xi: family.rhs(robot, xi, y_of_t(t), u, p),
-                                    x, dt, method, self.substeps, rate, self._mask)
+                                    x, dt, method, self.substeps, rate, self._mask), m
 
     def _jumped(self, x, y):
         """x after the jump map at measurement y (the identity for non-hybrid families)."""
         return self.family.jump(self.robot, x, y, self._p) if self.hybrid else x
 
-    def _advance(self, x, prev, y, u, dt=None):
-        """(est, x_next) for one sample from state x after the elapsed time ``dt`` (s, default
-        the designed dt; first-order hold: since the last sample ``prev`` = (y, u), nothing to
-        integrate when it is None; zero-order hold: to the next sample), in m = ceil(dt / dt_max)
-        equal sub-intervals h, each ending at a virtual sample with its jump (module docstring);
-        raises on a non-finite result."""
+    def _advance(self, x, prev, y, u, dt=None, memory=None):
+        """(est, x_next, memory_next) for one sample from state x and the step's memory (expmid1:
+        the model's last value; default the current one) after the elapsed time ``dt`` (s,
+        default the designed dt; first-order hold: since the last sample ``prev`` = (y, u),
+        nothing to integrate when it is None, the memory then the model at (x, y, u); zero-order
+        hold: to the next sample), in m = ceil(dt / dt_max) equal sub-intervals h, each ending
+        at a virtual sample with its jump (module docstring); raises on a non-finite result."""
         p, dt = self._p, self.dt if dt is None else dt
+        mem = self._m if memory is None else memory
         m = split_count(dt, self.dt_range[1])
         h = dt / m
         if self.hold == "foh":
@@ -339,22 +355,24 @@ class ReferenceObserver:
                 ya = yp
                 for j in range(1, m + 1):       # y linear from yp to y, the last input held
                     yb = y if j == m else yp + (j / m) * (y - yp)
-                    x = self._flow(x, lambda t, a=ya, b=yb: a + (t / h) * (b - a), up, h, midpoint=True)
+                    x, mem = self._flow(x, lambda t, a=ya, b=yb: a + (t / h) * (b - a), up, h, mem, midpoint=True)
                     if j < m:
                         x = self._jumped(x, yb)
                     ya = yb
+            elif self.nm:
+                mem = np.asarray(self.family.model(self.robot, x, y, y, u, p), dtype=float).reshape(self.nm)
             x = self._jumped(x, y)
             est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)
             x_next = x
         else:                                   # y and u held over the interval after the sample
             x = self._jumped(x, y)
             est = np.asarray(self.family.output(self.robot, x, y, u, p), dtype=float).reshape(self.nest)
-            x_next = self._flow(x, lambda t: y, u, h)
+            x_next, mem = self._flow(x, lambda t: y, u, h, mem)
             for _ in range(m - 1):
-                x_next = self._flow(self._jumped(x_next, y), lambda t: y, u, h)
-        if not (np.all(np.isfinite(est)) and np.all(np.isfinite(x_next))):
+                x_next, mem = self._flow(self._jumped(x_next, y), lambda t: y, u, h, mem)
+        if not (np.all(np.isfinite(est)) and np.all(np.isfinite(x_next)) and np.all(np.isfinite(mem))):
             raise FloatingPointError(f"non-finite result (est={est}, x={x_next}); state unchanged")
-        return est, x_next
+        return est, x_next, np.asarray(mem, dtype=float).reshape(self.nm)
 
     def _elapsed(self, dt):
         """The elapsed time ``dt`` (s) of a step: positive, finite, at most ``dt_limit``; None: dt."""
@@ -389,7 +407,7 @@ class ReferenceObserver:
         h = self._elapsed(dt)
         y = as_vector("y", y, self.ny)
         u = as_vector("u", u, self.nu)
-        est, self._x = self._advance(self._x, self._prev, y, u, h)
+        est, self._x, self._m = self._advance(self._x, self._prev, y, u, h)
         if self._prev is not None and self._stamp is not None:
             self._stamp += h
         self._prev, self._y_last = (y, u), y
@@ -444,16 +462,16 @@ class ReferenceObserver:
             if len(bad):
                 raise ValueError(f"t: the interval of sample {int(bad[0])} is {H[bad[0]]:g} s, expected "
                                  f"0 < interval <= {self.dt_limit:g} s (split_max x dt_max)")
-        x, prev, stamp = self._x, self._prev, self._stamp
+        x, prev, stamp, mem = self._x, self._prev, self._stamp, self._m
         EST = np.empty((N, self.nest))
         for k in range(N):
-            EST[k], x = self._advance(x, prev, Y[k], U[k], float(H[k]))
+            EST[k], x, mem = self._advance(x, prev, Y[k], U[k], float(H[k]), mem)
             if prev is not None and stamp is not None:
                 stamp += H[k]
             prev = (Y[k], U[k])
             if t is not None:
                 stamp = float(t[k])
-        self._x, self._prev, self._stamp = x, prev, stamp
+        self._x, self._prev, self._stamp, self._m = x, prev, stamp, mem
         if len(Y):
             self._y_last = Y[-1]
         return EST

@@ -25,7 +25,7 @@ def _rk4_stability(z):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["ur5", "panda"])
 def test_default_is_unbiased_whatever_k0_dt(name, tmp_path):
-    """At the guarantee gain (12) (ur5 k0 dt ~ 0.48, panda ~ 2.1): ETD-RK4 and expmid under the
+    """At the guarantee gain (12) (ur5 k0 dt ~ 0.48, panda ~ 2.1): ETD-RK4, expmid and expmid1 under the
     first-order hold have a steady gain within 1e-4 of 1; the zero-order hold settles at a / (1 - R(-a))
     with R the method's stability function: RK4's polynomial (ur5 1.262, panda 3.54), e^-a for
     ETD-RK4 (1.262, 2.43)."""
@@ -33,7 +33,8 @@ def test_default_is_unbiased_whatever_k0_dt(name, tmp_path):
     spec = observers.build("reduced_order", load_robot(name), design="guarantee")
     a = spec.p_default[0] * 1e-3
     t, Q, QD, TAU = demo_trajectory(spec.robot, T=2.5)
-    expected = {("etdrk4", "foh"): 1.0, ("expmid", "foh"): 1.0, ("rk4", "zoh"): a / (1 - _rk4_stability(-a)),
+    expected = {("etdrk4", "foh"): 1.0, ("expmid", "foh"): 1.0, ("expmid1", "foh"): 1.0,
+                ("rk4", "zoh"): a / (1 - _rk4_stability(-a)),
                 ("etdrk4", "zoh"): a / (1 - np.exp(-a))}
     for (method, hold), g in expected.items():
         # at 1 kHz exactly: panda's k0 dt_max = 4.3 over the default range would be beyond RK4's 2.785
@@ -191,6 +192,51 @@ def test_expmid_calls_the_model_twice_per_substep(spec_of, substeps):
     assert same[0].n_instructions() == same[1].n_instructions()
 
 
+@pytest.mark.parametrize("substeps", [1, 2])
+def test_expmid1_calls_the_model_once_per_substep(spec_of, substeps):
+    """expmid1 (the default): the whole model once per sub-step (no configuration/velocity split
+    needed), the cheap rest of the flow in the predictor and the four ETD-RK4 stages; the step
+    takes the model's last value as m_prev (n entries) and returns the last sub-step's as
+    m_next, which a step with a dt of 0 (the first sample after init, first-order hold) sets to
+    the model at the sample, state unchanged."""
+    from codegen.core.target import Discretization
+    from codegen.discrete.discretize import discretize
+    spec = spec_of("ur5")
+    step = discretize(spec, Discretization(method="expmid1", substeps=substeps), inline=False)
+    calls = _model_calls(step)
+    assert calls.count("model") == substeps and calls.count("rhs_model") == 5 * substeps
+    assert not {"model_cfg", "model_vel", "rhs", "rhs_split"} & set(calls)
+    n = spec.robot.n
+    assert step.name_in()[-1] == "m_prev" and step.size1_in(7) == n and step.size1_out(2) == n
+    rng = np.random.default_rng(3)
+    x, y, u, m = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n), rng.normal(size=n)
+    p = spec.p_default
+    xn, _, mn = (np.asarray(v).ravel() for v in step(x, y, y, u, u, p, 0.0, m))
+    assert np.array_equal(xn, x)
+    assert np.allclose(mn, np.asarray(spec.model(x, y, y, u, p)).ravel(), rtol=1e-13, atol=1e-13)
+    assert Discretization().method == "expmid1"
+
+
+def test_expmid1_reference_step_with_memory():
+    """The reference's expmid1 step: the prediction uses the memory in place of the model at
+    the start (the model then evaluated once, at the midpoint state), the memory returned is
+    the model there; with a model independent of the state the step is exact, as expmid's."""
+    from codegen.reference.discretize import expmid_step, integrate_expmid
+    a, c1, h, x0, m0 = 2146.0, -40.0, 1e-3, 0.7, 3.0
+    exact = x0 * np.exp(-a * h) + m0 * (1 - np.exp(-a * h)) / a + c1 * (h / a - (1 - np.exp(-a * h)) / a ** 2)
+    seen = []
+
+    def model(t_cfg, t, x):
+        seen.append((t_cfg, t))
+        return np.array([m0])
+    f = lambda s, x, mi: mi - a * x + c1 * s          # noqa: E731
+    x1, m1 = expmid_step(f, model, 0.0, np.array([x0]), h, a, [1], m_last=np.array([m0]))
+    assert x1[0] == pytest.approx(exact, rel=1e-13) and m1[0] == m0 and seen == [(h / 2, h / 2)]
+    seen.clear()
+    x2, mem = integrate_expmid(f, model, np.array([x0]), h, 2, a, [1], memory=np.array([m0]))
+    assert x2[0] == pytest.approx(exact, rel=1e-13) and len(seen) == 2 and mem[0] == m0
+
+
 def test_model_parts_equal_the_model(spec_of):
     """The model split into its configuration part (once per sub-step) and its velocity part
     gives the model's own value; the configuration part sees only y_cfg and p."""
@@ -221,7 +267,7 @@ def test_expmid_step_is_exact_with_the_model_held():
     def model(t_cfg, t, x):
         seen.append((t_cfg, t, x.copy()))
         return np.array([m0])
-    x1 = expmid_step(lambda s, x, mi: mi - a * x + c1 * s, model, 0.0, np.array([x0]), h, a, [1])
+    x1, _ = expmid_step(lambda s, x, mi: mi - a * x + c1 * s, model, 0.0, np.array([x0]), h, a, [1])
     assert x1[0] == pytest.approx(exact, rel=1e-13)
     assert [(tc, t) for tc, t, _ in seen] == [(h / 2, 0.0), (h / 2, h / 2)] and seen[0][2][0] == x0
     e = np.exp(-a * h / 2)
@@ -247,18 +293,21 @@ def test_half_phi_functions_agree_with_the_reference():
                                          ("reduced_order_switched", "ur5")])
 def test_expmid_moves_the_estimate_by_less_than_5_percent_of_its_error(family, name):
     """On the built-in trajectory without noise at the default gains, expmid (the model at the
-    step's midpoint configuration, twice) moves the estimate (t >= 1 s) from ETD-RK4's by less
-    than 5 % of the observer's own RMS error against the true velocity (the references; measured
-    6.6e-8 vs 2.9e-4 rad/s on ur5 reduced-order over 3 s, 0.02 %)."""
+    step's midpoint configuration, twice) and expmid1 (once, its prediction from the model's last
+    value) move the estimate (t >= 1 s) from ETD-RK4's by less than 5 % of the observer's own
+    RMS error against the true velocity (the references; measured over 3 s: ur5 reduced-order
+    0.023 % and 0.036 %, switched 0.006 % and 0.049 %). Holding the model over the whole step
+    instead (its value at the start state, no prediction) moved them by 10 % and 11.5 %."""
     from codegen.reference import reference_observer
     from codegen.verify.trajectory import demo_trajectory
     spec = observers.build(family, load_robot(name))
     t, Q, QD, TAU = demo_trajectory(spec.robot, T=1.5)
     ests = {}
-    for method in ("etdrk4", "expmid"):
+    for method in ("etdrk4", "expmid", "expmid1"):
         ref = reference_observer(spec, method=method)
         ref.reset(Q[0])
         ests[method] = ref.run(Q, TAU)
     m = t >= 1.0
     rms = lambda e: np.sqrt(np.mean(np.sum(e[m] ** 2, axis=1)))      # noqa: E731
-    assert 0 < rms(ests["expmid"] - ests["etdrk4"]) < 0.05 * rms(ests["etdrk4"] - QD)
+    for method in ("expmid", "expmid1"):
+        assert 0 < rms(ests[method] - ests["etdrk4"]) < 0.05 * rms(ests["etdrk4"] - QD), method

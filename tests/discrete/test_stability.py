@@ -40,11 +40,11 @@ def test_damped_urdf_is_the_case_of_the_issue(damped):
 def test_damped_urdf_default_design_and_discretisation_are_stable(damped, tmp_path):
     """The default (noise-aware) design and the guarantee gain (12) are both stable under ETD-RK4
     with one sub-step (it integrates k0 exactly, RK4 the damping rate lambda ~ 1300 1/s:
-    lambda dt_max = 2.6 < 2.785); under the default expmid (the model held at its midpoint
-    value: the midpoint rule's 2 on that axis) the noise-aware gain is not, and "auto" (the
-    default of compile_observer, the CLI and targets files) makes it stable (it keeps 1 sub-step
-    and declares dt_max = 1.53 ms); the guarantee gain's k0 (integrated exactly) is stable as
-    it is. The compiled observer runs."""
+    lambda dt_max = 2.6 < 2.785); under the default expmid1 (the model held at its midpoint
+    value, predicted from its last one: lambda h <= 1 on that axis, the midpoint rule's expmid
+    2) the noise-aware gain is not, and "auto" (the default of compile_observer, the CLI and
+    targets files) makes it stable (2 sub-steps at dt_max = 1.53 ms; expmid: 1 sub-step there);
+    the guarantee gain's k0 (integrated exactly) is stable as it is. The compiled observer runs."""
     import dataclasses
 
     from codegen.discrete.stability import auto_substeps
@@ -158,7 +158,7 @@ def test_params_setter_runs_the_check_in_python_and_the_reference(spec_of, tmp_p
 @pytest.mark.parametrize("family", ["reduced_order", "nicosia_tomei"])
 def test_default_designs_are_stable_on_every_robot(name, family, damped):
     """No catalog robot gets an unstable default (design and discretisation); the damped URDF's
-    damping mode needs "auto" (a shorter dt_max) under the default expmid with the reduced-order
+    damping mode needs "auto" (sub-steps, a shorter dt_max) under the default expmid1 with the reduced-order
     observer (test_damped_urdf_default_design_and_discretisation_are_stable)."""
     from codegen.discrete.stability import auto_substeps
     robot = damped if name == "damped" else load_robot(name)
@@ -169,6 +169,27 @@ def test_default_designs_are_stable_on_every_robot(name, family, damped):
         return
     assert spec.design["stability"]["stable"]
     assert check(spec, DEFAULT_DISCRETIZATION).stable
+
+
+def test_the_check_linearises_the_memory_of_expmid1(damped):
+    """expmid1 keeps the model's last value as memory: the check linearises (x, m) -> (x+, m+),
+    a 2n x 2n Jacobian whose memory block is not zero, at m = the model at the working point.
+    On the test equation x' = -lambda x (the model alone) the memory halves the stable step,
+    lambda h <= 1 against expmid's 2: on the damped arm's damping mode the check sees it
+    (spectral radius 3.2 against expmid's 1.8, both refused) and "auto" asks for more sub-steps."""
+    import dataclasses
+
+    from codegen.discrete.discretize import step_jacobians
+    spec = observers.build("reduced_order", damped)
+    n = damped.n
+    disc = dataclasses.replace(DEFAULT_DISCRETIZATION, method="expmid1")
+    jac = step_jacobians(spec, disc)
+    y = np.zeros(n)
+    Phi = np.asarray(jac(spec.init(y, np.zeros(n), spec.p_default), y, np.zeros(n), spec.p_default, 1e-3)[0])
+    assert Phi.shape == (2 * n, 2 * n) and np.abs(Phi[:, n:]).max() > 0
+    radius = {m: check(spec, dataclasses.replace(disc, method=m)).spectral_radius for m in ("expmid", "expmid1")}
+    assert 1 < radius["expmid"] < radius["expmid1"]
+    assert auto_substeps(spec, disc).substeps > auto_substeps(spec, dataclasses.replace(disc, method="expmid")).substeps
 
 
 def test_hybrid_default_is_stable_on_the_damped_urdf(damped):

@@ -94,14 +94,16 @@ def test_ramp_with_jittered_stamps_gives_its_slope(ur5):
     assert np.max(np.abs(zoh.run(Q, TAU, t) - v)) > 1e-3 * np.linalg.norm(v)
 
 
-def test_expmid_ramp_and_jittered_stamps(ur5, tmp_path):
-    """expmid (the model at the step's midpoint configuration): the ramp of
-    ``test_ramp_with_jittered_stamps_gives_its_slope`` keeps est = v (1e-9 |v|) in C and in the
-    reference; on random inputs over jittered stamps with 10 ms gaps (split into sub-intervals)
-    the C equals the reference, and estimate() equals step() bit for bit."""
+@pytest.mark.parametrize("method", ["expmid", "expmid1"])
+def test_expmid_ramp_and_jittered_stamps(ur5, tmp_path, method):
+    """expmid and expmid1 (the model at the step's midpoint configuration; expmid1 once, with its
+    last value as memory): the ramp of ``test_ramp_with_jittered_stamps_gives_its_slope`` keeps
+    est = v (1e-9 |v|) in C and in the reference; on random inputs over jittered stamps with
+    10 ms gaps (split into sub-intervals, the memory carried through them) the C equals the
+    reference, and estimate() equals step() bit for bit."""
     spec = ur5[0]
-    obs = compile_observer(spec, method="expmid", out_dir=tmp_path)
-    ref = reference_observer(spec, method="expmid")
+    obs = compile_observer(spec, method=method, out_dir=tmp_path)
+    ref = reference_observer(spec, method=method)
     t = jittered_stamps(500, 1e-3, seed=4)
     Q, TAU, v = _ramp(spec.robot, t)
     for o in (obs, ref):

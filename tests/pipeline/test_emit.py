@@ -51,7 +51,7 @@ def test_metadata_and_header_describe_the_target(spec_of, tmp_path):
     spec = spec_of("seed000_2r")
     target = emit(spec.target(dt=2e-3, method="euler", substeps=2, hold="zoh"), tmp_path, spec=spec)
     meta = json.loads((target / f"{target.name}.json").read_text())
-    assert meta["sizes"] == {"nx": 2, "ny": 2, "nu": 2, "np": 1, "nest": 2}
+    assert meta["sizes"] == {"nx": 2, "ny": 2, "nu": 2, "np": 1, "nest": 2, "nm": 0}
     assert meta["discretization"] == {"dt": 2e-3, "method": "euler", "substeps": 2, "hybrid": False,
                                       "hold": "zoh", "dt_min": 2e-3 / 4, "dt_max": 2 * 2e-3,
                                       "split_max": 1000, "stamp_tol": 4 * 2.0 ** -52}
@@ -62,6 +62,10 @@ def test_metadata_and_header_describe_the_target(spec_of, tmp_path):
     assert f"#define {P}_NX 2" in h and f"#define {P}_P_K0 0" in h and f"{target.name}_step(" in h
     assert f"#define {P}_DT_MIN 0.0005" in h and f"#define {P}_DT_MAX 0.004" in h
     assert f"{target.name}_step_dt(" in h and f"{target.name}_run_t(" in h
+    # the default method keeps the model's last value (2 entries) in the state struct
+    default = emit(spec.target(name="with_memory"), tmp_path, spec=spec)
+    assert json.loads((default / "with_memory.json").read_text())["sizes"]["nm"] == 2
+    assert "#define WITH_MEMORY_NM 2" in (default / "with_memory.h").read_text()
 
 
 def test_sanitized_identifiers():

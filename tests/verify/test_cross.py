@@ -25,7 +25,8 @@ def test_emitted_c_equals_reference(name, spec_of):
                                                        ("seed000_2r", "rk4", 2, "foh"),
                                                        ("ur5", "rk4", 1, "foh"),
                                                        ("seed000_2r", "expmid", 2, "zoh"),
-                                                       ("seed000_2r", "expmid", 1, "foh")])
+                                                       ("seed000_2r", "expmid", 1, "foh"),
+                                                       ("seed000_2r", "expmid1", 2, "zoh")])
 def test_other_discretizations_match_reference(name, method, substeps, hold, spec_of):
     """The C against the reference (1e-9) under the other methods, holds and sub-steps."""
     r = cross_check(spec_of(name), count=300, dt=2e-3, method=method, substeps=substeps, hold=hold)

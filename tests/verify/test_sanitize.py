@@ -66,7 +66,7 @@ def _put_back(folder, pattern, replacement):
     ("rhs() on NaN input (item 6)",
      r"  if \(!\w+_finite\(x, \w+_NX\).*\n +return \w+_ERR_NONFINITE_INPUT;\n", ""),
     ("step() writes the state before checking the result",
-     r"(  status = \w+_sample\(s, dt, y, u, s->x_next, s->est, s->w, s->iw, \w+\);)",
+     r"(  status = \w+_sample\(s, dt, y, u, s->x_next, s->m_next, s->est, s->w, s->iw, \w+\);)",
      r"  s->x[0] = s->x_next[0];\n\1"),
 ], ids=["run-not-rolled-back", "run-t-not-rolled-back", "step-dt-zero", "rhs-nan", "step-writes-early"])
 def test_fuzzer_finds_a_fault_put_back(target, tmp_path, fault, pattern, replacement):
