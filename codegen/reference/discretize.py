@@ -10,7 +10,9 @@ states outside the mask and for a flow without a rate.
 ``expmid`` evaluates a family's model part m at the sub-step's midpoint configuration, at its
 start and at its midpoint state (predicted with the first), and integrates the rest of the
 flow, f(t, x, m) with the midpoint m held, by ETD-RK4: for f = N0 + N1 t - a x (m and the
-injection of a linear y) that is exact.
+injection of a linear y) that is exact (the generated C computes that exact value from f at the
+step's two ends where f + a x does not depend on x; both agree to rounding). ``expmid1`` is
+expmid with the model's last value in place of m0 in the prediction (the step's memory).
 """
 from __future__ import annotations
 

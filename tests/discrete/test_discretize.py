@@ -174,7 +174,8 @@ def test_expmid_calls_the_model_twice_per_substep(spec_of, substeps):
     """Calling the spec's functions (the C of a big observer), the expmid step evaluates the
     model's configuration part once per sub-step and its velocity part twice (start and
     predicted midpoint, both at the midpoint configuration), and only the cheap rest of the
-    flow (rhs_model) in the predictor and the four ETD-RK4 stages; the ETD-RK4 step calls the
+    flow (rhs_model) in the predictor and at the sub-step's two ends (the reduced-order flow
+    with the model held, N(t) - k0 z, integrated exactly); the ETD-RK4 step calls the
     whole flow four times. A family without a model part (the extended-state observer) gets
     the ETD-RK4 step."""
     from codegen.core.target import Discretization
@@ -182,7 +183,7 @@ def test_expmid_calls_the_model_twice_per_substep(spec_of, substeps):
     spec = spec_of("ur5")
     calls = _model_calls(discretize(spec, Discretization(method="expmid", substeps=substeps), inline=False))
     assert calls.count("model_cfg") == substeps and calls.count("model_vel") == 2 * substeps
-    assert calls.count("model") == 0 and calls.count("rhs_model") == 5 * substeps
+    assert calls.count("model") == 0 and calls.count("rhs_model") == 3 * substeps
     assert "rhs_split" not in calls and "rhs" not in calls
     etd = _model_calls(discretize(spec, Discretization(substeps=substeps, method="etdrk4"), inline=False))
     assert etd.count("rhs_split") == 4 * substeps
@@ -195,7 +196,7 @@ def test_expmid_calls_the_model_twice_per_substep(spec_of, substeps):
 @pytest.mark.parametrize("substeps", [1, 2])
 def test_expmid1_calls_the_model_once_per_substep(spec_of, substeps):
     """expmid1 (the default): the whole model once per sub-step (no configuration/velocity split
-    needed), the cheap rest of the flow in the predictor and the four ETD-RK4 stages; the step
+    needed), the cheap rest of the flow in the predictor and at the sub-step's ends; the step
     takes the model's last value as m_prev (n entries) and returns the last sub-step's as
     m_next, which a step with a dt of 0 (the first sample after init, first-order hold) sets to
     the model at the sample, state unchanged."""
@@ -204,7 +205,7 @@ def test_expmid1_calls_the_model_once_per_substep(spec_of, substeps):
     spec = spec_of("ur5")
     step = discretize(spec, Discretization(method="expmid1", substeps=substeps), inline=False)
     calls = _model_calls(step)
-    assert calls.count("model") == substeps and calls.count("rhs_model") == 5 * substeps
+    assert calls.count("model") == substeps and calls.count("rhs_model") == 3 * substeps
     assert not {"model_cfg", "model_vel", "rhs", "rhs_split"} & set(calls)
     n = spec.robot.n
     assert step.name_in()[-1] == "m_prev" and step.size1_in(7) == n and step.size1_out(2) == n
@@ -235,6 +236,30 @@ def test_expmid1_reference_step_with_memory():
     seen.clear()
     x2, mem = integrate_expmid(f, model, np.array([x0]), h, 2, a, [1], memory=np.array([m0]))
     assert x2[0] == pytest.approx(exact, rel=1e-13) and len(seen) == 2 and mem[0] == m0
+
+
+def test_held_model_flow_is_stepped_exactly_in_two_evaluations(spec_of):
+    """With the model held, the reduced-order families' flow is x' = N(t) - k0 z with N affine in
+    t and free of x (detected from rhs_model's Jacobian); the step then integrates it from N at
+    the sub-step's ends: equal to ETD-RK4 of the same held flow (exact for it as well) to
+    rounding. A family whose N depends on x keeps ETD-RK4."""
+    import casadi as ca
+
+    from codegen.discrete.discretize import _affine_step, _remainder_is_stateless, integrator_step
+    assert _remainder_is_stateless(spec_of("ur5"))
+    assert _remainder_is_stateless(observers.build("reduced_order_switched", load_robot("seed000_2r")))
+    eso = observers.build("extended_state", load_robot("seed000_2r"))
+    assert eso.model is None
+    a, h, c0, c1 = 2146.0, 1e-3, np.array([3.0, -1.0]), np.array([-40.0, 7.0])
+    x0 = np.array([0.7, -0.2])
+    exact = _affine_step(lambda s: ca.DM(c0 + c1 * s), ca.DM(x0), 0.0, h, h, a, [1, 0])
+    etd = integrator_step(lambda s, x: ca.DM(c0 + c1 * s) - a * ca.DM([1, 0]) * x, ca.DM(x0), 0.0, h,
+                          "etdrk4", a, [1, 0])
+    assert np.allclose(np.asarray(exact).ravel(), np.asarray(etd).ravel(), rtol=1e-14, atol=0)
+    E = np.exp(-a * h)
+    assert float(exact[0]) == pytest.approx(x0[0] * E + c0[0] * (1 - E) / a + c1[0] * (h / a - (1 - E) / a ** 2),
+                                            rel=1e-13)
+    assert float(exact[1]) == pytest.approx(x0[1] + c0[1] * h + c1[1] * h ** 2 / 2, rel=1e-14)
 
 
 def test_model_parts_equal_the_model(spec_of):
