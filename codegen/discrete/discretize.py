@@ -436,18 +436,16 @@ def step_jacobians(spec, disc, inline="auto"):
     inline = _inline(spec, disc.method, disc.substeps, inline)
     sym = ca.SX.sym if inline else ca.MX.sym
     nm = memory_size(spec, disc.method)
-    x, y, u, p, dt, m = (sym("x", spec.nx), sym("y", spec.ny), sym("u", spec.nu), sym("p", spec.np), sym("dt"),
-                         sym("m", nm))
+    # the state and the memory as one symbol v = (x, m): one Jacobian in it
+    v, y, u, p, dt = (sym("v", spec.nx + nm), sym("y", spec.ny), sym("u", spec.nu), sym("p", spec.np), sym("dt"))
+    x, m = v[:spec.nx], v[spec.nx:]
     _, xn, _, (xa, xb), mn = _pieces(spec, disc.method, disc.substeps, disc.hold, inline,
                                      syms=(x, y, y, u, u, p, dt, m))
-    J = ca.Function("J", [x, y, u, p], [ca.jacobian(spec.rhs(x, y, u, p), x)])
-    outs = [J(xa, y, u, p), J(xb, y, u, p)]
-    if nm:
-        both = ca.vertcat(x, m)
-        inner = ca.Function("memory_jacobians", [x, y, u, p, dt, m],
-                            [ca.jacobian(ca.vertcat(xn, mn), both), *outs])
-        outs = inner(x, y, u, p, dt, spec.model(x, y, y, u, p))
-    else:
-        outs = [ca.jacobian(xn, x), *outs]
-    return ca.Function("step_jacobians", [x, y, u, p, dt], list(outs),
+    xs = sym("x", spec.nx)
+    J = ca.Function("J", [xs, y, u, p], [ca.jacobian(spec.rhs(xs, y, u, p), xs)])
+    outs = [ca.jacobian(ca.vertcat(xn, mn) if nm else xn, v), J(xa, y, u, p), J(xb, y, u, p)]
+    inner = ca.Function("jacobians", [v, y, u, p, dt], outs)
+    # with memory: at the model's value at the held measurement
+    at = ca.vertcat(xs, spec.model(xs, y, y, u, p)) if nm else xs
+    return ca.Function("step_jacobians", [xs, y, u, p, dt], inner(at, y, u, p, dt),
                        ["x", "y", "u", "p", "dt"], ["Phi", "J0", "J1"])
