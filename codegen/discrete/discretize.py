@@ -441,10 +441,19 @@ def step_jacobians(spec, disc, inline="auto"):
     x, m = v[:spec.nx], v[spec.nx:]
     _, xn, _, (xa, xb), mn = _pieces(spec, disc.method, disc.substeps, disc.hold, inline,
                                      syms=(x, y, y, u, u, p, dt, m))
-    xs = sym("x", spec.nx)
+    step = ca.Function("held_step", [v, y, u, p, dt], [ca.vertcat(xn, mn) if nm else xn, xa, xb])
+    if not inline:
+        # a step that calls its model: expanded first, its Jacobian then built in SX (at n = 24
+        # 1.4 s against 2.1 s for the MX Jacobian expanded after)
+        try:
+            step = step.expand()
+        except RuntimeError:
+            pass
+    v, y, u, p, dt = step.sx_in() if step.is_a("SXFunction") else step.mx_in()
+    out, xa, xb = step(v, y, u, p, dt)
+    xs = type(v).sym("x", spec.nx)
     J = ca.Function("J", [xs, y, u, p], [ca.jacobian(spec.rhs(xs, y, u, p), xs)])
-    outs = [ca.jacobian(ca.vertcat(xn, mn) if nm else xn, v), J(xa, y, u, p), J(xb, y, u, p)]
-    inner = ca.Function("jacobians", [v, y, u, p, dt], outs)
+    inner = ca.Function("jacobians", [v, y, u, p, dt], [ca.jacobian(out, v), J(xa, y, u, p), J(xb, y, u, p)])
     # with memory: at the model's value at the held measurement
     at = ca.vertcat(xs, spec.model(xs, y, y, u, p)) if nm else xs
     return ca.Function("step_jacobians", [xs, y, u, p, dt], inner(at, y, u, p, dt),
