@@ -109,13 +109,14 @@ class ObserverSpec:
       rhs_model(x, y, u, p, m) -> xdot      the flow with that part given as m (the gain and
                                             injection terms): rhs_split(x, y_cfg, y, u, p) =
                                             rhs_model(x, y, u, p, model(x, y_cfg, y, u, p)); the
-                                            method "expmid" evaluates model once per sub-step
+                                            methods "expmid1" (once) and "expmid" (twice)
+                                            evaluate model at one configuration per sub-step
       output(x, y, u, p) -> est             the estimate at the current sample
       init(y0, est0, p)  -> x0              state from a first measurement and an initial estimate
       jump(x, y, p)      -> x+   (or None)  hybrid jump map, applied before each step
       rate(x, p)         -> a    (or None)  the flow's linear gain rate: rhs = N - a x on the
                                             states ``rate_states`` (a constant along the flow),
-                                            integrated exactly by "etdrk4" and "expmid"
+                                            integrated exactly by "etdrk4", "expmid" and "expmid1"
       retune(x, y, p_old, p_new) -> x+  (or None: identity)  the state after a parameter change
                                             at measurement y that keeps the estimate continuous
       measurement(est)   -> y    (or None)  the measurement of a plant in the estimated state

@@ -88,7 +88,7 @@ def _time_rhs(fn, args, repeat=20):
 # ---------------------------------------------------------------------------- observer RHS vs pin
 def observer_rhs(robots=("ur5", "panda"), native=False):
     """Default reduced-order targets timed by the C program (``c_programs.time_target``) against
-    pinocchio's ``aba`` (``c_programs.time_pin``): the default discretisation (expmid, first-order
+    pinocchio's ``aba`` (``c_programs.time_pin``): the default discretisation (expmid1, first-order
     hold, dt = 1e-3) and, in the same run, the plain RK4 zero-order-hold step it replaced.
 
     Parameters
@@ -610,7 +610,7 @@ def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, 
     print(f"{'robot':8s} {'RHS ns':>9s} {'step ns':>9s} {'rk4/zoh ns':>11s} {'pin aba ns':>11s} {'RHS/aba':>8s} "
           f"{'step/aba':>9s} {'step/rk4zoh':>12s} {'step instr':>11s} {'RHS instr':>10s} {'aba instr':>10s} "
           f"{'step/aba':>9s} {'RHS/aba':>8s}"
-          "   (step: the default, expmid with first-order hold)")
+          "   (step: the default, expmid1 with first-order hold)")
     for r in rows:
         print(f"{r['robot']:8s} {r['ns_rhs']:9.1f} {r['ns_step']:9.1f} {r['ns_rk4_zoh_step']:11.1f} "
               f"{r['ns_pin_aba']:11.1f} {r['ratio_rhs_over_aba']:8.3f} {r['ratio_step_over_aba']:9.3f} "

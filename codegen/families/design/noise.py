@@ -15,7 +15,7 @@ sqrt(sum_j t_j^2 (v^2/n) mean_q sum_k |M^-1 dM/dq_k M^-1 e_j|^2) over speeds of 
 random directions (v = v_max/2, as for the relative term).
 
 Reduced-order observer (linearised error dynamics eps' = -k0 eps + e, estimate x2hat = z + k0 y):
-under the default discretisation (expmid or ETD-RK4, first-order hold) the scalar observer is exactly
+under the default discretisation (expmid1, expmid or ETD-RK4, first-order hold) the scalar observer is exactly
 
     w_k+1 = E w_k + (1 - E) (y_k+1 - y_k) / dt,   E = exp(-k0 dt)        [DERIVED]
 
