@@ -2,7 +2,7 @@
 
     from codegen import observers, compile_observer, load
     spec = observers.build("reduced_order", robot, quantization=1e-4)   # noise-aware k0
-    obs = compile_observer(spec, dt=1e-3)          # ETD-RK4, first-order hold: unbiased, checked stable
+    obs = compile_observer(spec, dt=1e-3)          # expmid1 (the model once per step), first-order hold: unbiased, checked stable
     obs = load("generated/ur5_reduced_order")      # a folder `build` or `generate` wrote
 
 Imports are lazy so that ``codegen.reference`` (numpy + pin only) never loads CasADi.
