@@ -241,13 +241,14 @@ def model_parts(model):
             ca.Function("model_vel", [x, yc, y, u, p, e], [velocity], ["x", "y_cfg", "y", "u", "p", "cfg"], ["m"]))
 
 
-def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, parts=None, m_last=None):
+def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, parts=None, m_last=None, affine=False):
     """(x+, m) of one "expmid" sub-step (module docstring): the model at the midpoint
     configuration, at the sub-step's start and at its predicted midpoint state, the rest of the
     flow by ETD-RK4 with the midpoint model m held. ``parts``: the model's ``model_parts``, the
     configuration's part then evaluated once for both calls (MX steps, where the C calls the
     model instead of inlining it). ``m_last`` ("expmid1"): the model's last value, in place of
-    the model at the start in the predictor (one model evaluation)."""
+    the model at the start in the predictor (one model evaluation). ``affine``: the held flow's
+    remainder is free of the state (``_remainder_is_stateless``), stepped by ``_affine_step``."""
     y0, y_mid = y_of(t), y_of(t + c / 2)
     if m_last is not None:
         parts = None
@@ -271,7 +272,7 @@ def _expmid_step(spec, x, y_of, u, p, t, h, c, rate, mask, parts=None, m_last=No
     x_mid = _masked(mask, E * x + h / 2 * p1 * (n_theta + (rate if rate is not None else 0) * D * x),
                     x + h / 2 * n_theta)
     m = model(x_mid, y_mid)
-    if _remainder_is_stateless(spec):
+    if affine:
         return _affine_step(lambda s: spec.rhs_model(x, y_of(s), u, p, m) + (0 if rate is None else rate * D * x),
                             x, t, h, c, rate, mask), m
     return integrator_step(lambda s, xs: spec.rhs_model(xs, y_of(s), u, p, m), x, t, h, "etdrk4", rate,
@@ -318,10 +319,11 @@ def _advance(spec, x, y_of, u, p, dt, method, substeps, midpoint=False, memory=N
     mask = rate_mask(spec)
     split = midpoint and spec.rhs_split is not None
     parts = model_parts(spec.model) if method == "expmid" and isinstance(x, ca.MX) else None
+    affine = method in MODEL_METHODS and _remainder_is_stateless(spec)
     for i in range(substeps):
         if method in MODEL_METHODS:
             x, m = _expmid_step(spec, x, y_of, u, p, i / substeps, h, 1 / substeps, rate, mask, parts,
-                                memory if method == "expmid1" else None)
+                                memory if method == "expmid1" else None, affine)
             memory = m if method == "expmid1" else memory
             continue
         y_cfg = y_of((i + 0.5) / substeps)
