@@ -280,19 +280,6 @@ def sample_times(disc):
     return sorted(d for d in dts if lo <= d <= hi)
 
 
-def _expanded(f):
-    """An MX Function (a step that calls its model) as one SX Function: CasADi's SX machine
-    evaluates it about twice as fast (a generic 24-joint chain: 0.38 s against 0.8 s per
-    linearisation, the expansion 0.5 s once), and the search for a gain's bound evaluates it
-    a dozen times. A Function that cannot be expanded stays as it is."""
-    if not f.is_a("MXFunction"):
-        return f
-    try:
-        return f.expand()
-    except RuntimeError:
-        return f
-
-
 class _Linearisation:
     """The step's Jacobian and the exact flow's growth at the working points, for any p and
     sample times (one mapped call for all of them)."""
@@ -311,7 +298,8 @@ class _Linearisation:
         self._base = (Y, EST)
         self.Y, self.U, self.EST = (np.repeat(a, self.K, axis=0) for a in (Y, U, EST))
         self.S = len(self.Y)
-        self._jac, self._maps, self._output = _expanded(step_jacobians(spec, disc)), {}, None
+        # SX (a step that calls its model is expanded there before its Jacobian is taken)
+        self._jac, self._maps, self._output = step_jacobians(spec, disc), {}, None
         self.init = spec.init.map(len(Y))
         self.phases = None if spec.phases is None else spec.phases.map(len(Y))
 
