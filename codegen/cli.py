@@ -372,7 +372,7 @@ def _compare_source(args):
     """(Recording, robot, title) of ``compare``'s source: a mujoco-* scenario run with the
     sensor and mismatch options, a MuJoCo run of the robot of ``--robot`` / ``--urdf`` (no
     source), or a recorded CSV of that robot."""
-    from .core.recording import read_csv
+    from .logs.recording import read_csv
     from .evaluate.scenarios.mujoco import SCENARIOS
     if args.source is None:              # a MuJoCo plant from the robot's URDF
         from .evaluate.scenarios import mujoco
@@ -410,8 +410,8 @@ def cmd_compare(args):
     ``args``: the parsed argparse namespace; returns the exit status."""
     from .evaluate.compare import DEFAULT_FAMILIES, compare, design_inputs
     from .evaluate.sim.blocks import stage_lines
-    from .evaluate.smoothing import DEFAULT_CUTOFF
-    from .core.recording import RecordingError
+    from .logs.smoothing import DEFAULT_CUTOFF
+    from .logs.recording import RecordingError
     stepping = {k: getattr(args, k) for k in ("method", "hold", "substeps") if getattr(args, k) is not None}
     try:
         with stage_lines():              # a line per stage on stderr (the MuJoCo run), then a bar
@@ -476,9 +476,9 @@ def _robot_of(args):
 
 
 def cmd_excite(args):
-    """`excite`: an excitation trajectory for `identify` (codegen.evaluate.identify.excitation),
+    """`excite`: an excitation trajectory for `identify` (codegen.logs.identify.excitation),
     written as a CSV (t, q_, qd_, qdd_ per joint). ``args``: the parsed namespace; returns 0."""
-    from .evaluate.identify import excitation
+    from .logs.identify import excitation
     robot = _robot_of(args)
     traj = excitation(robot, args.T, base_frequency=args.f0, harmonics=args.harmonics, seed=args.seed,
                       progress=True)
@@ -505,10 +505,10 @@ def _width(text):
 
 def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
-    joint (codegen.evaluate.identify); writes the identified URDF, the friction side file and the
+    joint (codegen.logs.identify); writes the identified URDF, the friction side file and the
     report to --out. ``args``: the parsed namespace; returns 0."""
-    from .core.recording import read_csv
-    from .evaluate.identify import identify
+    from .logs.recording import read_csv
+    from .logs.identify import identify
     robot = _robot_of(args)
     ident = identify(read_csv(args.log, robot.joint_names), robot, cutoff=args.cutoff,
                      test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
@@ -654,7 +654,7 @@ def parser():
                         "edge-case CSVs, and a libFuzzer campaign of their step")
     sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
     sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
-    from .evaluate import identify as idf
+    from .logs import identify as idf
     for name, text in (("excite", "an excitation trajectory (CSV) to log for `identify`"),
                        ("identify", "inertial parameters and friction from a log of q and tau")):
         x = sub.add_parser(name, parents=[debug], help=text)

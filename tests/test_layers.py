@@ -10,6 +10,8 @@ each import must point down this table, or stay in its own folder:
     families    observers, controllers, gain designs (which use the stability check)
     pipeline    targets file -> design -> emit -> compile -> load, as one sequence (stages)
     verify      cross-checks, sanitizers, C programs, Cortex-M runs
+    logs        a recorded log as a measurement: recording, its clock, its noise, smoothing, the
+                offline reference, identification (a log -> a model), tuning (a log -> gains)
     evaluate    baselines, metrics, plants, scenarios, compare, sweeps, benchmarks
     top         cli, jobs, __main__ and the package itself (imported by nothing of ours)
 """
@@ -29,10 +31,11 @@ LAYERS = [
     ("codegen.families", 3),
     ("codegen.pipeline", 4),
     ("codegen.verify", 5),
-    ("codegen.evaluate", 6),
-    ("codegen.jobs", 7), ("codegen.cli", 7), ("codegen.__main__", 7),
+    ("codegen.logs", 6),
+    ("codegen.evaluate", 7),
+    ("codegen.jobs", 8), ("codegen.cli", 8), ("codegen.__main__", 8),
 ]
-TOP = 7                                  # the package ``codegen`` itself: a lazy facade for users
+TOP = 8                                  # the package ``codegen`` itself: a lazy facade for users
 REFERENCE_MAY_IMPORT = ("codegen.core.target", "codegen.core.options", "codegen.core.arrays",
                         "codegen.reference")
 
@@ -133,6 +136,6 @@ def test_no_import_cycles():
 @pytest.mark.parametrize("module,expected", [("codegen.reference.families.reduced_order", 2),
                                              ("codegen.families.observers.ii_speed", 3),
                                              ("models.urdf", 1), ("codegen.pipeline.emit", 4),
-                                             ("codegen.evaluate.sim.engine", 6), ("codegen.core.target", 0)])
+                                             ("codegen.evaluate.sim.engine", 7), ("codegen.logs.identify", 6), ("codegen.core.target", 0)])
 def test_layer_table(module, expected):
     assert rank(module) == expected

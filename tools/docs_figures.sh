@@ -24,7 +24,7 @@ mkdir -p "$LOG"
 "$PY" - "$LOG/log.csv" <<'PY'
 import sys
 import numpy as np
-from codegen.core.recording import Recording
+from codegen.logs.recording import Recording
 from codegen.verify.trajectory import demo_trajectory
 from models import load_robot
 robot = load_robot("seed000_2r")

@@ -14,7 +14,7 @@ velocity signal (``qdm_<joint>`` columns), when logged, is one more row.
 
 What the estimates are measured against (``Reference``): the true velocity when the recording
 has it (a simulation); otherwise, as on every real log, the offline zero-phase reference of
-``codegen.evaluate.smoothing.reference_velocity`` (4th-order Butterworth forward and backward at
+``codegen.logs.smoothing.reference_velocity`` (4th-order Butterworth forward and backward at
 ``ref_cutoff`` Hz on a uniform resampling), on the samples away from its edges. Its uncertainty u
 (RMS of its spread between cutoff/sqrt 2 and cutoff sqrt 2) is reported; an estimate whose RMS
 error against it is at most u cannot be ranked. The baselines are tuned on the same reference.
@@ -28,7 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import baselines, metrics, smoothing
+from . import baselines, metrics
+from ..logs import smoothing
+from ..logs.reference import Reference, reference_of
 from ..core.estimator import velocity_slots
 from ..verify.measure import saturated_samples
 
@@ -37,76 +39,11 @@ SIGNAL = "robot's velocity signal"          # the row of the qdm_<joint> columns
 UNRANKED = "within the reference's uncertainty: cannot be ranked"
 
 
-@dataclass
-class Reference:
-    """The velocity the estimates are measured against.
-
-    Attributes
-    ----------
-    qd : (N, n) array
-        The true velocity, or the zero-phase reference (rad/s).
-    valid : (N,) bool array
-        The samples measured on (all for the truth; away from the filter's edges otherwise).
-    spread : (N, n) array or None
-        The reference's spread |qd(fc/sqrt 2) - qd(fc sqrt 2)| (rad/s); None for the truth.
-    cutoff : float or None
-        Cut-off of the zero-phase reference (Hz); None for the truth.
-    label : str
-        What it is, for the table.
-    """
-
-    qd: np.ndarray
-    valid: np.ndarray
-    spread: np.ndarray | None
-    cutoff: float | None
-    label: str
-
-    @property
-    def is_truth(self):
-        """True when the reference is the true velocity."""
-        return self.spread is None
-
-    def uncertainty(self, t, t0):
-        """u = sqrt(mean_k ||spread_k||^2) over the valid samples with t_k >= t0 (rad/s); 0 for
-        the truth. ``t`` (N,) sample times (s)."""
-        if self.spread is None:
-            return 0.0
-        return metrics.rms_after(t[self.valid], self.spread[self.valid], t0)
-
-    def measure(self, t, est, t_ss, level):
-        """``metrics.summarize`` of the estimate ``est`` (N, n) against this reference on its
-        valid samples; ``t`` (N,) s, ``t_ss`` (s) and ``level`` (rad/s) as there."""
-        v = self.valid
-        return metrics.summarize(t[v], est[v], self.qd[v], t_ss, level)
-
-
-def reference_of(rec, cutoff=smoothing.DEFAULT_CUTOFF):
-    """The Reference of a recording: its true velocity when it has one, else the zero-phase
-    reference of ``smoothing.reference_velocity`` at ``cutoff`` Hz.
-
-    Parameters
-    ----------
-    rec : codegen.core.recording.Recording
-    cutoff : float
-        Cut-off of the zero-phase reference (Hz), used when ``rec.qd`` is None.
-
-    Returns
-    -------
-    Reference
-    """
-    if rec.qd is not None:
-        return Reference(rec.qd, np.ones(len(rec.t), bool), None, None,
-                         "the true velocity (qd_<joint> columns)")
-    qd, spread, valid = smoothing.reference_velocity(rec.t, rec.q, cutoff)
-    if not valid.any():
-        raise ValueError(f"rec: {rec.t[-1] - rec.t[0]:g} s is too short for the zero-phase reference "
-                         f"at {cutoff:g} Hz (it drops {2 / cutoff:g} s at each end)")
-    lo, hi = cutoff / np.sqrt(2), min(cutoff * np.sqrt(2), 0.45 / rec.dt)
-    label = (f"zero-phase Butterworth (order {smoothing.ORDER}, forward and backward) at {cutoff:g} Hz of "
-             f"q resampled at the median step (no qd_<joint> columns); uncertainty: RMS of "
-             f"|qd({lo:.3g} Hz) - qd({hi:.3g} Hz)|; measured on t in [{rec.t[valid][0]:.6g}, "
-             f"{rec.t[valid][-1]:.6g}] s")
-    return Reference(qd, valid, spread, float(cutoff), label)
+def measure(ref, t, est, t_ss, level):
+    """``metrics.summarize`` of the estimate ``est`` (N, n) against the Reference ``ref`` on its
+    valid samples; ``t`` (N,) s, ``t_ss`` (s) and ``level`` (rad/s) as there."""
+    v = ref.valid
+    return metrics.summarize(t[v], est[v], ref.qd[v], t_ss, level)
 
 
 @dataclass
@@ -450,7 +387,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
 
     Parameters
     ----------
-    rec : codegen.core.recording.Recording
+    rec : codegen.logs.recording.Recording
         Time stamps (jitter and gaps allowed), measured positions (what the observers receive),
         applied torques and, when known, the true velocities and the robot's velocity signal.
     robot : models.RobotModel
@@ -535,17 +472,17 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
             hits = saturated_samples(full, spec)        # samples with q̇̂ beyond the model's bound
             note = "; ".join(filter(None, [designed_for, note, hits and f"{hits} samples at the velocity bound"]))
             params = {k: float(v) for k, v in zip(spec.p_names, spec.p_default)}
-            entries.append(Entry(item, "observer", params, est, ref.measure(t, est, t_ss, level), note))
+            entries.append(Entry(item, "observer", params, est, measure(ref, t, est, t_ss, level), note))
             bar.update()
         for name in names:
             bar.set_postfix_str(name)
             params, est = tune(name, Y, t, ref.qd, t_ss, dt, valid=ref.valid)
-            entries.append(Entry(name, "baseline", params, est, ref.measure(t, est, t_ss, level)))
+            entries.append(Entry(name, "baseline", params, est, measure(ref, t, est, t_ss, level)))
             bar.update()
         if rec.qdm is not None:
             bar.set_postfix_str("qdm")
             entries.append(Entry(SIGNAL, "signal", {"columns": "qdm_<joint>"}, rec.qdm,
-                                 ref.measure(t, rec.qdm, t_ss, level)))
+                                 measure(ref, t, rec.qdm, t_ss, level)))
             bar.update()
     return Comparison(t=t, truth=ref.qd, entries=entries, t_ss=t_ss, level=level, title=title,
                       info={"recording": rec.describe(), "joint_names": list(robot.joint_names)}, ref=ref)

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.recording import read_columns, write_columns
+from ..core.columns import read_columns, write_columns
 from ..pipeline.compile import (CompileError, ToolError, c_flags, cached_compile, compiler, digest, package_data,
                     read_target, run_tool)
 from ..pipeline.compile import work_dir as default_work_dir
@@ -376,7 +376,7 @@ def pin_aba_instructions(urdf, locked_joints=(), calls=(200, 1200), work_dir=Non
 
 def write_csv(path, t, Y, U, y_names=None, u_names=None):
     """Write the run_csv input: header, then rows t, y_1..y_NY, u_1..u_NU (exact decimal form;
-    ``codegen.core.recording.write_columns``).
+    ``codegen.core.columns.write_columns``).
 
     path: the CSV written; t: (n,) s; Y: (n, NY) (a 1-D Y is one column); U: (n, NU) likewise
     (NU may be 0); y_names, u_names: column names (default y0.., u0..)."""

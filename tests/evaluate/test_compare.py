@@ -4,7 +4,7 @@ The log is made from a simulated run whose truth is kept aside (the built-in tra
 seed000_2r, exact by inverse dynamics, sampled on a 0.1 ms grid): stamps 1 ms +- 0.3 ms, 2 % of
 the samples dropped, q quantised to a 2^16 counts/rev encoder, and a robot velocity signal
 qdm = the true velocity 2 ms late. The methods are then measured against the zero-phase reference
-(codegen.evaluate.smoothing) and that reference against the kept truth.
+(codegen.logs.smoothing) and that reference against the kept truth.
 """
 import contextlib
 import io
@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from codegen.core.recording import Recording
+from codegen.logs.recording import Recording
 from codegen.evaluate import baselines
-from codegen.evaluate.compare import SIGNAL, UNRANKED, Comparison, Entry, Reference, reference_of, tune
+from codegen.evaluate.compare import SIGNAL, UNRANKED, Comparison, Entry, measure, tune
+from codegen.logs.reference import Reference, reference_of
 from models import load_robot
 
 ROBOT = "seed000_2r"
@@ -183,7 +184,7 @@ def _comparison(rms, u, kinds):
     qd = np.sin(3 * t)[:, None]
     ref = Reference(qd, np.ones(len(t), bool), None if u == 0 else np.full_like(qd, u),
                     None if u == 0 else 10.0, "test")
-    entries = [Entry(f"{kind}{i}", kind, {"k": 1.0}, qd + r, ref.measure(t, qd + r, 1.0, 1e-2))
+    entries = [Entry(f"{kind}{i}", kind, {"k": 1.0}, qd + r, measure(ref, t, qd + r, 1.0, 1e-2))
                for i, (r, kind) in enumerate(zip(rms, kinds))]
     return Comparison(t=t, truth=qd, entries=entries, t_ss=1.0, level=1e-2, ref=ref)
 

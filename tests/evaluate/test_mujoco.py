@@ -9,7 +9,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from codegen.core.recording import Recording, RecordingError, read_csv
+from codegen.logs.recording import Recording, RecordingError, read_csv
 from codegen.evaluate.sim.mujoco_plant import MujocoPlant, mujoco_urdf, sinusoids
 from models import load_robot
 

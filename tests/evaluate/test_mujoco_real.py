@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from codegen.core.recording import read_columns
+from codegen.core.columns import read_columns
 from codegen.evaluate.sim.mujoco_plant import MujocoPlant, sinusoids
 from codegen.evaluate.sim.real_plant import (Perturbation, RealPlant, draw_perturbation, fourier_excitation,
                                              point_to_point, urdf_joint_limits)
@@ -389,7 +389,7 @@ def test_identifies_kinova_friction(tmp_path):
     sensor's noise."""
     from dataclasses import replace
 
-    from codegen.evaluate.identify import IdentificationError, excitation, identify
+    from codegen.logs.identify import IdentificationError, excitation, identify
     from codegen.evaluate.scenarios.mujoco_real import experiment, truth_recording
     robot = _kinova()
     ex = excitation(robot, T=10.0, seed=0)

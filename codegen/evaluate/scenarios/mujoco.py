@@ -61,7 +61,7 @@ def recording(robot_name, T=T_DEFAULT, quantization=0.0, noise=0.0, mismatch=0.0
 
     Returns
     -------
-    codegen.core.recording.Recording
+    codegen.logs.recording.Recording
     """
     from ..sim.sensors import measured
     if not isinstance(robot_name, str):

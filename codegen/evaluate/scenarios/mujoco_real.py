@@ -152,11 +152,12 @@ def truth_recording(folder, name, joint_names):
 
     Returns
     -------
-    codegen.core.recording.Recording
+    codegen.logs.recording.Recording
     """
     import numpy as np
 
-    from ...core.recording import read_columns, read_csv
+    from ...core.columns import read_columns
+    from ...logs.recording import read_csv
     rec = read_csv(Path(folder) / f"{name}.csv", joint_names)
     header, data = read_columns(Path(folder) / f"{name}_truth.csv")
     col = {h: data[:, i] for i, h in enumerate(header)}
@@ -173,7 +174,7 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
     the excitation log, then run the observers on the task log twice, with the identified model
     and with the URDF as shipped, against the baselines tuned on the truth.
 
-    The excitation is ``codegen.evaluate.identify.excitation`` (what `excite` writes; the plain
+    The excitation is ``codegen.logs.identify.excitation`` (what `excite` writes; the plain
     multi-sine leaves the wrist's parameters undetermined on this plant); the observers' design
     states the encoder step and, with the identified model, the torque residual that
     identification measured on its held-out tail (N m per joint).
@@ -211,8 +212,8 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
     import numpy as np
 
     from ..compare import DEFAULT_FAMILIES, compare, design_inputs
-    from ..identify import IdentificationError, identify
-    from ..identify import excitation as identify_excitation
+    from ...logs.identify import IdentificationError, identify
+    from ...logs.identify import excitation as identify_excitation
     out = Path(out)
     robot = robot_model(robot_name)
     ex = identify_excitation(robot, T=T_excitation, seed=seed, progress=progress)

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...core.recording import write_columns
+from ...core.columns import write_columns
 from .blocks import bind, stage, staged
 
 
@@ -58,7 +58,7 @@ class Result:
         return self.x[:, self.n:]
 
     def write_csv(self, path):
-        """Write the run to the CSV file ``path`` (``codegen.core.recording.write_columns``), one row per sample:
+        """Write the run to the CSV file ``path`` (``codegen.core.columns.write_columns``), one row per sample:
         t, q, qd, y, u, then each observer's estimate and each logged state; returns the path."""
         cols = {"t": self.t, "q": self.q, "qd": self.qd, "y": self.y, "u": self.u}
         cols.update({f"{name}_est": E for name, E in self.est.items()})

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.recording import Recording
+from ...logs.recording import Recording
 
 KP, KD = 400.0, 40.0          # computed-torque gains: critically damped, 20 rad/s
 TIMESTEP = 1e-4               # MuJoCo step (s)
@@ -205,7 +205,7 @@ class MujocoPlant:
 
         Returns
         -------
-        codegen.core.recording.Recording
+        codegen.logs.recording.Recording
             True q (unquantised; see codegen.evaluate.sim.sensors), true qd, applied tau.
         """
         sub = int(round(dt / self.model.opt.timestep))
@@ -279,7 +279,7 @@ class MujocoPlant:
 
         Returns
         -------
-        codegen.core.recording.Recording
+        codegen.logs.recording.Recording
             At the instants t (not uniform in general): true q, true qd, applied tau.
         """
         t = np.asarray(t, dtype=float)

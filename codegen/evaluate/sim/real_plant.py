@@ -41,7 +41,7 @@ The run (``RealPlant.run``), drawn per run from ``seed``:
   of the run's applied-torque RMS instead, also used when the URDF gives no effort).
 
 Outputs (``RealRun.write``): ``<name>.csv``, the log (t, q_<joint>, tau_<joint>: measured, jittered
-stamps, no qd, in the recording format of codegen.core.recording), ``<name>_truth.csv`` (every
+stamps, no qd, in the recording format of codegen.logs.recording), ``<name>_truth.csv`` (every
 controller instant: t, logged (1/0), true q_<joint>, qd_<joint> and applied tau_<joint>), and
 ``RealPlant.truth()``: the perturbation actually drawn, as JSON.
 """
@@ -54,7 +54,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.recording import Recording, write_columns
+from ...core.columns import write_columns
+from ...logs.recording import Recording
 from .mujoco_plant import KD, KP, TIMESTEP, MujocoPlant, mujoco_urdf
 
 FRICTION_SOLREF = (0.002, 1.0)                      # time constant (s), damping ratio
@@ -670,7 +671,7 @@ class RealRun:
 
     def write(self, folder, name):
         """Write ``<name>.csv`` (the log) and ``<name>_truth.csv`` into ``folder`` (created),
-        atomically (codegen.core.recording.write_columns).
+        atomically (codegen.core.columns.write_columns).
 
         Parameters
         ----------

@@ -87,7 +87,7 @@ def measured(rec, quantization=0.0, noise=0.0, seed=0):
 
     Parameters
     ----------
-    rec : codegen.core.recording.Recording
+    rec : codegen.logs.recording.Recording
         The true run.
     quantization, noise : float
         Encoder step and Gaussian standard deviation (rad); 0: none.
@@ -96,9 +96,9 @@ def measured(rec, quantization=0.0, noise=0.0, seed=0):
 
     Returns
     -------
-    codegen.core.recording.Recording
+    codegen.logs.recording.Recording
     """
-    from ...core.recording import Recording
+    from ...logs.recording import Recording
     sensor = Sensor(noise_std=noise, quantum=quantization, seed=seed)
     Y = np.empty_like(rec.q)
     for k, q in enumerate(rec.q):

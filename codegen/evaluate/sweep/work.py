@@ -101,10 +101,10 @@ def true_run(robot_name, plant, T, mismatch, seed, dt):
 
     Returns
     -------
-    codegen.core.recording.Recording
+    codegen.logs.recording.Recording
     """
     from ..compare import robot_by_name
-    from ...core.recording import Recording
+    from ...logs.recording import Recording
     robot = robot_by_name(robot_name)
     if plant == "mujoco":
         from ..sim.mujoco_plant import MujocoPlant, sinusoids
@@ -124,7 +124,7 @@ def run_cell(cell, rec, target, t_ss, level):
     ----------
     cell : dict
         A cell of ``plan.cells`` (kind, family, est0 (rad/s) and p).
-    rec : codegen.core.recording.Recording
+    rec : codegen.logs.recording.Recording
         The measured run (``sim.sensors.measured``), with the true qd.
     target : dict or None
         The observer's payload (``payload``); None for a baseline.
@@ -169,7 +169,7 @@ def run_batch(cells, true, targets, t_ss, level):
     ----------
     cells : list of dict
         Cells of one batch (``plan.batches``).
-    true : codegen.core.recording.Recording
+    true : codegen.logs.recording.Recording
         Their true run (``true_run``).
     targets : dict
         Payloads keyed by (item, dt) (``prepare``).

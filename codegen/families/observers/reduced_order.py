@@ -62,7 +62,7 @@ def build(robot, k0=None, eta=1.0, v_max=2.0, noise=None, quantization=None, unc
     torque_uncertainty : float, sequence of n floats or dict joint -> float
         Torque error per joint (N m: an offset, unmodelled friction or payload; e.g. the torque
         residual of an identification, ``report["residual_rms"]["after"]`` of
-        codegen.evaluate.identify), a number for every joint or one per joint; its bias
+        codegen.logs.identify), a number for every joint or one per joint; its bias
         rms_q ||M^-1 diag(t)||_F / k0 enters the predicted error (codegen.families.design.noise).
     v_bound : float or sequence of n floats, optional
         Speed (rad/s) at which the model's velocity argument saturates; default twice the URDF

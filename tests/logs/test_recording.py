@@ -1,10 +1,10 @@
-"""The recorded run (codegen.core.recording): a real log's stamps (jitter, dropped samples) read
+"""The recorded run (codegen.logs.recording): a real log's stamps (jitter, dropped samples) read
 and written exactly, the optional true velocity and robot's velocity columns, and the stamps it
 refuses (repeated, going back), named by their rows in the file."""
 import numpy as np
 import pytest
 
-from codegen.core.recording import Recording, RecordingError, read_csv
+from codegen.logs.recording import Recording, RecordingError, read_csv
 
 JOINTS = ["shoulder", "elbow"]
 

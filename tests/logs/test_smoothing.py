@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from codegen.evaluate.smoothing import derivatives, reference_velocity
+from codegen.logs.smoothing import derivatives, reference_velocity
 
 
 def _log(seed=0, T=6.0, quantum=2 * np.pi / 2 ** 16):

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from codegen.core.recording import Recording
-from codegen.evaluate import identify as idf
+from codegen.logs.recording import Recording
+from codegen.logs import identify as idf
 from codegen.reference.robots.urdf import UrdfRobot
 from models import load_robot
 
@@ -200,7 +200,7 @@ def test_excitation_within_limits_at_rest_and_better_conditioned(gripper, grippe
     start = idf.excitation(gripper, T=10.0, starts=1, maxiter=0)
     assert tr.condition < 0.8 * start.condition
     # the CSV a user plays
-    from codegen.core.recording import read_columns
+    from codegen.core.columns import read_columns
     header, data = read_columns(tr.write_csv(tmp_path / "traj.csv"))
     assert header == ["t"] + [f"{g}_{j}" for g in ("q", "qd", "qdd") for j in gripper.joint_names]
     np.testing.assert_allclose(data[:, 1:4], q)
@@ -344,7 +344,7 @@ def test_cli_identify(gripper_case, tmp_path, capsys):
 @pytest.mark.slow
 def test_cli_excite(tmp_path, capsys):
     from codegen.cli import main
-    from codegen.core.recording import read_columns
+    from codegen.core.columns import read_columns
     assert main(["excite", "--urdf", str(GRIPPER), "--lock", "finger_left=0.01", "--lock", "finger_right=0.01",
                  "--T", "5", "--harmonics", "2", "--out", str(tmp_path / "traj.csv")]) == 0
     header, data = read_columns(tmp_path / "traj.csv")

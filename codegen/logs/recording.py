@@ -1,6 +1,5 @@
-"""The one CSV module: a recorded run (sample times, positions, applied torques and, when known,
-true velocities or the robot's own velocity signal), and the plain column files every other CSV
-of ours is (the C harness's input and output, a simulation's log).
+"""A recorded run: sample times, positions, applied torques and, when known, true velocities or
+the robot's own velocity signal (the CSV itself through codegen.core.columns).
 
 The recording form ``codegen compare`` reads and the MuJoCo scenarios write has a header row
 
@@ -9,81 +8,21 @@ The recording form ``codegen compare`` reads and the MuJoCo scenarios write has 
 with the robot's joint names, one row per sample (column order free). ``qd`` is the true
 velocity (a simulation has it, a real log does not), ``qdm`` the velocity the robot itself logs
 (its drive's or controller's estimate). Time stamps are what a real log has: jitter and dropped
-samples are allowed, they must be finite and strictly increasing.
-``write_columns`` / ``read_columns`` write and read any header + rows of numbers, exactly
-(shortest round-trip decimal form) and atomically (a temporary file, then a rename).
+samples are allowed, they must be finite and strictly increasing (what the stamps are, a sample
+clock or when a logger received each row, is found by codegen.logs.clock).
 """
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..core.columns import ColumnsError, read_columns, write_columns
 
-class RecordingError(ValueError):
+
+class RecordingError(ColumnsError):
     """A recording that cannot be used (message names the file and what is wrong)."""
-
-
-def write_columns(path, columns):
-    """A CSV with one row per sample, written through a temporary file (nothing half-written).
-
-    Parameters
-    ----------
-    path : path of the CSV (parent folders are created)
-    columns : dict
-        name -> (N,) array (one column ``name``) or (N, k) array (columns ``name0`` ..
-        ``name{k-1}``); every array has the same N.
-
-    Returns
-    -------
-    pathlib.Path
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    names, blocks = [], []
-    for name, a in columns.items():
-        a = np.asarray(a, dtype=float)
-        if a.ndim == 1:
-            names.append(name)
-            blocks.append(a[:, None])
-        else:
-            names.extend(f"{name}{i}" for i in range(a.shape[1]))
-            blocks.append(a)
-    lengths = {len(b) for b in blocks}
-    if len(lengths) > 1:
-        raise ValueError(f"columns: arrays of different lengths {sorted(lengths)} for {path}")
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(names)
-        w.writerows(np.hstack(blocks).tolist() if blocks else [])
-    tmp.replace(path)
-    return path
-
-
-def read_columns(path, error=RecordingError):
-    """(header, data): the names of the first row of the CSV file ``path`` and the numbers below
-    it, (N, columns) float64 (N may be 0). Raises ``error`` (an exception class) naming the file
-    for a missing or empty file, a non-numeric value or a ragged row."""
-    path = Path(path)
-    if not path.is_file():
-        raise error(f"{path}: no such file")
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    if not rows:
-        raise error(f"{path}: empty file")
-    header = [h.strip() for h in rows[0]]
-    body = [r for r in rows[1:] if r]
-    bad = next((i for i, r in enumerate(body) if len(r) != len(header)), None)
-    if bad is not None:
-        raise error(f"{path}: row {bad + 2} has {len(body[bad])} values, the header {len(header)}")
-    try:
-        data = np.array([[float(v) for v in r] for r in body], dtype=float).reshape(len(body), len(header))
-    except ValueError as e:
-        raise error(f"{path}: non-numeric value ({e})") from None
-    return header, data
 
 
 @dataclass
@@ -209,7 +148,7 @@ def read_csv(path, joint_names):
         stamps that repeat or go back (the message names the file's rows).
     """
     path = Path(path)
-    header, data = read_columns(path)
+    header, data = read_columns(path, RecordingError)
     need = ["t"] + [f"{g}_{j}" for g in ("q", "tau") for j in joint_names]
     missing = [c for c in need if c not in header]
     if missing:

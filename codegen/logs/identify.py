@@ -12,7 +12,7 @@ friction, ``w`` the Coulomb smoothing width (rad/s).
 
 ``identify`` (in this order):
 
-1. velocity and acceleration by zero-phase smoothing of q (``codegen.evaluate.smoothing``), tau
+1. velocity and acceleration by zero-phase smoothing of q (``codegen.logs.smoothing``), tau
    through the same zero-phase filter, so that both sides of (1) see the same band; the Coulomb
    column, not smooth where qd changes sign, is tanh of a wider-band velocity through that filter
    too (parallel filtering: without it the Coulomb and viscous estimates are biased by up to 6 %
@@ -585,7 +585,7 @@ class Identification:
             dyn.set("damping", num(fv[i]))
             dyn.set("friction", num(fc[i]))
         note = ET.Comment(f" <inertial> of {', '.join(arm.links)} and <dynamics> of {', '.join(arm.joint_names)} "
-                          f"identified by observer-codegen (codegen.evaluate.identify); Coulomb width and "
+                          f"identified by observer-codegen (codegen.logs.identify); Coulomb width and "
                           f"offsets in {arm.name}_identified.friction.json ".replace("--", "- -"))
         note.tail = root.text
         root.insert(0, note)
@@ -675,7 +675,7 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
 
     Parameters
     ----------
-    recording : codegen.core.recording.Recording
+    recording : codegen.logs.recording.Recording
         ``t`` (N,) increasing time stamps (jitter and gaps allowed), ``q`` (N, n) positions,
         ``tau`` (N, n) measured joint torques, ``joint_names`` (all of the robot's; any order).
         ``qd`` is not used.
@@ -916,7 +916,7 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
 
 
 def lowpass(t, y, cutoff):
-    """y (N, k) through the zero-phase low-pass of ``codegen.evaluate.smoothing.derivatives``
+    """y (N, k) through the zero-phase low-pass of ``codegen.logs.smoothing.derivatives``
     at ``cutoff`` Hz (cubic to the uniform grid of the median step of ``t`` (N,), 4th-order
     Butterworth forward and backward, cubic back), in blocks of columns."""
     y = np.asarray(y, dtype=float)
@@ -1121,7 +1121,7 @@ class Excitation:
     def write_csv(self, path, dt=1e-3):
         """The CSV a user plays on the robot: t, q_<joint>..., qd_<joint>..., qdd_<joint>...
         every ``dt`` s (to ``path``, atomically). Returns the path."""
-        from codegen.core.recording import write_columns
+        from codegen.core.columns import write_columns
         t, q, qd, qdd = self.sample(dt)
         cols = {"t": t}
         for g, a in (("q", q), ("qd", qd), ("qdd", qdd)):

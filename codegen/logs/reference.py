@@ -1,0 +1,81 @@
+"""What the estimates of a log are measured against when it has no true velocity: the offline
+zero-phase reference (codegen.logs.smoothing.reference_velocity) with its own uncertainty, or the
+true velocity of a simulation's log.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import smoothing
+
+
+@dataclass
+class Reference:
+    """The velocity the estimates are measured against.
+
+    Attributes
+    ----------
+    qd : (N, n) array
+        The true velocity, or the zero-phase reference (rad/s).
+    valid : (N,) bool array
+        The samples measured on (all for the truth; away from the filter's edges otherwise).
+    spread : (N, n) array or None
+        The reference's spread |qd(fc/sqrt 2) - qd(fc sqrt 2)| (rad/s); None for the truth.
+    cutoff : float or None
+        Cut-off of the zero-phase reference (Hz); None for the truth.
+    label : str
+        What it is, for the table.
+    """
+
+    qd: np.ndarray
+    valid: np.ndarray
+    spread: np.ndarray | None
+    cutoff: float | None
+    label: str
+
+    @property
+    def is_truth(self):
+        """True when the reference is the true velocity."""
+        return self.spread is None
+
+    def uncertainty(self, t, t0):
+        """u = sqrt(mean_k ||spread_k||^2) over the valid samples with t_k >= t0 (rad/s); 0 for
+        the truth. ``t`` (N,) sample times (s)."""
+        if self.spread is None:
+            return 0.0
+        after = t[self.valid] >= t0
+        if not after.any():
+            raise ValueError(f"t0 = {t0:g} s is after the last valid sample t = {t[self.valid][-1]:g} s")
+        s = self.spread[self.valid][after]
+        return float(np.sqrt(np.mean(np.sum(s * s, axis=1))))
+
+
+def reference_of(rec, cutoff=smoothing.DEFAULT_CUTOFF):
+    """The Reference of a recording: its true velocity when it has one, else the zero-phase
+    reference of ``smoothing.reference_velocity`` at ``cutoff`` Hz.
+
+    Parameters
+    ----------
+    rec : codegen.logs.recording.Recording
+    cutoff : float
+        Cut-off of the zero-phase reference (Hz), used when ``rec.qd`` is None.
+
+    Returns
+    -------
+    Reference
+    """
+    if rec.qd is not None:
+        return Reference(rec.qd, np.ones(len(rec.t), bool), None, None,
+                         "the true velocity (qd_<joint> columns)")
+    qd, spread, valid = smoothing.reference_velocity(rec.t, rec.q, cutoff)
+    if not valid.any():
+        raise ValueError(f"rec: {rec.t[-1] - rec.t[0]:g} s is too short for the zero-phase reference "
+                         f"at {cutoff:g} Hz (it drops {2 / cutoff:g} s at each end)")
+    lo, hi = cutoff / np.sqrt(2), min(cutoff * np.sqrt(2), 0.45 / rec.dt)
+    label = (f"zero-phase Butterworth (order {smoothing.ORDER}, forward and backward) at {cutoff:g} Hz of "
+             f"q resampled at the median step (no qd_<joint> columns); uncertainty: RMS of "
+             f"|qd({lo:.3g} Hz) - qd({hi:.3g} Hz)|; measured on t in [{rec.t[valid][0]:.6g}, "
+             f"{rec.t[valid][-1]:.6g}] s")
+    return Reference(qd, valid, spread, float(cutoff), label)
