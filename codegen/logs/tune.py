@@ -1,0 +1,246 @@
+"""Gains chosen on the user's log, without truth: forward validation of the velocity.
+
+A causal estimate qd_hat_k uses the samples up to k. The samples after k were not seen by it:
+the velocity they imply at t_k,
+
+    P_k = d/dt of the least-squares cubic through q_k+1 .. q_k+m (at their times), at t = t_k,
+
+is an independent, noisy but (up to the cubic's bias) unbiased measurement of qd(t_k). So
+
+    J = mean_k ||qd_hat_k - P_k||^2 = mean_k ||qd_hat_k - qd_k||^2 + mean_k ||P_k - qd_k||^2 + o(1)
+
+(the cross term vanishes: P's noise is the future samples', independent of everything qd_hat_k
+saw) ranks estimators exactly as their true mean-square error does, and J - C, C the second term
+(P's noise sigma^2 sum_i w_i^2 through its weights w, plus its bias), estimates that error
+itself: a prediction-error criterion in the sense of Ljung (System Identification, 1999, §7),
+scored on held-out (future) samples rather than on the one-step innovation. The window m is
+chosen on the log: the m whose P has the least predicted error, sigma^2 sum w_i^2 (the measured
+noise) plus its bias on the measured spectrum of q, integral |H_m(f) - 2 pi i f|^2 S_q(f) df
+(H_m the transfer function of P's weights).
+
+Each family's gains scale with one bandwidth s (``TUNE`` in the family's module: parameter ->
+exponent, e.g. nicosia_tomei's kd ~ s, kp ~ s^2), searched in log(s) from its designed value
+(a coarse grid, then golden sections around the best), each candidate a run of the compiled
+observer over the log; a family with a model and a model-free variant (kalman_model) tunes both
+and keeps the better one (the model is used only where it lowers J). The baselines' own
+parameters are searched the same way.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+DEGREE = 3
+WINDOWS = tuple(sorted({int(round(4 * 2 ** (k / 2))) for k in range(0, 15)}))   # 4 .. 512 rows, x sqrt 2
+GRID = 9                    # coarse candidates of a bandwidth search
+RANGE = 32.0                # searched within [s0 / RANGE, s0 * RANGE] of the first guess s0
+GOLDEN = 8                  # golden-section steps after the coarse grid
+
+
+def _forward_weights(t, idx, inside, tk):
+    """Weights (M, m) of the derivative at tk of the LS cubic through q at t[idx] (masked by
+    ``inside``)."""
+    dt = t[idx] - tk[:, None]
+    scale = np.maximum(np.max(np.abs(dt) * inside, axis=1), 1e-300)[:, None]
+    u = dt / scale
+    V = np.stack([u ** p for p in range(DEGREE + 1)], axis=2) * inside[:, :, None]     # (M, m, 4)
+    A = np.einsum("mki,mkj->mij", V, V) + 1e-12 * np.eye(DEGREE + 1)
+    e1 = np.zeros(DEGREE + 1)
+    e1[1] = 1.0
+    c = np.linalg.solve(A, np.broadcast_to(e1, (len(tk), DEGREE + 1))[..., None])[..., 0]   # (M, 4)
+    return np.einsum("mki,mi->mk", V, c) / scale
+
+
+def window_error(m, h, sigma, psd):
+    """Predicted mean-square error (n,) of P with window m on a uniform grid h (s): the noise
+    sigma^2 sum w^2 plus the bias integral |H(f) - 2 pi i f|^2 S(f) df over the motion's PSD
+    ``psd`` = (f (F,), S (F, n)) (q's, less its noise floor; codegen.logs.noise.motion_psd)."""
+    k = np.arange(1, m + 1)
+    w = _forward_weights(k * h, k[None, :] - 1, np.ones((1, m), bool), np.zeros(1))[0]
+    f, S = psd
+    H = np.exp(2j * np.pi * np.outer(f, k * h)) @ w
+    bias = np.trapezoid(np.abs(H - 2j * np.pi * f)[:, None] ** 2 * S, f, axis=0)
+    return np.asarray(sigma) ** 2 * float(w @ w) + bias
+
+
+@dataclass
+class Validation:
+    """Forward validation of velocity estimates on one log (module docstring).
+
+    Attributes
+    ----------
+    t : (N,) array
+        The log's sample times (s, its clock).
+    P : (N, n) array
+        The velocity the next m samples imply at each row (rad/s).
+    valid : (N,) bool
+        Rows with m following samples within reach (no gap in them), after ``t_from``.
+    constant : float
+        Predicted mean of ||P - qd||^2 (rad^2/s^2): P's own noise and bias.
+    window : int
+        m.
+    """
+
+    t: np.ndarray
+    P: np.ndarray
+    valid: np.ndarray
+    constant: float
+    window: int
+    details: dict = field(default_factory=dict)
+
+    def score(self, est, t_from=None):
+        """J: mean over the valid rows (t >= t_from) of ||est - P||^2 ((rad/s)^2); inf when the
+        estimate is not finite there."""
+        v = self.valid if t_from is None else self.valid & (self.t >= t_from)
+        e = np.asarray(est, dtype=float)[v] - self.P[v]
+        if not np.all(np.isfinite(e)):
+            return math.inf
+        return float(np.mean(np.sum(e * e, axis=1)))
+
+    def rms(self, est, t_from=None):
+        """The estimate's RMS error ||est - qd|| implied by J: sqrt(max(J - constant, 0)) (rad/s)."""
+        J = self.score(est, t_from)
+        return math.sqrt(max(J - self.constant, 0.0)) if math.isfinite(J) else math.inf
+
+
+def validation(t, q, sigma, psd=None, window=None, t_from=None):
+    """The forward Validation of a log.
+
+    Parameters
+    ----------
+    t : (N,) array
+        Sample times (s), increasing (the log's clock).
+    q : (N, n) array
+        Positions (rad).
+    sigma : (n,) array
+        Position noise std per joint (rad) (codegen.logs.noise).
+    psd : (f (F,), S (F, n)), optional
+        One-sided PSD of q, for the choice of the window; None: the window minimising the noise
+        term alone among those whose cubic bias on the motion band is ... (``window`` given).
+    window : int, optional
+        m; default chosen from ``psd`` and ``sigma`` (module docstring).
+    t_from : float, optional
+        Rows before this time (s) are not scored.
+    """
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
+    N, n = q.shape
+    h = float(np.median(np.diff(t)))
+    if window is None:
+        if psd is None:
+            raise ValueError("validation: give the window or the PSD of q to choose it")
+        errs = {m: float(np.sum(window_error(m, h, sigma, psd))) for m in WINDOWS if m < N // 4}
+        window = min(errs, key=errs.get)
+    m = int(window)
+    idx = np.arange(N)[:, None] + np.arange(1, m + 1)[None, :]
+    inside = idx < N
+    idx = np.minimum(idx, N - 1)
+    reach = (t[idx[:, -1]] - t) <= 2.0 * m * h                  # no gap within the window
+    valid = inside.all(axis=1) & reach
+    w = _forward_weights(t, idx, inside, t)
+    P = np.einsum("mk,mkn->mn", w, q[idx])
+    if t_from is not None:
+        valid &= t >= t_from
+    noise = float(np.sum(np.asarray(sigma) ** 2)) * float(np.mean(np.sum(w[valid] ** 2, axis=1)))
+    bias = float(np.sum(window_error(m, h, np.zeros(n), psd))) if psd is not None else 0.0
+    return Validation(t, P, valid, noise + bias, m, {"noise": noise, "bias": bias})
+
+
+@dataclass
+class Search:
+    """A bandwidth search: the best scale, its J, and every (scale, J) tried."""
+
+    best: float
+    score: float
+    tried: list
+
+
+def search(score, s0, lo=None, hi=None, grid=GRID, golden=GOLDEN):
+    """Minimise ``score(s)`` over s > 0 in log(s): ``grid`` log-spaced candidates over [lo, hi]
+    (default s0 / RANGE .. s0 * RANGE), then ``golden`` golden-section steps in the bracket
+    around the best (a score that is not finite counts as worse than any finite one).
+
+    Returns
+    -------
+    Search
+    """
+    lo = s0 / RANGE if lo is None else lo
+    hi = s0 * RANGE if hi is None else hi
+    tried = {}
+
+    def f(s):
+        if s not in tried:
+            v = score(s)
+            tried[s] = v if math.isfinite(v) else math.inf
+        return tried[s]
+
+    xs = np.exp(np.linspace(math.log(lo), math.log(hi), grid))
+    vals = [f(float(x)) for x in xs]
+    k = int(np.argmin(vals))
+    if not math.isfinite(vals[k]):
+        return Search(float(s0), math.inf, sorted(tried.items()))
+    a = math.log(xs[max(k - 1, 0)])
+    b = math.log(xs[min(k + 1, grid - 1)])
+    g = (math.sqrt(5) - 1) / 2
+    c, d = b - g * (b - a), a + g * (b - a)
+    for _ in range(golden):
+        if f(math.exp(c)) <= f(math.exp(d)):
+            b, d = d, c
+            c = b - g * (b - a)
+        else:
+            a, c = c, d
+            d = a + g * (b - a)
+    best = min(tried, key=tried.get)
+    return Search(float(best), tried[best], sorted(tried.items()))
+
+
+def scaled(p_names, p_default, tune, s):
+    """Parameters with each tuned one scaled: p_i = p_default_i s^e_i for ``tune`` = {name: e}."""
+    p = np.array(p_default, dtype=float)
+    for name, e in tune.items():
+        p[p_names.index(name)] *= s ** e
+    return p
+
+
+def segments(t, limit):
+    """Indices [0, k_1, ..., N] cutting the stamps ``t`` (N,) (s) before each sample that follows
+    an interval longer than ``limit`` (s): the runs an observer or a filter crosses without a
+    restart."""
+    return [0, *(np.flatnonzero(np.diff(t) > limit) + 1).tolist(), len(t)]
+
+
+def run_over(obs, Y, U, t, limit):
+    """``obs`` (reset/run: a compiled observer, the reference or a baseline) over the samples
+    Y (N, ny), U (N, nu) at times t (N,), reset from the first sample after every interval
+    longer than ``limit`` s; returns (estimate (N, nest), number of resets)."""
+    cuts = segments(t, limit)
+    out = None
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        obs.reset(Y[a])
+        e = obs.run(Y[a:b], None if U is None else U[a:b], t=t[a:b])
+        if out is None:
+            out = np.empty((len(Y), e.shape[1]))
+        out[a:b] = e
+    return out, len(cuts) - 2
+
+
+@dataclass
+class Tuned:
+    """The outcome of tuning one estimator on a log."""
+
+    name: str
+    params: dict
+    scale: float
+    score: float
+    rms: float
+    tried: list
+    note: str = ""
+
+    def line(self):
+        """One line: the tuned values and the criterion."""
+        par = ", ".join(f"{k} = {v:.4g}" for k, v in self.params.items())
+        return (f"{self.name}: {par}  (forward-validation error {math.sqrt(self.score):.3g} rad/s, "
+                f"estimated RMS error {self.rms:.3g} rad/s; {len(self.tried)} runs)"
+                + (f"; {self.note}" if self.note else ""))
