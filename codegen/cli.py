@@ -369,10 +369,11 @@ def _torque_uncertainty(text, robot):
 
 
 def _compare_source(args):
-    """(Recording, robot, title) of ``compare``'s source: a mujoco-* scenario run with the
+    """(Recording, robot, title, clock) of ``compare``'s source: a mujoco-* scenario run with the
     sensor and mismatch options, a MuJoCo run of the robot of ``--robot`` / ``--urdf`` (no
-    source), or a recorded CSV of that robot."""
-    from .logs.recording import read_csv
+    source), or a recorded CSV of that robot read on its sample clock (``--clock``; the Clock, None
+    for a simulation)."""
+    from .logs.recording import read_log
     from .evaluate.scenarios.mujoco import SCENARIOS
     if args.source is None:              # a MuJoCo plant from the robot's URDF
         from .evaluate.scenarios import mujoco
@@ -380,7 +381,7 @@ def _compare_source(args):
         _require("mujoco", f"a MuJoCo run of {robot.name}")
         args.quantization, args.noise = args.quantization or 0.0, args.noise or 0.0
         rec = mujoco.recording(robot, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
-        return rec, robot, mujoco.title(robot.name, args.quantization, args.noise, args.mismatch)
+        return rec, robot, mujoco.title(robot.name, args.quantization, args.noise, args.mismatch), None
     if args.source in SCENARIOS:
         from models import load_robot
 
@@ -393,7 +394,7 @@ def _compare_source(args):
         # a simulated sensor is what the options say: unstated means exact
         args.quantization, args.noise = args.quantization or 0.0, args.noise or 0.0
         rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
-        return rec, load_robot(name), mujoco.title(name, args.quantization, args.noise, args.mismatch)
+        return rec, load_robot(name), mujoco.title(name, args.quantization, args.noise, args.mismatch), None
     if not str(args.source).endswith(".csv"):
         from models import names
         hint = (f"; a MuJoCo run of {args.source} is `compare --robot {args.source}`"
@@ -401,7 +402,8 @@ def _compare_source(args):
         raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}) or a .csv file, "
                          f"got {args.source!r}{hint}")
     robot = _compare_robot(args)
-    return read_csv(args.source, robot.joint_names), robot, f"{Path(args.source).name} ({robot.name})"
+    rec, clock = read_log(args.source, robot.joint_names, args.clock)
+    return rec, robot, f"{Path(args.source).name} ({robot.name})", clock
 
 
 def cmd_compare(args):
@@ -410,31 +412,38 @@ def cmd_compare(args):
     ``args``: the parsed argparse namespace; returns the exit status."""
     from .evaluate.compare import DEFAULT_FAMILIES, compare, design_inputs
     from .evaluate.sim.blocks import stage_lines
-    from .logs.smoothing import DEFAULT_CUTOFF
     from .logs.recording import RecordingError
     stepping = {k: getattr(args, k) for k in ("method", "hold", "substeps") if getattr(args, k) is not None}
     try:
         with stage_lines():              # a line per stage on stderr (the MuJoCo run), then a bar
-            rec, robot, title = _compare_source(args)
+            rec, robot, title, clock = _compare_source(args)
+            if clock is not None:
+                print(clock.describe(), file=sys.stderr)
             families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
             bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
+            sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization,
+                                                                                             args.noise)
             cmp = compare(rec, robot, families=families, t_ss=args.t_ss, level=args.level,
-                          design=design_inputs(args.quantization, args.noise, args.mismatch,
+                          design=design_inputs(*sensor, args.mismatch,
                                                _torque_uncertainty(args.torque_uncertainty, robot)),
                           baseline_names=bl, reference=args.reference, title=title,
-                          ref_cutoff=args.ref_cutoff or DEFAULT_CUTOFF, progress=True, stepping=stepping)
+                          ref_cutoff=args.ref_cutoff, progress=True, stepping=stepping,
+                          tune=args.tune, clock=clock)
     except (RecordingError, ValueError, KeyError) as e:
         print(f"error: {_message(e)}", file=sys.stderr)
         return 2
     print(cmp.table())
     out = Path(args.out or work_dir() / "compare")
     paths = cmp.figures(out)
+    paths.append(cmp.write_estimates(out / "estimates.csv", clock))
     ref = cmp.ref
     (out / "compare.json").write_text(json.dumps(
         {"title": title, "t_ss": cmp.t_ss, "level": cmp.level, "recording": cmp.info.get("recording"),
+         "clock": None if clock is None else clock.to_dict(), "noise": cmp.info.get("noise"),
+         "tune": cmp.info.get("tune"), "validation": cmp.info.get("validation"),
          "reference": {"label": ref.label, "cutoff": ref.cutoff, "uncertainty": cmp.uncertainty},
          "verdict": cmp.verdict(), "rows": cmp.rows()}, indent=2, default=float) + "\n")
-    print(f"figures and compare.json in {out.resolve()} ({', '.join(p.name for p in paths)})")
+    print(f"figures, estimates.csv and compare.json in {out.resolve()} ({', '.join(p.name for p in paths)})")
     return 0
 
 
@@ -538,6 +547,14 @@ def _robot_options(p):
     a("--K", metavar="K", help="joint stiffness (N m/rad): one number or one per joint, comma-separated")
 
 
+def _clock_option(p):
+    """--clock of every command that reads a log."""
+    p.add_argument("--clock", default="auto", metavar="auto|stamps|ticks[=PERIOD]",
+                   help="what the log's time column is: auto (default: found from the data: a logger's "
+                        "receive times are rebuilt on the robot's fixed tick, repeated rows dropped; a robot-"
+                        "time column t_robot is used), stamps (as written), ticks[=PERIOD s] (rebuilt on a tick)")
+
+
 def _stepping_options(p):
     """How the observers step, as `build` takes it (and `compare`): --method, --hold, --substeps."""
     a = p.add_argument
@@ -622,7 +639,12 @@ def parser():
     _stepping_options(cp)
     cp.add_argument("--ref-cutoff", type=float, metavar="HZ",
                     help="CSV without qd_<joint>: cut-off of the zero-phase reference velocity the methods "
-                         "are measured and tuned against (Hz, default 10)")
+                         "are measured against (Hz; default each joint's motion band measured on the log)")
+    _clock_option(cp)
+    cp.add_argument("--tune", choices=("log", "none", "reference"), default="log",
+                    help="log (default): every family's bandwidth and every baseline's parameter chosen on the "
+                         "log without truth (forward validation), kalman_model's variant too; none: the "
+                         "designed gains (baselines tuned against the reference); reference: the baselines only")
     from .evaluate.compare import DEFAULT_FAMILIES
     cp.add_argument("--observers", help="comma-separated families, each optionally with gains "
                     f"(family:name=value:...); default {','.join(DEFAULT_FAMILIES)}")

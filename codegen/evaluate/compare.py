@@ -22,6 +22,7 @@ Measures are those of ``codegen.evaluate.metrics``.
 """
 from __future__ import annotations
 
+import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from . import baselines, metrics
-from ..logs import smoothing
+from ..logs import smoothing, tune as tuning
 from ..logs.reference import Reference, reference_of
 from ..core.estimator import velocity_slots
 from ..verify.measure import saturated_samples
@@ -58,6 +59,8 @@ class Entry:
     est: np.ndarray
     metrics: dict
     note: str = ""
+    variant: str | None = None
+    tuned: object = None                  # codegen.logs.tune.Tuned, when tuned on the log
 
 
 @dataclass
@@ -155,8 +158,15 @@ class Comparison:
         """The lines above the table: title, the recording's stamps, what the estimates are
         measured against and its uncertainty."""
         lines = [self.title] if self.title else []
+        if "clock" in self.info:
+            lines.append(self.info["clock"])
         if "recording" in self.info:
             lines.append(f"recording: {self.info['recording']}")
+        lines += self.info.get("noise", [])
+        if self.info.get("tune") == "log":
+            v = self.info.get("validation", {})
+            lines.append(f"gains tuned on the log without truth: forward validation (each estimate against the "
+                         f"velocity the next {v.get('window')} samples imply; est. RMS = its implied RMS error)")
         if self.ref is not None:
             lines.append(f"reference: {self.ref.label}")
             if not self.ref.is_truth:
@@ -211,6 +221,23 @@ class Comparison:
             out.append(baselines_ok[-1].name)
         return best, [e.name for e in ok if e.name not in best and e.name not in out], out
 
+    def write_estimates(self, path, clock=None):
+        """``path`` (CSV, written atomically): the log's ``t`` and, for every method, one column per
+        joint ``<method>.qd_<joint>`` at the log's rows (a row dropped as a repeat of the previous one
+        carries the estimate of the row it repeats); ``clock`` (codegen.logs.clock.Clock) maps the
+        rows, None: the estimates' own rows. Returns the path."""
+        from ..core.columns import write_columns
+        if clock is None:
+            t, rows = self.t, np.arange(len(self.t))
+        else:
+            t, rows = clock.stamps, clock.row_of()
+        joints = self.info.get("joint_names") or [str(j) for j in range(self.truth.shape[1])]
+        cols = {"t": t}
+        for e in self.entries:
+            for j, name in enumerate(joints):
+                cols[f"{e.name}.qd_{name}"] = e.est[rows, j]
+        return write_columns(path, cols)
+
     def figures(self, out, joint=0, zoom=None):
         """Write to the folder ``out`` ``errors.png`` (||qd - qd_hat|| on a log axis) and
         ``joint<j>.png`` (estimates of ``joint`` j, 0-based as in the file name and the title,
@@ -261,21 +288,45 @@ def parse_observer(text):
     return family.strip(), given
 
 
-def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None):
+def observer_block(spec, dt, reference=False, stamped=True, stepping=None):
+    """(block, notes): an observer spec stepped at dt with the default discretisation, compiled
+    C (or the numpy reference), with the fallback a real log's stiff mode needs: when no
+    ``SUBSTEPS_MAX`` sub-steps of dt hold it (an identified friction's sharp sign on a light wrist,
+    at a log's 5 ms steps) and the log has stamps (``stamped``), the observer is designed at
+    dt / SUBSTEPS_MAX and each interval is split by the C (at most ``SPLIT_MAX`` sub-intervals, as
+    any gap beyond dt_max). UnstableDiscretization when no discretisation of it is stable (the
+    refusal at dt). ``stepping``: ``method``, ``hold``, ``substeps`` (default the default
+    discretisation with substeps "auto")."""
+    from dataclasses import replace
+
+    from ..core.target import SUBSTEPS_MAX, discretization
+    from ..discrete.stability import UnstableDiscretization
+    from .sim.blocks import block
+    # the fewest stable sub-steps (xarm7 at 1 kHz needs 6)
+    disc = discretization(None, **{"substeps": "auto", **(stepping or {}), "dt": dt})
+    try:
+        return block(spec, disc, reference=reference), []
+    except UnstableDiscretization as at_dt:
+        if disc.substeps != "auto" or not stamped:
+            raise                   # stepping the user chose: refused in its own words
+        try:
+            obs = block(spec, replace(disc, dt=dt / SUBSTEPS_MAX), reference=reference)
+        except UnstableDiscretization:
+            raise at_dt from None
+    return obs, [f"no substeps <= {SUBSTEPS_MAX} of the median step {dt:.3g} s is stable: designed at "
+                 f"{obs.dt:.3g} s, each interval split into sub-intervals of at most {obs.dt_range[1]:.3g} s"]
+
+
+def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None, p=None):
     """Estimate (N, nest) of an observer spec over samples Y, U with the default discretisation
     at dt: compiled C (the loop in C) or the numpy reference; (estimate of NaN, message) when
     the observer fails; UnstableDiscretization when no discretisation of it is stable (the
     refusal at dt).
 
     Two things of a real log the step at the median dt cannot take are handled here, each said
-    in the note:
-
-    * a stiff mode that no ``SUBSTEPS_MAX`` sub-steps of dt hold (an identified friction's sharp
-      sign on a light wrist, at a log's 5 ms steps): with substeps "auto" and stamps, the
-      observer is designed at dt / SUBSTEPS_MAX instead and each interval of the log is split
-      into sub-intervals by the C (at most ``SPLIT_MAX`` of them, as any gap beyond dt_max);
-    * an interval longer than the observer's ``dt_limit`` (SPLIT_MAX x dt_max: a pause in the
-      logging): the observer is reset from the first sample after it, as after an outage.
+    in the note: a stiff mode (``observer_block``'s fallback), and an interval longer than the
+    observer's ``dt_limit`` (SPLIT_MAX x dt_max: a pause in the logging), after which the observer
+    is reset from the first sample, as after an outage (codegen.logs.tune.run_over).
 
     Parameters
     ----------
@@ -293,56 +344,54 @@ def run_observer(spec, Y, U, dt, reference=False, t=None, stepping=None):
     stepping : dict, optional
         ``method``, ``hold``, ``substeps`` of the discretisation (``build``'s options; default
         the default one with substeps "auto").
+    p : (np,) array, optional
+        Runtime parameters (checked stable); default the designed ones.
 
     Returns
     -------
     (estimate (N, nest), note str)
     """
-    from dataclasses import replace
-
-    from ..core.target import SUBSTEPS_MAX, discretization
-    from ..discrete.stability import UnstableDiscretization
     from ..pipeline.load import ObserverError
-    from .sim.blocks import block
-    # the fewest stable sub-steps (xarm7 at 1 kHz needs 6)
-    disc = discretization(None, **{"substeps": "auto", **(stepping or {}), "dt": dt})
-    notes = []
+    obs, notes = observer_block(spec, dt, reference, stamped=t is not None, stepping=stepping)
     try:
-        try:
-            obs = block(spec, disc, reference=reference)
-        except UnstableDiscretization as at_dt:
-            if disc.substeps != "auto" or t is None:
-                raise                   # stepping the user chose: refused in its own words
-            try:
-                obs = block(spec, replace(disc, dt=dt / SUBSTEPS_MAX), reference=reference)
-            except UnstableDiscretization:
-                raise at_dt from None
-            notes.append(f"no substeps <= {SUBSTEPS_MAX} of the median step {dt:.3g} s is stable: designed at "
-                         f"{obs.dt:.3g} s, each interval split into sub-intervals of at most {obs.dt_range[1]:.3g} s")
-        est = np.empty((len(Y), spec.nest))
-        cuts = [0, len(Y)] if t is None else _segments(t, obs.dt_limit)
-        for a, b in zip(cuts[:-1], cuts[1:]):
-            obs.reset(Y[a])
-            # each step over the log's own elapsed time (a gap beyond dt_max split inside the C)
-            est[a:b] = obs.run(Y[a:b], U[a:b]) if t is None else obs.run(Y[a:b], U[a:b], t=t[a:b])
-        if len(cuts) > 2:
-            notes.append(f"reset after {len(cuts) - 2} interval(s) longer than {obs.dt_limit:.3g} s "
-                         f"(split_max x dt_max)")
+        if p is not None:
+            obs.check_params(p)
+        if t is None:
+            obs.reset(Y[0])
+            if p is not None:
+                obs.params = p
+            return obs.run(Y, U), "; ".join(notes)
+        est, resets = _run_checked(obs, p, Y, U, t)
+        if resets:
+            notes.append(f"reset after {resets} interval(s) longer than {obs.dt_limit:.3g} s (split_max x dt_max)")
         return est, "; ".join(notes)
     except (ObserverError, FloatingPointError) as e:
         return np.full((len(Y), spec.nest), np.nan), str(e)
 
 
-def _segments(t, limit):
-    """Indices [0, k_1, ..., N] cutting the stamps ``t`` (N,) (s) before each sample that
-    follows an interval longer than ``limit`` (s)."""
-    return [0, *(np.flatnonzero(np.diff(t) > limit) + 1).tolist(), len(t)]
+def _run_checked(obs, p, Y, U, t):
+    """(estimate, resets): ``obs`` over the log with the (checked) parameters ``p`` (None: its
+    own), reset after every interval beyond its dt_limit; errors propagate."""
+    cuts = tuning.segments(t, obs.dt_limit)
+    est = np.empty((len(Y), obs.nest))
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        obs.reset(Y[a], p=p)
+        est[a:b] = obs.run(Y[a:b], U[a:b], t=t[a:b])
+    return est, len(cuts) - 2
+
+
+def dt_limit(dt):
+    """The longest interval (s) a method crosses without a restart on a log of median step dt:
+    SPLIT_MAX x the default dt_max (2 dt), the observers' own limit (``CompiledObserver.dt_limit``)."""
+    from ..core.target import SPLIT_MAX
+    return SPLIT_MAX * 2.0 * dt
 
 
 def tune(name, Y, t, truth, t_ss, dt, grid=None, valid=None):
     """The baseline ``name`` run over each value of its ``grid`` (None: baselines.GRIDS) that it
     accepts at this dt; returns (params, estimate (N, n)) of the value with the lowest RMS of
-    est - ``truth`` (N, n) after t_ss (s) (the only value for an untuned baseline).
+    est - ``truth`` (N, n) after t_ss (s) (the only value for an untuned baseline). Tuned against
+    a reference (``compare(..., tune="reference")``); ``tune_baseline`` tunes without one.
 
     Parameters
     ----------
@@ -351,7 +400,8 @@ def tune(name, Y, t, truth, t_ss, dt, grid=None, valid=None):
     Y : (N, n) array
         Measured positions (rad).
     t : (N,) array
-        Their time stamps (s); each baseline runs with them (``Baseline.run(Y, t=t)``).
+        Their time stamps (s); each baseline runs with them (``Baseline.run(Y, t=t)``), restarted
+        after an interval longer than ``dt_limit(dt)`` as the observers are.
     truth : (N, n) array
         The velocity it is tuned on (rad/s): the true one or the zero-phase reference.
     t_ss : float
@@ -372,24 +422,140 @@ def tune(name, Y, t, truth, t_ss, dt, grid=None, valid=None):
             b = cls(Y.shape[1], dt) if value is None else cls(Y.shape[1], dt, **{cls.tuned: value})
         except ValueError:
             continue                    # a value this sample time cannot take (cutoff >= Nyquist)
-        b.reset(Y[0])
-        est = b.run(Y, t=t)
+        est = tuning.run_over(b, Y, None, t, dt_limit(dt))[0]
         r = metrics.rms_after(t[v], est[v] - truth[v], t_ss)
         if best is None or (np.isfinite(r) and not r >= best[0]):
             best = (r, b.params, est)
     return best[1], best[2]
 
 
+def baseline_options(name, noise):
+    """The options of baseline ``name`` fixed by the log's measured ``noise`` (codegen.logs.noise):
+    the Kalman filter's measurement variance r (the joints' mean sigma^2)."""
+    return {"r": float(np.mean(noise.sigma ** 2))} if name == "kalman" and noise is not None else {}
+
+
+def tune_baseline(name, Y, t, dt, val, noise=None):
+    """(params, estimate (N, n), Tuned or None): the baseline ``name`` with its tuned parameter
+    chosen on the log without truth (codegen.logs.tune: forward validation ``val``), searched in
+    log scale over the span of its grid (baselines.GRIDS); restarted after intervals longer than
+    ``dt_limit(dt)``. ``noise``: the log's measured noise (the Kalman filter's r)."""
+    cls = baselines.BASELINES[name]
+    extra = baseline_options(name, noise)
+    limit = dt_limit(dt)
+    t_from = float(t[0] + 0.05 * (t[-1] - t[0]))
+
+    def run(value):
+        b = cls(Y.shape[1], dt, **extra) if value is None else cls(Y.shape[1], dt, **{cls.tuned: value}, **extra)
+        return b, tuning.run_over(b, Y, None, t, limit)[0]
+
+    if cls.tuned is None:
+        b, est = run(None)
+        return b.params, est, None
+    grid = baselines.GRIDS[name]
+
+    def score(value):
+        try:
+            return val.score(run(value)[1], t_from)
+        except ValueError:
+            return math.inf                 # a value this sample time cannot take (cutoff >= Nyquist)
+    lo, hi = min(grid), max(grid)
+    found = tuning.search(score, math.sqrt(lo * hi), lo, hi, grid=max(9, int(round(math.log10(hi / lo))) + 1))
+    b, est = run(found.best)
+    return b.params, est, tuning.Tuned(name, {cls.tuned: found.best}, found.best, found.score,
+                                       val.rms(est, t_from), found.tried)
+
+
+def _build(fam, robot, inputs, item):
+    """(spec, note): ``observers.build(fam, robot, **inputs)``, or, for an exact sensor a family
+    cannot design for (the Kalman gains divide by the noise), its default encoder, said in the note."""
+    from ..families import observers
+    try:
+        try:
+            return observers.build(fam, robot, **inputs), ""
+        except ValueError:
+            if inputs.get("quantization") != 0.0 or inputs.get("noise") != 0.0:
+                raise
+            return (observers.build(fam, robot, **{k: v for k, v in inputs.items() if k not in ("quantization", "noise")}),
+                    "designed for the default encoder: the exact sensor gives it no noise")
+    except TypeError as e:
+        raise ValueError(f"observers: {item!r}: {e}") from None
+
+
+def _variants(fam, robot, inputs, item, noise):
+    """The specs a family is tried as: its build with ``inputs``; and, when it has a model and a
+    model-free variant (its build takes ``variant``), no torque uncertainty is stated and the log
+    measured one, also the model variant with the measured torque uncertainty (the better of the
+    two on the log is kept)."""
+    import importlib
+    import inspect
+    out = [(item, *_build(fam, robot, inputs, item))]
+    takes = inspect.signature(importlib.import_module(f"codegen.families.observers.{fam}").build).parameters
+    if ("variant" in takes and "torque_uncertainty" in takes and "torque_uncertainty" not in inputs
+            and noise is not None and noise.torque_uncertainty is not None):
+        with_model = {**inputs, "torque_uncertainty": [float(v) for v in noise.torque_uncertainty]}
+        out.append((item, *_build(fam, robot, with_model, item)))
+    return out
+
+
+def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, reference, stepping, ref,
+                    t_ss, level, progress):
+    """The Entry of one family on the log: built (designed for the log's sensor), tuned on it
+    when ``tune_on`` (the better variant kept), run."""
+    from ..discrete.stability import UnstableDiscretization
+    from ..pipeline.load import ObserverError
+    t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
+    inputs = {**design_for(fam, design), **given}
+    candidates = []
+    for name, spec, designed_for in _variants(fam, robot, inputs, item, noise if tune_on else None):
+        slots = _link_velocity_slots(spec, robot)
+        if slots is None or spec.ny != robot.n:
+            raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
+                             f"est = {', '.join(spec.est_names)})")
+        try:
+            obs, notes = observer_block(spec, dt, reference, stamped=True, stepping=stepping)
+        except UnstableDiscretization:
+            raise
+        tuned, p = (None, np.array(spec.p_default, dtype=float))
+        if tune_on and not given:
+            tuned, p = tuning.tune_observer(obs, spec, fam, Y, U, t, val, obs.dt_limit, slots,
+                                            progress=progress)
+        try:
+            full, resets = _run_checked(obs, p, Y, U, t)
+            if resets:
+                notes.append(f"reset after {resets} interval(s) longer than {obs.dt_limit:.3g} s")
+        except (ObserverError, FloatingPointError) as e:
+            full, notes = np.full((len(Y), spec.nest), np.nan), notes + [str(e)]
+        J = tuned.score if tuned is not None else val.score(full[:, slots])
+        candidates.append((J, spec, p, full, slots, tuned, [designed_for] + notes))
+    J, spec, p, full, slots, tuned, notes = min(candidates, key=lambda c: c[0] if np.isfinite(c[0]) else np.inf)
+    if len(candidates) > 1:
+        other = [c for c in candidates if c[1] is not spec][0]
+        notes.append(f"variant {spec.variant} (forward-validation error {math.sqrt(J):.3g} rad/s; "
+                     f"{other[1].variant}: {math.sqrt(other[0]):.3g})")
+    if tuned is not None:
+        notes.append("tuned on the log: " + ", ".join(f"{k} = {v:.4g}" for k, v in tuned.params.items()))
+    est = full[:, slots]
+    hits = saturated_samples(full, spec)        # samples with q̇̂ beyond the model's bound
+    note = "; ".join(filter(None, notes + [hits and f"{hits} samples at the velocity bound"]))
+    params = {k: float(v) for k, v in zip(spec.p_names, p)}
+    m = measure(ref, t, est, t_ss, level)
+    m["validation_rms"] = val.rms(est, t_ss)
+    return Entry(item, "observer", params, est, m, note, variant=spec.variant, tuned=tuned)
+
+
 def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level=1e-2,
-            baseline_names=None, reference=False, title="", ref_cutoff=smoothing.DEFAULT_CUTOFF,
-            progress=False, stepping=None):
-    """Observers, tuned baselines and the robot's own velocity signal on one recorded run.
+            baseline_names=None, reference=False, title="", ref_cutoff=None, progress=False, stepping=None,
+            tune="log", clock=None, noise=None):
+    """Observers, baselines and the robot's own velocity signal on one recorded run, every gain
+    and every baseline's parameter chosen on the log without truth (``tune="log"``).
 
     Parameters
     ----------
     rec : codegen.logs.recording.Recording
-        Time stamps (jitter and gaps allowed), measured positions (what the observers receive),
-        applied torques and, when known, the true velocities and the robot's velocity signal.
+        On its sample clock (codegen.logs.clock: a logger's receive times rebuilt on the robot's
+        tick): measured positions (what the observers receive), applied torques and, when known,
+        the true velocities and the robot's velocity signal.
     robot : models.RobotModel
         The nominal model the observers are built on.
     families : sequence of str
@@ -397,9 +563,10 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         (an elastic robot: y = link q, u = motor torque, the link velocity of its state estimate;
         default ELASTIC_FAMILIES),
         each optionally with given build arguments, ``"reduced_order:k0=25"`` (see
-        ``parse_observer``).
+        ``parse_observer``; given gains are not tuned).
     design : dict, optional
-        Keyword arguments of ``observers.build`` for every family (design inputs).
+        Keyword arguments of ``observers.build`` for every family (design inputs); a sensor not
+        stated (no quantization nor noise) is the one measured on the log (``noise``).
     t_ss : float, optional
         Start of the steady-state window (s); default the middle of the run.
     level : float
@@ -410,12 +577,23 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         Run the observers with the numpy reference instead of the compiled C.
     title : str
         Title of the table and figures.
-    ref_cutoff : float
-        Cut-off (Hz) of the zero-phase reference used when ``rec`` has no true velocity.
+    ref_cutoff : float, optional
+        Cut-off (Hz) of the zero-phase reference used when ``rec`` has no true velocity; default
+        each joint's measured motion band (codegen.logs.noise).
     progress : bool
         A progress bar over the methods on stderr (tqdm).
     stepping : dict, optional
         ``method``, ``hold``, ``substeps`` the observers step with (``run_observer``).
+    tune : {"log", "none", "reference"}
+        log: every family's bandwidth and every baseline's parameter chosen on the log by forward
+        validation (codegen.logs.tune), without truth, and kalman_model's variant (with the
+        model or without) by the same criterion; none: the designed gains, the baselines tuned
+        against the reference (or the truth) as a user with the truth would; reference: the
+        same for the baselines only.
+    clock : codegen.logs.clock.Clock, optional
+        The clock ``rec`` is on (its line opens the header).
+    noise : codegen.logs.noise.Noise, optional
+        The log's measured noise (default measured here).
 
     Returns
     -------
@@ -424,6 +602,9 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     from tqdm import tqdm
 
     from ..families import observers
+    from ..logs import noise as noise_of
+    if tune not in ("log", "none", "reference"):
+        raise ValueError(f"tune: expected log, none or reference, got {tune!r}")
     if families is DEFAULT_FAMILIES and hasattr(robot, "state_names"):
         families = ELASTIC_FAMILIES                   # an elastic robot's log
     if list(rec.joint_names) != list(robot.joint_names):
@@ -434,7 +615,6 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
                          "its velocity is 0, which any difference filter gives exactly, so the methods cannot "
                          "be compared; record a run with motion")
     t_ss = float(t[0] + (t[-1] - t[0]) / 2 if t_ss is None else t_ss)
-    ref = reference_of(rec, ref_cutoff)
     parsed = [(item, *parse_observer(item)) for item in families]
     bad = [fam for _, fam, _ in parsed if fam not in observers.FAMILIES]
     if bad:                                 # every name checked before the slow part
@@ -443,49 +623,46 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     unknown = [b for b in names if b not in baselines.BASELINES]
     if unknown:
         raise ValueError(f"baselines: unknown {unknown[0]!r}; known: {', '.join(baselines.BASELINES)}")
+    if noise is None:
+        noise = noise_of.measure(t, Y, U, robot if not hasattr(robot, "state_names") else None)
+    design = dict(design or {})
+    if "quantization" not in design and "noise" not in design:
+        design.update(noise.design_inputs(torque=False))     # the sensor the log has
+    ref = reference_of(rec, noise.band if ref_cutoff is None else ref_cutoff)
+    val = tuning.validation(t, Y, noise.sigma, psd=noise_of.motion_psd(noise, noise.spectrum))
     entries = []
     bar = tqdm(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
                file=sys.stderr, disable=not progress, leave=False)
     with bar:
         for item, fam, given in parsed:
             bar.set_postfix_str(item)
-            inputs, designed_for = {**design_for(fam, design), **given}, ""
-            try:
-                try:
-                    spec = observers.build(fam, robot, **inputs)
-                except ValueError:
-                    # an exact sensor (a simulation's q) that a family cannot design for (the
-                    # Kalman gains divide by the noise): its default encoder, said in the row
-                    if inputs.get("quantization") != 0.0 or inputs.get("noise") != 0.0:
-                        raise
-                    spec = observers.build(fam, robot, **{k: v for k, v in inputs.items()
-                                                          if k not in ("quantization", "noise")})
-                    designed_for = "designed for the default encoder: the exact sensor gives it no noise"
-            except TypeError as e:
-                raise ValueError(f"observers: {item!r}: {e}") from None
-            slots = _link_velocity_slots(spec, robot)
-            if slots is None or spec.ny != robot.n:
-                raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
-                                 f"est = {', '.join(spec.est_names)})")
-            full, note = run_observer(spec, Y, U, dt, reference, t=t, stepping=stepping)
-            est = full[:, slots]
-            hits = saturated_samples(full, spec)        # samples with q̇̂ beyond the model's bound
-            note = "; ".join(filter(None, [designed_for, note, hits and f"{hits} samples at the velocity bound"]))
-            params = {k: float(v) for k, v in zip(spec.p_names, spec.p_default)}
-            entries.append(Entry(item, "observer", params, est, measure(ref, t, est, t_ss, level), note))
+            entries.append(_observer_entry(item, fam, given, robot, rec, design, noise, val, tune == "log",
+                                           reference, stepping, ref, t_ss, level,
+                                           (lambda text: bar.set_postfix_str(text)) if progress else None))
             bar.update()
         for name in names:
             bar.set_postfix_str(name)
-            params, est = tune(name, Y, t, ref.qd, t_ss, dt, valid=ref.valid)
-            entries.append(Entry(name, "baseline", params, est, measure(ref, t, est, t_ss, level)))
+            if tune == "log":
+                params, est, tuned = tune_baseline(name, Y, t, dt, val, noise)
+            else:
+                (params, est), tuned = tune(name, Y, t, ref.qd, t_ss, dt, valid=ref.valid), None
+            m = measure(ref, t, est, t_ss, level)
+            m["validation_rms"] = val.rms(est, t_ss)
+            entries.append(Entry(name, "baseline", params, est, m,
+                                 "tuned on the log (forward validation)" if tuned is not None else "",
+                                 tuned=tuned))
             bar.update()
         if rec.qdm is not None:
             bar.set_postfix_str("qdm")
-            entries.append(Entry(SIGNAL, "signal", {"columns": "qdm_<joint>"}, rec.qdm,
-                                 measure(ref, t, rec.qdm, t_ss, level)))
+            m = measure(ref, t, rec.qdm, t_ss, level)
+            m["validation_rms"] = val.rms(rec.qdm, t_ss)
+            entries.append(Entry(SIGNAL, "signal", {"columns": "qdm_<joint>"}, rec.qdm, m))
             bar.update()
-    return Comparison(t=t, truth=ref.qd, entries=entries, t_ss=t_ss, level=level, title=title,
-                      info={"recording": rec.describe(), "joint_names": list(robot.joint_names)}, ref=ref)
+    info = {"recording": rec.describe(), "joint_names": list(robot.joint_names), "noise": noise.lines(),
+            "tune": tune, "validation": {"window": val.window, "constant": val.constant, **val.details}}
+    if clock is not None:
+        info["clock"] = clock.describe()
+    return Comparison(t=t, truth=ref.qd, entries=entries, t_ss=t_ss, level=level, title=title, info=info, ref=ref)
 
 
 ELASTIC_FAMILIES = ("ciccarella_germani",)      # the default of an elastic robot: y = link q, u = tau

@@ -94,6 +94,12 @@ class Clock:
     repeated: int = 0
     rows: int = 0
     reason: str = ""
+    stamps: np.ndarray | None = None        # the log's time column, every row
+
+    def row_of(self):
+        """(rows,) int: for every row of the log, the kept row (index into ``kept``) whose sample
+        it carries: itself, or for a dropped repeat the last kept row before it."""
+        return np.searchsorted(self.kept, np.arange(self.rows), side="right") - 1
 
     @property
     def rebuilt(self):
@@ -189,6 +195,12 @@ def rebuild(t, Q, others=None, mode="auto", period=None, t_robot=None):
     if len(back):
         k = back[0]
         raise ValueError(f"t: time stamps go back at row {k + 1}: {t[k + 1]:.9g} after {t[k]:.9g} s")
+    clock = _rebuild(t, Q, others, mode, period, t_robot, N)
+    clock.stamps = t
+    return clock
+
+
+def _rebuild(t, Q, others, mode, period, t_robot, N):
     if t_robot is not None:
         return _robot_clock(np.asarray(t_robot, dtype=float).ravel(), N)
     values = Q if others is None else np.column_stack([Q, np.asarray(others, dtype=float).reshape(N, -1)])

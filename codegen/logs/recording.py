@@ -130,23 +130,9 @@ class Recording:
         return write_columns(path, {name: data[:, i] for i, name in enumerate(names)})
 
 
-def read_csv(path, joint_names):
-    """A Recording from a CSV with the header of the module docstring.
-
-    Parameters
-    ----------
-    path : path-like
-        The file.
-    joint_names : list of str
-        The robot's joints, in model order (q_<joint> and tau_<joint> must exist for each;
-        qd_<joint> and qdm_<joint> for all joints or none).
-
-    Raises
-    ------
-    RecordingError
-        Missing file or columns, non-numeric or non-finite values, fewer than 2 rows, time
-        stamps that repeat or go back (the message names the file's rows).
-    """
+def _columns(path, joint_names):
+    """(path, {column: (N,) values}) of a recording CSV, every column there and finite, at least
+    two rows (the stamps not yet checked): ``read_csv`` and ``read_log``."""
     path = Path(path)
     header, data = read_columns(path, RecordingError)
     need = ["t"] + [f"{g}_{j}" for g in ("q", "tau") for j in joint_names]
@@ -165,7 +151,37 @@ def read_csv(path, joint_names):
     if not np.all(np.isfinite(data)):
         r, c = np.argwhere(~np.isfinite(data))[0]
         raise RecordingError(f"{path}: NaN or Inf in column {header[c]!r}, row {r + 2}")
-    col = {h: data[:, i] for i, h in enumerate(header)}
+    return path, {h: data[:, i] for i, h in enumerate(header)}
+
+
+def _recording(col, joint_names, rows=slice(None), t=None):
+    """The Recording of the columns ``col`` at ``rows`` (sample times ``t``, default col["t"])."""
+    stack = lambda g: np.column_stack([col[f"{g}_{j}"][rows] for j in joint_names])  # noqa: E731
+    has = {g: all(f"{g}_{j}" in col for j in joint_names) for g in ("qd", "qdm")}
+    return Recording(t=col["t"][rows] if t is None else t, q=stack("q"), tau=stack("tau"),
+                     qd=stack("qd") if has["qd"] else None, joint_names=list(joint_names),
+                     qdm=stack("qdm") if has["qdm"] else None)
+
+
+def read_csv(path, joint_names):
+    """A Recording from a CSV with the header of the module docstring, its stamps taken as the
+    sample times (``read_log`` finds out what they are).
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    joint_names : list of str
+        The robot's joints, in model order (q_<joint> and tau_<joint> must exist for each;
+        qd_<joint> and qdm_<joint> for all joints or none).
+
+    Raises
+    ------
+    RecordingError
+        Missing file or columns, non-numeric or non-finite values, fewer than 2 rows, time
+        stamps that repeat or go back (the message names the file's rows).
+    """
+    path, col = _columns(path, joint_names)
     t = col["t"]
     steps = np.diff(t)
     bad = np.nonzero(steps <= 0)[0]
@@ -174,8 +190,39 @@ def read_csv(path, joint_names):
         what = "repeats" if steps[k] == 0 else "goes back"
         raise RecordingError(f"{path}: time stamp {what} between rows {k + 2} and {k + 3}: t = "
                              f"{t[k]:.9g} then {t[k + 1]:.9g} s (stamps must strictly increase"
-                             f"{f'; {len(bad)} such rows' if len(bad) > 1 else ''})")
-    stack = lambda g: np.column_stack([col[f"{g}_{j}"] for j in joint_names])  # noqa: E731
-    has = {g: all(f"{g}_{j}" in col for j in joint_names) for g in ("qd", "qdm")}
-    return Recording(t=t, q=stack("q"), tau=stack("tau"), qd=stack("qd") if has["qd"] else None,
-                     joint_names=list(joint_names), qdm=stack("qdm") if has["qdm"] else None)
+                             f"{f'; {len(bad)} such rows' if len(bad) > 1 else ''}; --clock auto rebuilds "
+                             f"the sample clock of a logger's receive times)")
+    return _recording(col, joint_names)
+
+
+def read_log(path, joint_names, clock="auto"):
+    """(Recording on the log's sample clock, Clock): a recording CSV read as a measurement
+    (codegen.logs.clock): a logger's receive-time stamps rebuilt on the robot's fixed tick and its
+    repeated rows dropped, a robot-time column ``t_robot`` used when the log has one, the stamps
+    kept for a sampler that really jitters.
+
+    Parameters
+    ----------
+    path : path-like
+    joint_names : list of str
+        As ``read_csv``.
+    clock : str
+        "auto" (default), "stamps", "ticks" or "ticks=PERIOD" (s) (``codegen.logs.clock.parse_mode``).
+
+    Raises
+    ------
+    RecordingError
+        As ``read_csv``, and stamps that go back (or, as sample times, repeat).
+    """
+    from . import clock as clocks
+    mode, period = clocks.parse_mode(clock)
+    path, col = _columns(path, joint_names)
+    t = col["t"]
+    others = [col[h] for h in col if h not in ("t", clocks.ROBOT_TIME) and not h.startswith("q_")]
+    Q = np.column_stack([col[f"q_{j}"] for j in joint_names])
+    try:
+        c = clocks.rebuild(t, Q, np.column_stack(others) if others else None, mode=mode, period=period,
+                           t_robot=col.get(clocks.ROBOT_TIME))
+    except ValueError as e:
+        raise RecordingError(f"{path}: {e}") from None
+    return _recording(col, joint_names, c.kept, c.t), c

@@ -59,8 +59,11 @@ def reference_of(rec, cutoff=smoothing.DEFAULT_CUTOFF):
     Parameters
     ----------
     rec : codegen.logs.recording.Recording
-    cutoff : float
-        Cut-off of the zero-phase reference (Hz), used when ``rec.qd`` is None.
+        On its sample clock (codegen.logs.clock).
+    cutoff : float or (n,) array
+        Cut-off of the zero-phase reference (Hz), one for all joints or one per joint (e.g. each
+        joint's measured motion band, codegen.logs.noise), used when ``rec.qd`` is None; kept
+        below 0.45 / sqrt 2 of the sample rate and above 8 / the log's span.
 
     Returns
     -------
@@ -69,13 +72,23 @@ def reference_of(rec, cutoff=smoothing.DEFAULT_CUTOFF):
     if rec.qd is not None:
         return Reference(rec.qd, np.ones(len(rec.t), bool), None, None,
                          "the true velocity (qd_<joint> columns)")
-    qd, spread, valid = smoothing.reference_velocity(rec.t, rec.q, cutoff)
+    span = rec.t[-1] - rec.t[0]
+    cuts = np.broadcast_to(np.asarray(cutoff, dtype=float), (rec.n,)).copy()
+    cuts = np.clip(cuts, 8.0 / span, 0.45 / np.sqrt(2) / rec.dt)
+    qd = np.empty_like(rec.q)
+    spread = np.empty_like(rec.q)
+    valid = np.ones(len(rec.t), bool)
+    for c in np.unique(cuts):
+        j = cuts == c
+        qd[:, j], spread[:, j], v = smoothing.reference_velocity(rec.t, rec.q[:, j], float(c))
+        valid &= v
     if not valid.any():
-        raise ValueError(f"rec: {rec.t[-1] - rec.t[0]:g} s is too short for the zero-phase reference "
-                         f"at {cutoff:g} Hz (it drops {2 / cutoff:g} s at each end)")
-    lo, hi = cutoff / np.sqrt(2), min(cutoff * np.sqrt(2), 0.45 / rec.dt)
-    label = (f"zero-phase Butterworth (order {smoothing.ORDER}, forward and backward) at {cutoff:g} Hz of "
-             f"q resampled at the median step (no qd_<joint> columns); uncertainty: RMS of "
-             f"|qd({lo:.3g} Hz) - qd({hi:.3g} Hz)|; measured on t in [{rec.t[valid][0]:.6g}, "
+        raise ValueError(f"rec: {span:g} s is too short for the zero-phase reference at {cuts.min():g} Hz "
+                         f"(it drops {2 / cuts.min():g} s at each end)")
+    at = (f"{cuts[0]:g} Hz" if np.all(cuts == cuts[0]) else
+          f"{', '.join(f'{c:.3g}' for c in cuts)} Hz per joint")
+    label = (f"zero-phase Butterworth (order {smoothing.ORDER}, forward and backward) at {at} of q "
+             f"resampled at the median step (no qd_<joint> columns); uncertainty: RMS of "
+             f"|qd(fc / sqrt 2) - qd(fc sqrt 2)|; measured on t in [{rec.t[valid][0]:.6g}, "
              f"{rec.t[valid][-1]:.6g}] s")
-    return Reference(qd, valid, spread, float(cutoff), label)
+    return Reference(qd, valid, spread, float(np.median(cuts)), label)

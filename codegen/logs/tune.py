@@ -157,32 +157,49 @@ class Search:
     tried: list
 
 
-def search(score, s0, lo=None, hi=None, grid=GRID, golden=GOLDEN):
+def search(score, s0, lo=None, hi=None, grid=GRID, golden=GOLDEN, extend=None):
     """Minimise ``score(s)`` over s > 0 in log(s): ``grid`` log-spaced candidates over [lo, hi]
-    (default s0 / RANGE .. s0 * RANGE), then ``golden`` golden-section steps in the bracket
-    around the best (a score that is not finite counts as worse than any finite one).
+    (default s0 / RANGE .. s0 * RANGE); while the best is at an end of the range, the range is
+    extended past it by the grid's step (at most ``extend`` times, default ``grid``, and never
+    past a given ``lo``/``hi``); then ``golden`` golden-section steps in the bracket around the
+    best (a score that is not finite counts as worse than any finite one).
 
     Returns
     -------
     Search
     """
+    fixed = (lo is not None, hi is not None)
     lo = s0 / RANGE if lo is None else lo
     hi = s0 * RANGE if hi is None else hi
     tried = {}
 
     def f(s):
+        s = float(s)
         if s not in tried:
             v = score(s)
             tried[s] = v if math.isfinite(v) else math.inf
         return tried[s]
 
-    xs = np.exp(np.linspace(math.log(lo), math.log(hi), grid))
-    vals = [f(float(x)) for x in xs]
+    xs = list(np.exp(np.linspace(math.log(lo), math.log(hi), grid)))
+    step = (math.log(hi) - math.log(lo)) / (grid - 1)
+    vals = [f(x) for x in xs]
+    for _ in range(grid if extend is None else extend):
+        k = int(np.argmin(vals))
+        if not math.isfinite(vals[k]):
+            break
+        if k == len(xs) - 1 and not fixed[1] and math.isfinite(vals[-1]):
+            xs.append(xs[-1] * math.exp(step))
+            vals.append(f(xs[-1]))
+        elif k == 0 and not fixed[0]:
+            xs.insert(0, xs[0] / math.exp(step))
+            vals.insert(0, f(xs[0]))
+        else:
+            break
     k = int(np.argmin(vals))
     if not math.isfinite(vals[k]):
         return Search(float(s0), math.inf, sorted(tried.items()))
     a = math.log(xs[max(k - 1, 0)])
-    b = math.log(xs[min(k + 1, grid - 1)])
+    b = math.log(xs[min(k + 1, len(xs) - 1)])
     g = (math.sqrt(5) - 1) / 2
     c, d = b - g * (b - a), a + g * (b - a)
     for _ in range(golden):
@@ -244,3 +261,103 @@ class Tuned:
         return (f"{self.name}: {par}  (forward-validation error {math.sqrt(self.score):.3g} rad/s, "
                 f"estimated RMS error {self.rms:.3g} rad/s; {len(self.tried)} runs)"
                 + (f"; {self.note}" if self.note else ""))
+
+
+def bandwidth(family, p_names):
+    """{parameter: exponent} of the family's bandwidth scale (its module's ``TUNE``: a dict, or a
+    function of the parameter names), only those among ``p_names``; {} when it declares none."""
+    import importlib
+    try:
+        module = importlib.import_module(f"codegen.families.observers.{family}")
+    except ImportError:
+        return {}
+    tune = getattr(module, "TUNE", None)
+    tune = tune(list(p_names)) if callable(tune) else dict(tune or {})
+    return {k: float(e) for k, e in tune.items() if k in p_names}
+
+
+def start_of_steady(spec, p, t):
+    """The first time (s) the tuning scores: after twice the family's start-up phase
+    (``t_switch``, when it has one) and after the first 5 % of the log."""
+    names = list(spec.p_names)
+    start = 2.0 * float(p[names.index("t_switch")]) if "t_switch" in names else 0.0
+    return float(t[0] + max(start, 0.05 * (t[-1] - t[0])))
+
+
+def _with_params(obs, p):
+    """Set ``p`` on a freshly reset observer: the C's set_params without the stability check
+    (a candidate; the chosen one is checked), or the reference's own setter."""
+    if hasattr(obs, "c_set_params"):
+        obs.c_set_params(p)
+    else:
+        obs.params = p
+
+
+def run_with(obs, p, Y, U, t, limit):
+    """``run_over`` with the parameters ``p`` set after every reset; NaN estimates when the
+    observer fails (a non-finite state: a candidate beyond its stable range)."""
+    cuts = segments(t, limit)
+    out = np.full((len(Y), obs.nest), np.nan)
+    try:
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            obs.reset(Y[a])
+            _with_params(obs, p)
+            out[a:b] = obs.run(Y[a:b], U[a:b], t=t[a:b])
+    except (ArithmeticError, ValueError, RuntimeError):
+        out[:] = np.nan
+    return out
+
+
+def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None):
+    """The bandwidth of an observer chosen on the log (module docstring).
+
+    Parameters
+    ----------
+    obs : compiled observer or reference (reset, run, c_set_params or params, check_params)
+    spec : codegen.core.spec.ObserverSpec
+        Its spec (names, default parameters).
+    family : str
+    Y, U : (N, ny), (N, nu) arrays
+        The log's measurements and inputs; ``t`` (N,) its clock (s).
+    val : Validation
+    limit : float
+        Longest interval an observer crosses without a reset (s).
+    slots : list of int
+        The estimate's velocity slots.
+    progress : callable, optional
+        Called with each candidate's text.
+
+    Returns
+    -------
+    (Tuned or None, p (np,)): None and the designed parameters when the family declares no
+    bandwidth
+    """
+    p0 = np.array(spec.p_default, dtype=float)
+    tune = bandwidth(family, spec.p_names)
+    if not tune:
+        return None, p0
+    t_from = start_of_steady(spec, p0, t)
+
+    def score(s):
+        p = scaled(spec.p_names, p0, tune, s)
+        est = run_with(obs, p, Y, U, t, limit)
+        if progress:
+            progress(f"{family} x {s:.3g}")
+        return val.score(est[:, slots], t_from)
+
+    found = search(score, 1.0)
+    # the best candidate the stability check accepts (a candidate ran unchecked)
+    note = ""
+    for s, J in sorted(found.tried, key=lambda item: item[1]):
+        if not math.isfinite(J):
+            break
+        p = scaled(spec.p_names, p0, tune, s)
+        try:
+            obs.check_params(p)
+        except ValueError as e:
+            note = f"x {s:.3g} refused by the stability check ({str(e)[:80]}...)"
+            continue
+        est = run_with(obs, p, Y, U, t, limit)
+        params = {k: float(p[spec.p_names.index(k)]) for k in tune}
+        return Tuned(family, params, float(s), J, val.rms(est[:, slots], t_from), found.tried, note), p
+    return Tuned(family, {}, 1.0, math.inf, math.inf, found.tried, "no candidate ran finite and stable"), p0

@@ -42,6 +42,7 @@ from ...core.spec import ObserverSpec, split_flow
 from . import _bound
 from ._design import design_discretization, stable_report
 
+TUNE = {"omega": 1}       # the bandwidth a log tunes (codegen.logs.tune)
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed000_2r"}]
 

@@ -50,6 +50,7 @@ from ...core.options import InputRanges, VariantOptions
 from ...core.spec import ObserverSpec, split_flow
 from ._design import design_discretization, stable_report
 
+TUNE = {"omega": 1}       # the steady bandwidth a log tunes (codegen.logs.tune)
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed000_2r"},
             {"robot": "seed000_2r", "design": {"torque_uncertainty": [0.5, 0.2], "coulomb": [1.0, 0.5],

@@ -26,6 +26,7 @@ from ...core.spec import ObserverSpec, split_flow
 from . import _bound
 from ._design import check_design, design_discretization, stable_report
 
+TUNE = {"kd": 1, "kp": 2}  # the bandwidth a log tunes (codegen.logs.tune): kd ~ s, kp ~ s^2
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed000_2r"}]
 

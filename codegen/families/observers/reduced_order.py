@@ -18,6 +18,7 @@ from ...core.spec import ObserverSpec, split_model
 from . import _bound
 from ._design import check_design, design_discretization, stable_report
 
+TUNE = {"k0": 1}          # the bandwidth a log tunes (codegen.logs.tune): k0 ~ s
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed000_2r"}]
 

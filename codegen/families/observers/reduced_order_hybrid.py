@@ -30,6 +30,7 @@ from . import _bound
 from ._design import check_design, design_discretization, stable_report
 from .reduced_order import flow
 
+TUNE = lambda names: {k: 1 for k in names if k.startswith("k_")}  # the ladder of gains ~ s (codegen.logs.tune)  # noqa: E731
 # where the cross-checks build this family (targets-file entries; tests/families/test_coverage.py)
 EXAMPLES = [{"robot": "seed000_2r"}]
 
