@@ -417,8 +417,6 @@ def cmd_compare(args):
     try:
         with stage_lines():              # a line per stage on stderr (the MuJoCo run), then a bar
             rec, robot, title, clock = _compare_source(args)
-            if clock is not None:
-                print(clock.describe(), file=sys.stderr)
             families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
             bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
             sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization,

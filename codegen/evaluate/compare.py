@@ -1,24 +1,30 @@
 """Observers against the baselines a user would otherwise write, on one recorded run.
 
-    cmp = compare(recording, robot)        # observers compiled (loop in C), baselines tuned
-    print(cmp.table())                     # ends with the verdict line
-    cmp.figures(out_dir)
+    rec, clock = codegen.logs.recording.read_log("log.csv", robot.joint_names)   # on its sample clock
+    cmp = compare(rec, robot, clock=clock)  # observers compiled (loop in C), everything tuned on the log
+    print(cmp.table())                      # ends with the verdict line
+    cmp.figures(out_dir); cmp.write_estimates(out_dir / "estimates.csv", clock)
 
-Every observer family in ``families`` is built with its designed gains (``design`` is passed to
-``observers.build``), compiled at the recording's (median) sample time with the default
-discretisation and run over the samples (``run_observer``). Every baseline of
-``codegen.evaluate.baselines`` is run once per value of its own parameter grid
-(``baselines.GRIDS``) on the same samples, with the log's own time stamps, and the value with the
-lowest RMS after ``t_ss`` is kept: the baselines are tuned, the observers are not. The robot's own
-velocity signal (``qdm_<joint>`` columns), when logged, is one more row.
+The log speaks for itself: its sample clock is rebuilt (codegen.logs.clock), its noise measured
+(codegen.logs.noise), and, with ``tune="log"`` (the default), every family of ``families`` is
+designed for the measured sensor and its bandwidth chosen on the log without truth, by forward
+validation (codegen.logs.tune): each estimate is scored against the velocity the samples after
+it imply, which ranks estimators as their true error does. kalman_model is tried without and with
+the model (the torque uncertainty measured on the log, unless stated) and the better kept. Every
+baseline of ``codegen.evaluate.baselines`` has its own parameter chosen the same way. The
+observers are compiled at the log's (median) sample time with the default discretisation and run
+over the samples at their times (``run_observer``). The robot's own velocity signal
+(``qdm_<joint>`` columns), when logged, is one more row. ``tune="none"`` keeps the designed gains
+and tunes the baselines against the reference, as before the log was read as a measurement.
 
 What the estimates are measured against (``Reference``): the true velocity when the recording
 has it (a simulation); otherwise, as on every real log, the offline zero-phase reference of
-``codegen.logs.smoothing.reference_velocity`` (4th-order Butterworth forward and backward at
-``ref_cutoff`` Hz on a uniform resampling), on the samples away from its edges. Its uncertainty u
-(RMS of its spread between cutoff/sqrt 2 and cutoff sqrt 2) is reported; an estimate whose RMS
-error against it is at most u cannot be ranked. The baselines are tuned on the same reference.
-Measures are those of ``codegen.evaluate.metrics``.
+``codegen.logs.reference`` (4th-order Butterworth forward and backward at each joint's measured
+motion band, or ``ref_cutoff`` Hz, on a uniform resampling of the clock), on the samples away
+from its edges. Its uncertainty u (RMS of its spread between cutoff/sqrt 2 and cutoff sqrt 2) is
+reported; an estimate whose RMS error against it is at most u cannot be ranked. Each row also
+carries the forward validation's own estimate of its RMS error (``validation_rms``), which needs
+no reference. Measures are those of ``codegen.evaluate.metrics``.
 """
 from __future__ import annotations
 
@@ -30,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from . import baselines, metrics
-from ..logs import smoothing, tune as tuning
+from ..logs import tune as tuning
 from ..logs.reference import Reference, reference_of
 from ..core.estimator import velocity_slots
 from ..verify.measure import saturated_samples
@@ -387,7 +393,7 @@ def dt_limit(dt):
     return SPLIT_MAX * 2.0 * dt
 
 
-def tune(name, Y, t, truth, t_ss, dt, grid=None, valid=None):
+def tune_on_reference(name, Y, t, truth, t_ss, dt, grid=None, valid=None):
     """The baseline ``name`` run over each value of its ``grid`` (None: baselines.GRIDS) that it
     accepts at this dt; returns (params, estimate (N, n)) of the value with the lowest RMS of
     est - ``truth`` (N, n) after t_ss (s) (the only value for an untuned baseline). Tuned against
@@ -435,15 +441,16 @@ def baseline_options(name, noise):
     return {"r": float(np.mean(noise.sigma ** 2))} if name == "kalman" and noise is not None else {}
 
 
-def tune_baseline(name, Y, t, dt, val, noise=None):
+def tune_baseline(name, Y, t, dt, val, noise=None, t_from=None):
     """(params, estimate (N, n), Tuned or None): the baseline ``name`` with its tuned parameter
     chosen on the log without truth (codegen.logs.tune: forward validation ``val``), searched in
     log scale over the span of its grid (baselines.GRIDS); restarted after intervals longer than
-    ``dt_limit(dt)``. ``noise``: the log's measured noise (the Kalman filter's r)."""
+    ``dt_limit(dt)``. ``noise``: the log's measured noise (the Kalman filter's r); rows scored from
+    ``t_from`` (s; default after the first 5 % of the log)."""
     cls = baselines.BASELINES[name]
     extra = baseline_options(name, noise)
     limit = dt_limit(dt)
-    t_from = float(t[0] + 0.05 * (t[-1] - t[0]))
+    t_from = float(t[0] + 0.05 * (t[-1] - t[0])) if t_from is None else t_from
 
     def run(value):
         b = cls(Y.shape[1], dt, **extra) if value is None else cls(Y.shape[1], dt, **{cls.tuned: value}, **extra)
@@ -519,14 +526,14 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
         tuned, p = (None, np.array(spec.p_default, dtype=float))
         if tune_on and not given:
             tuned, p = tuning.tune_observer(obs, spec, fam, Y, U, t, val, obs.dt_limit, slots,
-                                            progress=progress)
+                                            progress=progress, t_from=t_ss)
         try:
             full, resets = _run_checked(obs, p, Y, U, t)
             if resets:
                 notes.append(f"reset after {resets} interval(s) longer than {obs.dt_limit:.3g} s")
         except (ObserverError, FloatingPointError) as e:
             full, notes = np.full((len(Y), spec.nest), np.nan), notes + [str(e)]
-        J = tuned.score if tuned is not None else val.score(full[:, slots])
+        J = tuned.score if tuned is not None else val.score(full[:, slots], t_ss)
         candidates.append((J, spec, p, full, slots, tuned, [designed_for] + notes))
     J, spec, p, full, slots, tuned, notes = min(candidates, key=lambda c: c[0] if np.isfinite(c[0]) else np.inf)
     if len(candidates) > 1:
@@ -628,7 +635,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     design = dict(design or {})
     if "quantization" not in design and "noise" not in design:
         design.update(noise.design_inputs(torque=False))     # the sensor the log has
-    ref = reference_of(rec, noise.band if ref_cutoff is None else ref_cutoff)
+    ref = reference_of(rec, noise_of.reference_cutoff(noise) if ref_cutoff is None else ref_cutoff)
     val = tuning.validation(t, Y, noise.sigma, psd=noise_of.motion_psd(noise, noise.spectrum))
     entries = []
     bar = tqdm(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
@@ -643,9 +650,9 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         for name in names:
             bar.set_postfix_str(name)
             if tune == "log":
-                params, est, tuned = tune_baseline(name, Y, t, dt, val, noise)
+                params, est, tuned = tune_baseline(name, Y, t, dt, val, noise, t_ss)
             else:
-                (params, est), tuned = tune(name, Y, t, ref.qd, t_ss, dt, valid=ref.valid), None
+                (params, est), tuned = tune_on_reference(name, Y, t, ref.qd, t_ss, dt, valid=ref.valid), None
             m = measure(ref, t, est, t_ss, level)
             m["validation_rms"] = val.rms(est, t_ss)
             entries.append(Entry(name, "baseline", params, est, m,

@@ -52,7 +52,7 @@ class Reference:
         return float(np.sqrt(np.mean(np.sum(s * s, axis=1))))
 
 
-def reference_of(rec, cutoff=smoothing.DEFAULT_CUTOFF):
+def reference_of(rec, cutoff=None):
     """The Reference of a recording: its true velocity when it has one, else the zero-phase
     reference of ``smoothing.reference_velocity`` at ``cutoff`` Hz.
 
@@ -60,10 +60,11 @@ def reference_of(rec, cutoff=smoothing.DEFAULT_CUTOFF):
     ----------
     rec : codegen.logs.recording.Recording
         On its sample clock (codegen.logs.clock).
-    cutoff : float or (n,) array
-        Cut-off of the zero-phase reference (Hz), one for all joints or one per joint (e.g. each
-        joint's measured motion band, codegen.logs.noise), used when ``rec.qd`` is None; kept
-        below 0.45 / sqrt 2 of the sample rate and above 8 / the log's span.
+    cutoff : float or (n,) array, optional
+        Cut-off of the zero-phase reference (Hz), one for all joints or one per joint, used when
+        ``rec.qd`` is None; default each joint's cut-off that balances the motion it loses against
+        the noise it passes, on the spectrum measured on the log (codegen.logs.noise.reference_cutoff); kept below 0.45 / sqrt 2 of the sample
+        rate and above 8 / the log's span.
 
     Returns
     -------
@@ -73,6 +74,9 @@ def reference_of(rec, cutoff=smoothing.DEFAULT_CUTOFF):
         return Reference(rec.qd, np.ones(len(rec.t), bool), None, None,
                          "the true velocity (qd_<joint> columns)")
     span = rec.t[-1] - rec.t[0]
+    if cutoff is None:
+        from .noise import measure, reference_cutoff
+        cutoff = reference_cutoff(measure(rec.t, rec.q))
     cuts = np.broadcast_to(np.asarray(cutoff, dtype=float), (rec.n,)).copy()
     cuts = np.clip(cuts, 8.0 / span, 0.45 / np.sqrt(2) / rec.dt)
     qd = np.empty_like(rec.q)

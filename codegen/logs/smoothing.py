@@ -23,7 +23,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-DEFAULT_CUTOFF = 10.0          # Hz: above a manipulator's task motion (<= 2-3 Hz), below encoder noise
 ORDER = 4
 
 
@@ -65,7 +64,7 @@ def _check(t, q):
     return t, q
 
 
-def derivatives(t, q, cutoff=DEFAULT_CUTOFF):
+def derivatives(t, q, cutoff):
     """Zero-phase smoothed q and its first two derivatives at the time stamps ``t``.
 
     Parameters
@@ -105,7 +104,7 @@ def derivatives(t, q, cutoff=DEFAULT_CUTOFF):
     return Derivatives(t=t, q=back(Qs), qd=back(V), qdd=back(A), cutoff=cutoff, valid=valid)
 
 
-def reference_velocity(t, q, cutoff=DEFAULT_CUTOFF):
+def reference_velocity(t, q, cutoff):
     """(qd, spread, valid): the offline reference velocity (N, n) at ``cutoff`` Hz, its
     uncertainty (N, n) = |qd(cutoff/sqrt 2) - qd(cutoff sqrt 2)| (rad/s), and the samples away
     from the filter's edges (N,) bool. ``t`` (N,) s and ``q`` (N, n) as in ``derivatives``."""

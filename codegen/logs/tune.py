@@ -308,7 +308,7 @@ def run_with(obs, p, Y, U, t, limit):
     return out
 
 
-def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None):
+def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None, t_from=None):
     """The bandwidth of an observer chosen on the log (module docstring).
 
     Parameters
@@ -326,6 +326,9 @@ def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None):
         The estimate's velocity slots.
     progress : callable, optional
         Called with each candidate's text.
+    t_from : float, optional
+        Rows scored from this time (s) on; default after the family's start-up
+        (``start_of_steady``).
 
     Returns
     -------
@@ -336,7 +339,7 @@ def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None):
     tune = bandwidth(family, spec.p_names)
     if not tune:
         return None, p0
-    t_from = start_of_steady(spec, p0, t)
+    t_from = max(start_of_steady(spec, p0, t), t_from if t_from is not None else -math.inf)
 
     def score(s):
         p = scaled(spec.p_names, p0, tune, s)

@@ -220,7 +220,7 @@ def test_beats_the_tuned_kalman_filter_on_a_real_ur5():
     import xml.etree.ElementTree as ET
 
     from codegen import compile_observer
-    from codegen.evaluate.compare import tune
+    from codegen.evaluate.compare import tune_on_reference as tune
     from codegen.evaluate.scenarios.mujoco_real import robot_model
     from codegen.evaluate.sim.real_plant import RealPlant, perturbed_urdf, point_to_point
     robot = robot_model("ur5")

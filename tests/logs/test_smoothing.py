@@ -31,7 +31,7 @@ def test_velocity_and_acceleration_of_a_jittered_quantised_sine():
 
 def test_reference_spread_bounds_its_error():
     t, q, qd, _ = _log(seed=1)
-    ref, spread, valid = reference_velocity(t, q)
+    ref, spread, valid = reference_velocity(t, q, 10.0)
     err = np.abs(ref - qd)[valid]
     assert np.median(spread[valid]) > 0
     # the spread between the two cut-offs is of the size of the reference's own error

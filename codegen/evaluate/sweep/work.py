@@ -138,7 +138,7 @@ def run_cell(cell, rec, target, t_ss, level):
     dict
         The metrics (rms, max, t_conv, gain, lag, diverged), params run (dict) and a note.
     """
-    from ..compare import tune
+    from ..compare import tune_on_reference as tune
     from ...core.estimator import full_estimate, velocity_estimate
     from ...pipeline.load import ObserverError
     Y, U, truth = rec.q, rec.tau, rec.qd
