@@ -1,5 +1,5 @@
 """observer-codegen (python -m codegen): list | generate | build | check | simulate | compare |
-sweep | bench | sanitize | cortex_m | excite | identify.
+sweep | bench | sanitize | cortex_m | excite | identify | describe | design.
 
 `generate`, `build`, `check` and `embedded` take the same targets: catalog robots or a URDF with
 options, a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the
@@ -138,11 +138,32 @@ def _targets(args):
         if not args.config and not path.exists():
             raise TargetError(f"no targets: name a catalog robot (python -m codegen list), --urdf PATH "
                               f"or -c FILE (no {TARGETS_FILE} in {Path.cwd()})")
-        targets = [(_override(t, disc), out) for t, out in load_targets(path)]
+        targets = [(_override(t, disc), out) for t, out in load_targets(path, tuner=tune_target)]
     if args.out:
         targets = [(t, Path(args.out).resolve()) for t, _ in targets]
     check_unique(targets)
     return targets
+
+
+def tune_target(target, log):
+    """``target`` with its sensor measured on the recording ``log`` and its gains tuned on it
+    without truth (a targets file's ``tune = "log.csv"``; codegen.evaluate.compare.design_on_log):
+    the measured design inputs under the target's own ``build``, the tuned parameters under its
+    own ``params`` (what the file states wins)."""
+    from models import from_source
+
+    from .evaluate.compare import design_on_log
+    from .logs.recording import read_log
+    robot = from_source(target.robot)
+    rec, clock = read_log(log, robot.joint_names)
+    entry, _, _ = design_on_log(rec, robot, target.family, design=dict(target.build), clock=clock)
+    tuned = entry.tuned.params if entry.tuned is not None else {}
+    print(f"{target.prefix}: tuned on {Path(log).name}: "
+          + (", ".join(f"{k} = {v:.4g}" for k, v in tuned.items()) or "its designed gains (no bandwidth)")
+          + (f"; variant {entry.variant}" if entry.variant else ""), file=sys.stderr)
+    build = {**(entry.build or {}), **target.build}
+    return replace(target, build=build, variant=entry.variant if "torque_uncertainty" in build else target.variant,
+                   params={**tuned, **target.params})
 
 
 def _override(target, disc):
@@ -514,10 +535,12 @@ def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
     joint (codegen.logs.identify); writes the identified URDF, the friction side file and the
     report to --out. ``args``: the parsed namespace; returns 0."""
-    from .logs.recording import read_csv
+    from .logs.recording import read_log
     from .logs.identify import identify
     robot = _robot_of(args)
-    ident = identify(read_csv(args.log, robot.joint_names), robot, cutoff=args.cutoff,
+    rec, clock = read_log(args.log, robot.joint_names, args.clock)
+    print(clock.describe())
+    ident = identify(rec, robot, cutoff=args.cutoff,
                      test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
                      max_rel_std=args.max_rel_std, v_stick=args.v_stick, progress=True)
     paths = ident.write(Path(args.out or work_dir() / "identify"))
@@ -528,9 +551,96 @@ def cmd_identify(args):
     return 0
 
 
+def _log_joints(path):
+    """The joints of a recording CSV's q_<joint> columns (its header), in file order."""
+    from .core.columns import read_columns
+    header, _ = read_columns(path)
+    joints = [h[2:] for h in header if h.startswith("q_")]
+    if not joints:
+        raise ValueError(f"{path}: no q_<joint> columns (expected t, q_<joint>, tau_<joint>)")
+    return joints
+
+
+def cmd_describe(args):
+    """`describe`: what a log is, measured from it: its clock (codegen.logs.clock), its position
+    resolution and noise, its motion's band and, with a robot, the torque against the model
+    (codegen.logs.noise). ``args``: the parsed namespace; returns 0."""
+    from .logs import noise as noise_of
+    from .logs.recording import read_log
+    robot = _robot_of(args) if (args.robot or args.urdf) else None
+    joints = list(robot.joint_names) if robot is not None else _log_joints(args.log)
+    rec, clock = read_log(args.log, joints, args.clock)
+    nz = noise_of.measure(rec.t, rec.q, rec.tau if robot is not None else None, robot)
+    print(clock.describe())
+    print(f"recording: {rec.describe()}")
+    print(f"joints: {', '.join(joints)}")
+    for line in nz.lines():
+        print(line)
+    print("zero-phase reference cut-off per joint (Hz): "
+          + ", ".join(f"{c:.3g}" for c in noise_of.reference_cutoff(nz)))
+    if args.json:
+        Path(args.json).write_text(json.dumps({"clock": clock.to_dict(), "recording": rec.describe(),
+                                               "noise": nz.to_dict()}, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    return 0
+
+
+def cmd_design(args):
+    """`design LOG.csv --robot R --family F`: the family designed for the log's measured sensor and
+    its gains tuned on the log without truth (codegen.evaluate.compare.design_on_log); prints the
+    measured quantities, the tuned gains, the criterion and the lines that build the observer with
+    them. ``args``: the parsed namespace; returns 0."""
+    from tqdm import tqdm
+
+    from .evaluate.compare import design_inputs, design_on_log
+    from .evaluate.sim.blocks import stage_lines
+    from .logs.recording import read_log
+    robot = _robot_of(args)
+    rec, clock = read_log(args.log, robot.joint_names, args.clock)
+    print(clock.describe())
+    print(f"recording: {rec.describe()}")
+    sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization, args.noise)
+    design = design_inputs(*sensor, 0.0, _torque_uncertainty(args.torque_uncertainty, robot))
+    with stage_lines(), tqdm(desc=f"design {args.family}", unit="run", file=sys.stderr, leave=False) as bar:
+        def step(text):
+            bar.set_postfix_str(text)
+            bar.update()
+        entry, nz, val = design_on_log(rec, robot, args.family, design=design, clock=clock, progress=step)
+    for line in nz.lines():
+        print(line)
+    tuned = entry.tuned
+    print(f"forward validation: each estimate against the velocity the next {val.window} samples imply")
+    if tuned is None:
+        print(f"{args.family}: declares no bandwidth to tune; its designed gains")
+    else:
+        print(tuned.line())
+    if entry.variant:
+        print(f"variant: {entry.variant}")
+    print("parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in entry.params.items() if not k.startswith(("pole_", "cq", "ca"))))
+    if entry.note:
+        print(f"note: {entry.note}")
+    design_args = " ".join(f"--design {k}={json.dumps(v)}" for k, v in (entry.build or {}).items())
+    param_args = " ".join(f"--param {k}={v:.6g}" for k, v in (tuned.params if tuned else {}).items())
+    src = f"--urdf {args.urdf}" if args.urdf else args.robot
+    print(f"build it: python -m codegen build {src} --family {args.family.split(':')[0]} --dt {rec.dt:g} "
+          f"{design_args} {param_args}".rstrip())
+    print(f'or in a targets file: tune = "{args.log}" (this design, redone when the target is built)')
+    if args.json:
+        Path(args.json).write_text(json.dumps({
+            "clock": clock.to_dict(), "noise": nz.to_dict(), "family": args.family, "variant": entry.variant,
+            "build": entry.build, "params": entry.params,
+            "tuned": None if tuned is None else {"params": tuned.params, "scale": tuned.scale,
+                                                 "criterion": tuned.score, "rms_estimate": tuned.rms,
+                                                 "tried": tuned.tried},
+            "validation": {"window": val.window, "constant": val.constant}}, indent=2, default=float) + "\n")
+        print(f"wrote {args.json}")
+    return 0
+
+
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
             "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
-            "sanitize": cmd_sanitize, "embedded": cmd_embedded, "excite": cmd_excite, "identify": cmd_identify}
+            "sanitize": cmd_sanitize, "embedded": cmd_embedded, "excite": cmd_excite, "identify": cmd_identify,
+            "describe": cmd_describe, "design": cmd_design}
 
 
 # ------------------------------------------------------------------------------------ parser
@@ -674,12 +784,33 @@ def parser():
                         "edge-case CSVs, and a libFuzzer campaign of their step")
     sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
     sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
+    d = sub.add_parser("describe", parents=[debug], help="what a log is: its clock, resolution, noise, motion "
+                       "band and (with a robot) torque residual, measured from it")
+    d.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    d.add_argument("--robot", help="catalog robot (the torque against its model is measured too)")
+    d.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
+    d.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    _clock_option(d)
+    d.add_argument("--json", metavar="FILE", help="also write the figures to this file")
+    de = sub.add_parser("design", parents=[debug], help="a family's gains tuned on a log without truth")
+    de.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    de.add_argument("--robot", help="catalog robot")
+    de.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
+    de.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    de.add_argument("--family", required=True, help="observer family (see `list`)")
+    _clock_option(de)
+    de.add_argument("--quantization", type=float, help="encoder step (rad; default: measured on the log)")
+    de.add_argument("--noise", type=float, help="position noise std (rad; default: measured on the log)")
+    de.add_argument("--torque-uncertainty", metavar="NM|FILE",
+                    help="the model's torque error (N m, or identify's report.json; default: measured on the log)")
+    de.add_argument("--json", metavar="FILE", help="also write the design to this file")
     from .logs import identify as idf
     for name, text in (("excite", "an excitation trajectory (CSV) to log for `identify`"),
                        ("identify", "inertial parameters and friction from a log of q and tau")):
         x = sub.add_parser(name, parents=[debug], help=text)
         if name == "identify":
             x.add_argument("log", help="CSV with t, q_<joint>, tau_<joint> (jittered stamps allowed)")
+            _clock_option(x)
         x.add_argument("--robot", help="catalog robot (ur5, panda)")
         x.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
         x.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")

@@ -67,6 +67,7 @@ class Entry:
     note: str = ""
     variant: str | None = None
     tuned: object = None                  # codegen.logs.tune.Tuned, when tuned on the log
+    build: dict | None = None             # an observer's build arguments (what rebuilds its spec)
 
 
 @dataclass
@@ -490,18 +491,18 @@ def _build(fam, robot, inputs, item):
 
 
 def _variants(fam, robot, inputs, item, noise):
-    """The specs a family is tried as: its build with ``inputs``; and, when it has a model and a
+    """The (inputs, spec, note) a family is tried as: its build with ``inputs``; and, when it has a model and a
     model-free variant (its build takes ``variant``), no torque uncertainty is stated and the log
     measured one, also the model variant with the measured torque uncertainty (the better of the
     two on the log is kept)."""
     import importlib
     import inspect
-    out = [(item, *_build(fam, robot, inputs, item))]
+    out = [(inputs, *_build(fam, robot, inputs, item))]
     takes = inspect.signature(importlib.import_module(f"codegen.families.observers.{fam}").build).parameters
     if ("variant" in takes and "torque_uncertainty" in takes and "torque_uncertainty" not in inputs
             and noise is not None and noise.torque_uncertainty is not None):
         with_model = {**inputs, "torque_uncertainty": [float(v) for v in noise.torque_uncertainty]}
-        out.append((item, *_build(fam, robot, with_model, item)))
+        out.append((with_model, *_build(fam, robot, with_model, item)))
     return out
 
 
@@ -514,7 +515,7 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
     t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
     inputs = {**design_for(fam, design), **given}
     candidates = []
-    for name, spec, designed_for in _variants(fam, robot, inputs, item, noise if tune_on else None):
+    for used, spec, designed_for in _variants(fam, robot, inputs, item, noise if tune_on else None):
         slots = _link_velocity_slots(spec, robot)
         if slots is None or spec.ny != robot.n:
             raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
@@ -534,8 +535,8 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
         except (ObserverError, FloatingPointError) as e:
             full, notes = np.full((len(Y), spec.nest), np.nan), notes + [str(e)]
         J = tuned.score if tuned is not None else val.score(full[:, slots], t_ss)
-        candidates.append((J, spec, p, full, slots, tuned, [designed_for] + notes))
-    J, spec, p, full, slots, tuned, notes = min(candidates, key=lambda c: c[0] if np.isfinite(c[0]) else np.inf)
+        candidates.append((J, spec, p, full, slots, tuned, [designed_for] + notes, used))
+    J, spec, p, full, slots, tuned, notes, used = min(candidates, key=lambda c: c[0] if np.isfinite(c[0]) else np.inf)
     if len(candidates) > 1:
         other = [c for c in candidates if c[1] is not spec][0]
         notes.append(f"variant {spec.variant} (forward-validation error {math.sqrt(J):.3g} rad/s; "
@@ -548,7 +549,7 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
     params = {k: float(v) for k, v in zip(spec.p_names, p)}
     m = measure(ref, t, est, t_ss, level)
     m["validation_rms"] = val.rms(est, t_ss)
-    return Entry(item, "observer", params, est, m, note, variant=spec.variant, tuned=tuned)
+    return Entry(item, "observer", params, est, m, note, variant=spec.variant, tuned=tuned, build=used)
 
 
 def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level=1e-2,
@@ -670,6 +671,53 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     if clock is not None:
         info["clock"] = clock.describe()
     return Comparison(t=t, truth=ref.qd, entries=entries, t_ss=t_ss, level=level, title=title, info=info, ref=ref)
+
+
+def design_on_log(rec, robot, family, design=None, clock=None, noise=None, reference=False, stepping=None,
+                  t_from=None, progress=None):
+    """One family designed for the log's measured sensor and tuned on it without truth (what
+    `design LOG.csv --family F` prints, and a targets file's ``tune = "log.csv"``).
+
+    Parameters
+    ----------
+    rec : codegen.logs.recording.Recording
+        On its sample clock (``codegen.logs.recording.read_log``).
+    robot : models.RobotModel
+    family : str
+        An observer family, optionally with given gains (``parse_observer``; given gains are kept).
+    design : dict, optional
+        Design inputs; a sensor not stated is the measured one.
+    clock, noise : optional
+        The log's Clock and its measured Noise (default measured here).
+    reference, stepping : as ``compare``.
+    t_from : float, optional
+        Rows scored from this time (s); default after the family's start-up.
+    progress : callable, optional
+        Called with each candidate's text.
+
+    Returns
+    -------
+    (Entry, Noise, Validation)
+        The entry's ``params`` are the tuned runtime parameters, ``build`` the build arguments
+        they go with (the measured sensor, and kalman_model's torque uncertainty when its model
+        variant won), ``tuned`` the search (codegen.logs.tune.Tuned).
+    """
+    from ..logs import noise as noise_of
+    item, (fam, given) = family, parse_observer(family)
+    if noise is None:
+        noise = noise_of.measure(rec.t, rec.q, rec.tau, robot if not hasattr(robot, "state_names") else None)
+    design = dict(design or {})
+    if "quantization" not in design and "noise" not in design:
+        design.update(noise.design_inputs(torque=False))
+    val = tuning.validation(rec.t, rec.q, noise.sigma, psd=noise_of.motion_psd(noise, noise.spectrum))
+    if rec.qd is None:
+        ref = reference_of(rec, noise_of.reference_cutoff(noise))
+    else:
+        ref = reference_of(rec)
+    t0 = float(rec.t[0] + 0.05 * (rec.t[-1] - rec.t[0])) if t_from is None else t_from
+    entry = _observer_entry(item, fam, given, robot, rec, design, noise, val, True, reference, stepping, ref,
+                            t0, 1e-2, progress)
+    return entry, noise, val
 
 
 ELASTIC_FAMILIES = ("ciccarella_germani",)      # the default of an elastic robot: y = link q, u = tau

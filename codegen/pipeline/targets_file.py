@@ -20,6 +20,9 @@ One ``[[target]]`` table per generated observer; the CLI's options are the same 
     precision = "double"           # real type of the C
     name = "arm_cg_o2"             # symbol prefix and folder (default <robot>_<family>[_<variant>])
     out = "generated"              # parent folder, relative to this file (default ./generated)
+    # tune = "log.csv"             # a log of the robot (relative to this file): the sensor measured
+                                   #   on it and the gains tuned on it without truth (the command
+                                   #   line does it when it builds the target: `design LOG.csv`)
 
 Catalog robots are recorded as ``{"kind": "catalog", "name": ...}`` (resolved by
 ``models.from_source``), so a targets file and the Target in a metadata JSON name no
@@ -36,11 +39,11 @@ from pathlib import Path
 from ..core.target import AUTO, Discretization, Target
 
 KEYS = ("robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design", "params",
-        "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision", "name", "out")
+        "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision", "name", "out", "tune")
 DISCRETIZATION_KEYS = ("dt", "dt_min", "dt_max", "method", "hold", "substeps")
 # the TOML type of each key checked here (elastic, lock, design, params, J, K and substeps are
 # checked where they are read); a value of another type is refused, never converted
-STRING_KEYS = ("robot", "urdf", "family", "variant", "method", "hold", "precision", "name", "out")
+STRING_KEYS = ("robot", "urdf", "family", "variant", "method", "hold", "precision", "name", "out", "tune")
 NUMBER_KEYS = ("dt", "dt_min", "dt_max")
 DEFAULT_OUT = "generated"
 DEFAULT_FAMILY = "reduced_order"
@@ -158,7 +161,7 @@ def _numbers(value, what, where):
 
 
 # ------------------------------------------------------------------------------------ targets
-def make_target(entry, base=".", where=""):
+def make_target(entry, base=".", where="", tuner=None):
     """A checked Target and its output folder from one target's keys (``KEYS``).
 
     Parameters
@@ -166,9 +169,13 @@ def make_target(entry, base=".", where=""):
     entry : dict
         A ``[[target]]`` table of a targets file, or the CLI's options in the same keys.
     base : path
-        Folder of the targets file: relative ``urdf`` and ``out`` resolve against it.
+        Folder of the targets file: relative ``urdf``, ``out`` and ``tune`` resolve against it.
     where : str
         Prefix of error messages (file and target).
+    tuner : callable, optional
+        (Target, log path) -> Target with the build arguments and parameters tuned on the log
+        (the command line's: codegen.evaluate.compare.design_on_log); a ``tune`` key without
+        one is refused.
 
     Returns
     -------
@@ -209,6 +216,17 @@ def make_target(entry, base=".", where=""):
     except (TypeError, ValueError) as e:
         _fail(where, str(e))
     out = Path(base) / entry["out"] if "out" in entry else Path(DEFAULT_OUT)
+    if "tune" in entry:
+        log = (Path(base) / Path(entry["tune"]).expanduser()).resolve()
+        if not log.is_file():
+            _fail(where, f"tune: log not found: {log}")
+        if tuner is None:
+            _fail(where, "tune: a log's gains are tuned by the command line (python -m codegen build/generate "
+                  "-c FILE), or in Python by codegen.evaluate.compare.design_on_log")
+        try:
+            target = tuner(target, log)
+        except (TypeError, ValueError) as e:
+            _fail(where, f"tune {log.name}: {e}")
     return target, out.resolve()
 
 
@@ -247,13 +265,15 @@ def _flag(value, where):
     return value
 
 
-def load_targets(path):
+def load_targets(path, tuner=None):
     """The targets of a TOML targets file (module docstring), checked.
 
     Parameters
     ----------
     path : path
-        The file; relative ``urdf`` and ``out`` inside resolve against its folder.
+        The file; relative ``urdf``, ``out`` and ``tune`` inside resolve against its folder.
+    tuner : callable, optional
+        Resolves a ``tune`` key (``make_target``).
 
     Returns
     -------
@@ -280,7 +300,7 @@ def load_targets(path):
         if isinstance(entry, dict):                 # (make_target refuses anything else)
             label = entry.get("robot") or Path(str(entry.get("urdf", "?"))).name
             where += f" ({label} {entry.get('family', DEFAULT_FAMILY)})"
-        out.append(make_target(entry, base=path.parent, where=where))
+        out.append(make_target(entry, base=path.parent, where=where, tuner=tuner))
     check_unique(out)
     return out
 
