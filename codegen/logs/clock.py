@@ -74,7 +74,8 @@ class Clock:
     certain : float or None
         Fraction of the kept rows whose tick has posterior >= CERTAIN.
     delay : dict
-        Of the stamps behind the ticks (s): mean, std, max (rebuilt clock only).
+        Of the stamps behind the ticks (s): mean, std, max, and the period's standard error
+        ``period_std`` (the least-squares slope's: std / sqrt(sum (n - mean n)^2)) (rebuilt clock only).
     residual : dict
         RMS leave-one-out residual of q (rad, summed over joints) on the stamps and on the ticks.
     repeated : int
@@ -113,7 +114,8 @@ class Clock:
         if self.kind == "ticks":
             d = self.delay
             return (f"clock: receive-time stamps: {1e3 * d['std']:.2g} ms std (mean {1e3 * d['mean']:.2g}, max "
-                    f"{1e3 * d['max']:.2g} ms) behind a {1e3 * self.period:.6g} ms tick; {rep}clock rebuilt "
+                    f"{1e3 * d['max']:.2g} ms) behind a {1e3 * self.period:.4g} ms tick (+-{d['period_std'] / self.period:.1g} "
+                    f"relative); {rep}clock rebuilt "
                     f"on the tick (ticks certain on {100 * self.certain:.1f} % of the rows; q's leave-one-out "
                     f"residual {self.residual.get('stamps', float('nan')):.3g} rad on the stamps, "
                     f"{self.residual.get('ticks', float('nan')):.3g} on the ticks)")
@@ -329,7 +331,8 @@ def _period(s, Q, T0, span):
     every dt_j is within a quarter tick of a whole number of ticks, the ticks are known: the
     least-squares slope of the stamps on them, pooled over the runs, is T. Then, when the stamps' phase is coherent enough to tell (|mean_j exp(2 pi i s_j /
     T)| above 4 / sqrt(rows): the delays spread the phase, they do not move its peak), T is
-    refined to the coherence's peak, coarse to fine over growing parts of the log."""
+    refined to the coherence's peak, coarse to fine over growing parts of the log. Returns (T,
+    True when the coherence gave it: precise to its peak's width over the whole log)."""
     v, ok = _pair_slopes(s, Q, w=4 * _WINDOW, span=4 * span)     # wide: the stamps' jitter averages out
     vv = np.sum(v * v, axis=1)
     dt = np.sum(v * np.diff(Q, axis=0), axis=1) / np.where(vv > 0, vv, np.inf)
@@ -370,9 +373,9 @@ def _period(s, Q, T0, span):
         c = _coherence(x[:rows], grid)
         k = int(np.argmax(c))
         if c[k] <= 4.0 / np.sqrt(rows):
-            return T
+            return T, False
         if rows == len(x):
-            return float(grid[k])
+            return float(grid[k]), True
         lo, hi = grid[k] - 8 * step, grid[k] + 8 * step
         rows = min(len(x), 4 * rows)
 
@@ -412,7 +415,7 @@ def _fit_ticks(s, Q, period=None, skipped=None):
     if not T0 > 0:
         raise ValueError("clock: the stamps do not advance")
     span = 4 * _WINDOW * T0
-    T = float(period) if period is not None else _period(s, Q, T0, span)
+    T, fixed = (float(period), True) if period is not None else _period(s, Q, T0, span)
     # the zero-delay line under the stamps, and a first assignment: the tick below each stamp
     phase = np.angle(np.sum(np.exp(2j * np.pi * (s - s[0]) / T))) / (2 * np.pi) * T
     c = s[0] + phase
@@ -448,9 +451,9 @@ def _fit_ticks(s, Q, period=None, skipped=None):
         new = cand[np.arange(M), path]
         changed = int(np.sum(new - new[0] != n - n[0]))
         n = new
-        if period is None:              # the stamps' slope on the ticks, the line under them
+        if not fixed:                   # the stamps' slope on the ticks, the line under them
             T, c = (float(v) for v in np.polyfit(n.astype(float), s, 1))
-            c += float(np.quantile(s - c - n * T, 0.001)) - 0.05 * T
+        c += float(np.quantile(s - c - n * T, 0.001)) - 0.05 * T
         tau = c + n * T
         if changed == 0 or it == PASSES - 1:
             post = _posterior(emit, trans, path)
@@ -458,8 +461,13 @@ def _fit_ticks(s, Q, period=None, skipped=None):
     res_ticks = _loo_residual(tau, Q, span)[0]
     c = c + float(np.min(s - c - n * T))
     d = s - c - n * T
+    nc = n - n.mean()
+    # the period's standard error: the least-squares slope's, or the coherence peak's width / 4
+    period_std = (0.0 if period is not None else float(np.std(d) / np.sqrt(max(float(nc @ nc), 1.0))) if not fixed
+                  else T * T / max(s[-1] - s[0], T) / 4)
     return {"ticks": n, "T": float(T), "c": float(c), "certain": float(np.mean(post >= CERTAIN)),
-            "delay": {"mean": float(np.mean(d)), "std": float(np.std(d)), "max": float(np.max(d))},
+            "delay": {"mean": float(np.mean(d)), "std": float(np.std(d)), "max": float(np.max(d)),
+                      "period_std": period_std},
             "res_stamps": res_stamps, "res_ticks": res_ticks}
 
 
