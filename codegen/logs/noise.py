@@ -174,7 +174,7 @@ def uniform_grid(t, q):
 
 def psd(t, q):
     """(f (F,), S (F, n)): the one-sided power spectral density of q (N, n) on the uniform grid of
-    the clock ``t`` (rad^2/Hz), estimated pre-whitened: Welch's PSD (Hann windows of at least 256
+    the clock ``t`` (rad^2/Hz), estimated pre-whitened: Welch's PSD (Blackman-Harris windows, -92 dB side lobes, of at least 256
     samples and about half the log, overlapping by half) of the second difference of q, divided by the
     difference's gain |2 sin(pi f h)|^4 (a manipulator's motion falls by 40-80 dB per decade: the
     window's leakage from the low frequencies would otherwise hide the noise floor by decades)."""
@@ -182,7 +182,7 @@ def psd(t, q):
     h, Q = uniform_grid(t, q)
     D = np.diff(Q, 2, axis=0)
     nper = int(min(len(D), max(256, 2 ** int(np.log2(max(len(D) // 2, 1))))))
-    f, S2 = welch(D, fs=1.0 / h, nperseg=nper, axis=0)
+    f, S2 = welch(D, fs=1.0 / h, nperseg=nper, axis=0, window="blackmanharris")
     gain = (2 * np.sin(np.pi * f * h)) ** 4
     S = np.zeros_like(S2)
     S[1:] = S2[1:] / gain[1:, None]
@@ -202,20 +202,23 @@ def motion_band(t, q, sigma, spectrum=None):
     return out
 
 
-def reference_cutoff(noise):
-    """(n,) Hz: the cut-off of a zero-phase (offline) velocity reference that minimises its
-    predicted mean-square error per joint, the motion it loses int_{f > fc} (2 pi f)^2 S_m(f) df
-    plus the noise it passes 2 sigma^2 h (2 pi)^2 fc^3 / 3 (S_m the motion's PSD, ``motion_psd``,
-    here not cut at the band)."""
-    f, S = noise.spectrum
+def reference_cutoff(noise, order=4):
+    """(n,) Hz: the cut-off of the zero-phase velocity reference (codegen.logs.smoothing: a
+    Butterworth low-pass of ``order`` forward and backward, H(f) = 1 / (1 + (f / fc)^(2 order)))
+    that minimises its predicted mean-square error per joint on the log's spectrum: the motion it
+    loses, int |1 - H|^2 (2 pi f)^2 S_m df, plus the noise it passes, int H^2 (2 pi f)^2 2 sigma^2 h df
+    (S_m the motion's PSD, ``motion_psd``: q's less the white floor, within the band), over a
+    log-spaced grid of cut-offs."""
+    f, S = motion_psd(noise, noise.spectrum)
     floor = 2 * noise.sigma ** 2 * noise.dt
-    out = np.empty(S.shape[1])
     w2 = (2 * np.pi * f) ** 2
+    nyq = 0.5 / noise.dt
+    grid = np.exp(np.linspace(np.log(max(f[1], 1e-3)), np.log(0.45 * nyq), 200))
+    H = 1.0 / (1.0 + (f[None, :] / grid[:, None]) ** (2 * order))            # (cut-offs, F)
+    out = np.empty(S.shape[1])
     for j in range(S.shape[1]):
-        m = w2 * np.maximum(S[:, j] - floor[j], 0.0)
-        lost = np.concatenate([np.cumsum((0.5 * (m[1:] + m[:-1]) * np.diff(f))[::-1])[::-1], [0.0]])
-        cost = lost + floor[j] * (2 * np.pi) ** 2 * f ** 3 / 3
-        out[j] = f[1:][int(np.argmin(cost[1:]))]
+        cost = np.trapezoid((1 - H) ** 2 * (w2 * S[:, j]) + H ** 2 * w2 * floor[j], f, axis=1)
+        out[j] = grid[int(np.argmin(cost))]
     return out
 
 

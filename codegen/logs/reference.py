@@ -64,7 +64,7 @@ def reference_of(rec, cutoff=None):
         Cut-off of the zero-phase reference (Hz), one for all joints or one per joint, used when
         ``rec.qd`` is None; default each joint's cut-off that balances the motion it loses against
         the noise it passes, on the spectrum measured on the log (codegen.logs.noise.reference_cutoff); kept below 0.45 / sqrt 2 of the sample
-        rate and above 8 / the log's span.
+        rate and above 4 EDGE / the log's span (the reference keeps at least half the log).
 
     Returns
     -------
@@ -78,7 +78,7 @@ def reference_of(rec, cutoff=None):
         from .noise import measure, reference_cutoff
         cutoff = reference_cutoff(measure(rec.t, rec.q))
     cuts = np.broadcast_to(np.asarray(cutoff, dtype=float), (rec.n,)).copy()
-    cuts = np.clip(cuts, 8.0 / span, 0.45 / np.sqrt(2) / rec.dt)
+    cuts = np.clip(cuts, 4 * smoothing.EDGE / span, 0.45 / np.sqrt(2) / rec.dt)
     qd = np.empty_like(rec.q)
     spread = np.empty_like(rec.q)
     valid = np.ones(len(rec.t), bool)
@@ -88,7 +88,7 @@ def reference_of(rec, cutoff=None):
         valid &= v
     if not valid.any():
         raise ValueError(f"rec: {span:g} s is too short for the zero-phase reference at {cuts.min():g} Hz "
-                         f"(it drops {2 / cuts.min():g} s at each end)")
+                         f"(it drops {smoothing.EDGE / cuts.min():g} s at each end)")
     at = (f"{cuts[0]:g} Hz" if np.all(cuts == cuts[0]) else
           f"{', '.join(f'{c:.3g}' for c in cuts)} Hz per joint")
     label = (f"zero-phase Butterworth (order {smoothing.ORDER}, forward and backward) at {at} of q "

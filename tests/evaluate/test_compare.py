@@ -64,7 +64,7 @@ def test_reference_error_is_within_its_uncertainty(log):
     u = ref.uncertainty(t, t_ss)
     assert u / 3 < err < 3 * u
     assert not ref.is_truth and ref.cutoff == 10.0 and "at 10 Hz" in ref.label
-    assert ref.valid[np.searchsorted(t, t[0] + 0.21)] and not ref.valid[np.searchsorted(t, t[0] + 0.19)]
+    assert ref.valid[np.searchsorted(t, t[0] + 0.41)] and not ref.valid[np.searchsorted(t, t[0] + 0.39)]
 
 
 def test_the_reference_cutoff_is_chosen_on_the_log(log):
