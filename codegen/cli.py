@@ -619,10 +619,11 @@ def cmd_design(args):
     print("parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in entry.params.items() if not k.startswith(("pole_", "cq", "ca"))))
     if entry.note:
         print(f"note: {entry.note}")
-    design_args = " ".join(f"--design {k}={json.dumps(v)}" for k, v in (entry.build or {}).items())
+    design_args = " ".join(f"--design {k}={json.dumps(v)}" for k, v in (entry.build or {}).items()
+                           if not (k == "uncertainty" and v == 0.0))
     param_args = " ".join(f"--param {k}={v:.6g}" for k, v in (tuned.params if tuned else {}).items())
     src = f"--urdf {args.urdf}" if args.urdf else args.robot
-    print(f"build it: python -m codegen build {src} --family {args.family.split(':')[0]} --dt {rec.dt:g} "
+    print(f"build it: python -m codegen build {src} --family {args.family.split(':')[0]} --dt {rec.dt:.4g} "
           f"{design_args} {param_args}".rstrip())
     print(f'or in a targets file: tune = "{args.log}" (this design, redone when the target is built)')
     if args.json:

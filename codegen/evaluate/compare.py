@@ -446,7 +446,8 @@ def tune_baseline(name, Y, t, dt, val, noise=None, t_from=None):
     """(params, estimate (N, n), Tuned or None): the baseline ``name`` with its tuned parameter
     chosen on the log without truth (codegen.logs.tune: forward validation ``val``), searched in
     log scale over the span of its grid (baselines.GRIDS); restarted after intervals longer than
-    ``dt_limit(dt)``. ``noise``: the log's measured noise (the Kalman filter's r); rows scored from
+    ``dt_limit(dt)``. ``Y`` (N, n) the log's positions (rad) at its times ``t`` (N,) (s), ``dt`` its
+    median step; ``noise``: the log's measured noise (the Kalman filter's r); rows scored from
     ``t_from`` (s; default after the first 5 % of the log)."""
     cls = baselines.BASELINES[name]
     extra = baseline_options(name, noise)

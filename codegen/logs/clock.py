@@ -462,9 +462,8 @@ def _fit_ticks(s, Q, period=None, skipped=None):
     c = c + float(np.min(s - c - n * T))
     d = s - c - n * T
     nc = n - n.mean()
-    # the period's standard error: the least-squares slope's, or the coherence peak's width / 4
-    period_std = (0.0 if period is not None else float(np.std(d) / np.sqrt(max(float(nc @ nc), 1.0))) if not fixed
-                  else T * T / max(s[-1] - s[0], T) / 4)
+    # the period's standard error: the least-squares slope's (the stamps' scatter about the ticks)
+    period_std = 0.0 if period is not None else float(np.std(d) / np.sqrt(max(float(nc @ nc), 1.0)))
     return {"ticks": n, "T": float(T), "c": float(c), "certain": float(np.mean(post >= CERTAIN)),
             "delay": {"mean": float(np.mean(d)), "std": float(np.std(d)), "max": float(np.max(d)),
                       "period_std": period_std},
@@ -546,8 +545,10 @@ def _posterior(emit, trans, path):
     for j in range(M - 2, -1, -1):
         b[j] = _lse(-trans[j] + (b[j + 1] - emit[j + 1])[None, :], 1)
     lp = f + b
-    lp = lp - _lse(lp, 1)[:, None]
-    return np.exp(lp[np.arange(M), path])
+    norm = _lse(lp, 1)
+    with np.errstate(invalid="ignore"):
+        post = np.exp(lp[np.arange(M), path] - norm)
+    return np.where(np.isfinite(post), post, 0.0)
 
 
 def _lse(a, axis):

@@ -17,11 +17,11 @@ Measured on the log's sample clock (codegen.logs.clock), per joint:
   there, with the measurement noise sigma^2 h: white jerk q_3 = sigma^2 h w^6, white snap
   q_4 = sigma^2 h w^8, w = 2 pi f_c (rad^2/s^5, rad^2/s^7);
 * **torque** (with a robot model): the measured torque against the model's inverse dynamics
-  M(q) qdd + C(q, qd) qd + g(q) + tau_f(qd) at the zero-phase derivatives of q (cut off at the
+  M(q) qdd + C(q, qd) qd + g(q) + tau_f(qd) at the zero-phase derivatives of q (cut off at twice the
   motion's band), both through the same low-pass: its mean (an offset) and RMS (the model's
-  error in the band), and the torque's white noise, the RMS of tau above the band (its variance
-  scaled up by the share of the band it leaves out); ``torque_uncertainty`` = sqrt(model RMS^2
-  + white^2) per joint, what a design that takes the model's torque error (kalman_model) needs.
+  error in the band), and the torque's white noise, from its third differences (``white_noise``);
+  ``torque_uncertainty`` = sqrt(model RMS^2 + white^2) per joint, what a design that takes the
+  model's torque error (kalman_model) needs.
 
 ``measure(t, q, tau, robot)`` returns a ``Noise``; ``Noise.design_inputs()`` gives the keyword
 arguments of ``observers.build`` that describe this sensor (no default encoder where the data
@@ -115,21 +115,27 @@ class Noise:
 
 def lattice(q):
     """The step D of the lattice q0 + k D the values ``q`` (N,) sit on (to LATTICE_TOL D), 0.0
-    when they sit on none. The candidate is the smallest gap between distinct values that
-    recurs (the median of the smallest 1 % of gaps); it must hold 99.9 % of the values."""
-    v = np.unique(np.asarray(q, dtype=float))
+    when they sit on none. Candidates, coarsest first: the smallest gap g between distinct values
+    over 1..12 (an encoder's count when the motion skips counts) and the powers of ten up to g (the
+    decimals a logger wrote); the first that holds 99.9 % of the values is D."""
+    q = np.asarray(q, dtype=float)
+    v = np.unique(q)
     if len(v) < 3:
         return 0.0
     gaps = np.diff(v)
-    gaps = gaps[gaps > 0]
-    small = np.sort(gaps)[:max(1, len(gaps) // 100)]
-    D = float(np.median(small))
-    scale = max(np.max(np.abs(v)), D)
-    if not D > 64 * np.finfo(float).eps * scale:
+    g = float(np.min(gaps[gaps > 0]))
+    scale = max(float(np.max(np.abs(v))), g)
+    floor = 64 * np.finfo(float).eps * scale
+    if not g > floor:
         return 0.0
-    r = (np.asarray(q, dtype=float) - v[0]) / D
-    on = np.abs(r - np.rint(r)) <= LATTICE_TOL
-    return D if np.mean(on) >= 0.999 else 0.0
+    tens = [10.0 ** e for e in range(int(np.floor(np.log10(g) + 1e-6)), int(np.floor(np.log10(floor))), -1)]
+    for D in sorted({*(g / k for k in range(1, 13)), *tens}, reverse=True):
+        if D <= floor:
+            break
+        r = (q - v[0]) / D
+        if np.mean(np.abs(r - np.rint(r)) <= LATTICE_TOL) >= 0.999:
+            return float(D)
+    return 0.0
 
 
 def position_noise(t, q):
@@ -172,17 +178,21 @@ def uniform_grid(t, q):
     return h, np.column_stack([np.interp(grid, t, q[:, j]) for j in range(q.shape[1])])
 
 
-def psd(t, q):
+def psd(t, q, smooth=8):
     """(f (F,), S (F, n)): the one-sided power spectral density of q (N, n) on the uniform grid of
-    the clock ``t`` (rad^2/Hz), estimated pre-whitened: Welch's PSD (Blackman-Harris windows, -92 dB side lobes, of at least 256
-    samples and about half the log, overlapping by half) of the second difference of q, divided by the
-    difference's gain |2 sin(pi f h)|^4 (a manipulator's motion falls by 40-80 dB per decade: the
-    window's leakage from the low frequencies would otherwise hide the noise floor by decades)."""
-    from scipy.signal import welch
+    the clock ``t`` (rad^2/Hz), estimated pre-whitened: the periodogram of the second difference
+    of q through one Blackman-Harris window over the whole log (side lobes -92 dB, a main lobe
+    of +-4 bins: the finest resolution a short log allows), averaged over ``smooth`` neighbouring
+    bins, divided by the difference's gain |2 sin(pi f h)|^4 (a manipulator's motion falls by
+    40-80 dB per decade: a window's leakage from the low frequencies would otherwise hide the noise
+    floor by decades)."""
+    from scipy.signal import periodogram
     h, Q = uniform_grid(t, q)
     D = np.diff(Q, 2, axis=0)
-    nper = int(min(len(D), max(256, 2 ** int(np.log2(max(len(D) // 2, 1))))))
-    f, S2 = welch(D, fs=1.0 / h, nperseg=nper, axis=0, window="blackmanharris")
+    f, S2 = periodogram(D, fs=1.0 / h, window="blackmanharris", axis=0)
+    if smooth > 1 and len(f) > 2 * smooth:
+        k = np.ones(smooth) / smooth
+        S2 = np.apply_along_axis(lambda c: np.convolve(c, k, mode="same"), 0, S2)
     gain = (2 * np.sin(np.pi * f * h)) ** 4
     S = np.zeros_like(S2)
     S[1:] = S2[1:] / gain[1:, None]
@@ -191,7 +201,8 @@ def psd(t, q):
 
 def motion_band(t, q, sigma, spectrum=None):
     """f_c (n,) Hz: the highest frequency at which q's one-sided PSD (``psd``) is FLOOR_RATIO x
-    the white floor 2 sigma^2 h of each joint (module docstring)."""
+    the white floor 2 sigma^2 h of each joint (module docstring); ``t`` (N,) s and ``q`` (N, n) the
+    log, ``sigma`` (n,) rad its noise, ``spectrum`` its ``psd`` when already computed."""
     f, P = psd(t, q) if spectrum is None else spectrum
     h = float(np.median(np.diff(t)))
     out = np.empty(P.shape[1])
@@ -269,27 +280,36 @@ def measure(t, q, tau=None, robot=None):
     return out
 
 
-def _inverse_dynamics(robot):
-    """casadi Function (q, v, a) -> M(q) a + C(q, v) v + g(q) + tau_f(v) of ``robot``."""
-    import casadi as ca
-    q, v, a = (ca.SX.sym(s, robot.n) for s in "qva")
-    tau = ca.mtimes(robot.mass_matrix(q), a) + robot.nle(q, v) + robot.friction_torque(v)
-    return ca.Function("inverse_dynamics", [q, v, a], [tau])
+def white_noise(t, y):
+    """(k,) std of the white noise on the columns of y (N, k) sampled at ``t`` (N,): var(d3 y) / 20
+    over the third differences d3 of consecutive samples a median step apart (white noise's third
+    difference has variance 20 sigma^2; a sampled motion's, h^3 times its third derivative, is far
+    below it), the rarest 0.1 % left out."""
+    h = float(np.median(np.diff(t)))
+    steps = np.diff(t)
+    even = np.abs(steps - h) <= 1e-3 * h
+    run = even[:-2] & even[1:-1] & even[2:]
+    d3 = np.diff(np.asarray(y, dtype=float), 3, axis=0)[run]
+    out = np.empty(d3.shape[1])
+    for j in range(d3.shape[1]):
+        z2 = np.sort(d3[:, j] ** 2)[: max(1, int(np.ceil(0.999 * len(d3))))]
+        out[j] = np.sqrt(np.mean(z2) / 20.0)
+    return out
 
 
 def _torque(out, t, q, tau, robot):
     """Fill ``out``'s torque fields: the measured torque against the model (module docstring)."""
+    from ..verify.trajectory import inverse_dynamics_function
     from .smoothing import derivatives
     nyq = 0.5 / out.dt
-    cut = float(min(np.median(out.band), 0.45 * nyq / np.sqrt(2)))
+    cut = float(min(2 * np.max(out.band), 0.45 * nyq / np.sqrt(2)))     # all of the motion: g(q), C(q, v) v are not linear
     d = derivatives(t, q, cut)
     lp = derivatives(t, tau, cut).q
-    f = _inverse_dynamics(robot).map(len(t))
+    f = inverse_dynamics_function(robot).map(len(t))
     model = np.asarray(f(d.q.T, d.qd.T, d.qdd.T)).T
     v = d.valid if np.count_nonzero(d.valid) >= 0.1 * len(t) else np.ones(len(t), bool)   # a short log: its edges too
     res = (lp - model)[v]
     out.torque_offset = res.mean(axis=0)
     out.torque_model_rms = np.sqrt(np.mean((res - out.torque_offset) ** 2, axis=0))
-    share = max(1.0 - cut / nyq, 1e-3)       # the white variance left above the cut-off
-    out.torque_white = np.sqrt(np.mean((tau - lp)[v] ** 2, axis=0) / share)
+    out.torque_white = white_noise(t, tau)
     out.torque_uncertainty = np.sqrt(out.torque_model_rms ** 2 + out.torque_white ** 2)

@@ -100,7 +100,8 @@ class Validation:
         return float(np.mean(np.sum(e * e, axis=1)))
 
     def rms(self, est, t_from=None):
-        """The estimate's RMS error ||est - qd|| implied by J: sqrt(max(J - constant, 0)) (rad/s)."""
+        """The estimate's RMS error ||est - qd|| implied by J: sqrt(max(J - constant, 0)) (rad/s);
+        ``est`` (N, n), rows from ``t_from`` (s) as ``score``."""
         J = self.score(est, t_from)
         return math.sqrt(max(J - self.constant, 0.0)) if math.isfinite(J) else math.inf
 
@@ -214,7 +215,8 @@ def search(score, s0, lo=None, hi=None, grid=GRID, golden=GOLDEN, extend=None):
 
 
 def scaled(p_names, p_default, tune, s):
-    """Parameters with each tuned one scaled: p_i = p_default_i s^e_i for ``tune`` = {name: e}."""
+    """Parameters (np,) with each tuned one scaled: p_i = p_default_i s^e_i for ``tune`` = {name:
+    e}; ``p_names`` the parameters' names, ``p_default`` (np,) their values."""
     p = np.array(p_default, dtype=float)
     for name, e in tune.items():
         p[p_names.index(name)] *= s ** e
@@ -278,7 +280,8 @@ def bandwidth(family, p_names):
 
 def start_of_steady(spec, p, t):
     """The first time (s) the tuning scores: after twice the family's start-up phase
-    (``t_switch``, when it has one) and after the first 5 % of the log."""
+    (``t_switch``, when the ``spec`` has one, its value in the parameters ``p``) and after the first
+    5 % of the log's times ``t`` (N,) (s)."""
     names = list(spec.p_names)
     start = 2.0 * float(p[names.index("t_switch")]) if "t_switch" in names else 0.0
     return float(t[0] + max(start, 0.05 * (t[-1] - t[0])))
@@ -294,8 +297,9 @@ def _with_params(obs, p):
 
 
 def run_with(obs, p, Y, U, t, limit):
-    """``run_over`` with the parameters ``p`` set after every reset; NaN estimates when the
-    observer fails (a non-finite state: a candidate beyond its stable range)."""
+    """``run_over`` of the observer ``obs`` with the parameters ``p`` set after every reset, over
+    Y (N, ny), U (N, nu) at times ``t`` (N,) (s), reset after intervals longer than ``limit`` (s);
+    NaN estimates when the observer fails (a non-finite state: a candidate beyond its stable range)."""
     cuts = segments(t, limit)
     out = np.full((len(Y), obs.nest), np.nan)
     try:

@@ -1,11 +1,11 @@
 """What a log's sensors and motion are, measured from it (codegen.logs.noise): the lattice the
 positions sit on, their white noise, the motion's band, the reference's cut-off, the torque's
 residual against a model."""
-import casadi as ca
 import numpy as np
 import pytest
 
 from codegen.logs.noise import lattice, measure, reference_cutoff
+from codegen.verify.trajectory import inverse_dynamics_function
 from models import load_robot
 from receive_log import motion
 
@@ -70,9 +70,7 @@ def test_the_torque_against_the_model():
     robot = load_robot("seed000_2r")
     t = np.arange(6000) * 1e-3
     q, _ = motion(t, 2, 6)
-    qs, vs, a_s = (ca.SX.sym(s, 2) for s in "qva")
-    tau_f = ca.Function("id", [qs, vs, a_s], [ca.mtimes(robot.mass_matrix(qs), a_s) + robot.nle(qs, vs)
-                                               + robot.friction_torque(vs)])
+    tau_f = inverse_dynamics_function(robot)
     v = np.gradient(q, t, axis=0, edge_order=2)
     a = np.gradient(v, t, axis=0, edge_order=2)
     tau = np.asarray(tau_f.map(len(t))(q.T, v.T, a.T)).T

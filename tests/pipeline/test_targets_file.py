@@ -78,7 +78,23 @@ out = "c/out"
     assert (t.precision, t.name, t.prefix) == ("double", "arm_cg", "arm_cg")
     assert set(KEYS) == {"robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design",
                          "params", "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision",
-                         "name", "out"}
+                         "name", "out", "tune"}      # tune: tests/logs/test_log_commands.py
+
+
+def test_a_tune_key_needs_the_command_line_and_a_log(tmp_path):
+    """``tune`` names a log beside the file; loaded without the command line's tuner it is refused
+    in one line saying who resolves it (codegen.cli tunes: tests/logs/test_log_commands.py)."""
+    (tmp_path / "log.csv").write_text("t,q_q1,q_q2,tau_q1,tau_q2\n")
+    path = write(tmp_path, '[[target]]\nrobot = "seed000_2r"\ntune = "log.csv"\n')
+    with pytest.raises(TargetError, match="tune: a log's gains are tuned by the command line"):
+        load_targets(path)
+    seen = []
+    [(t, _)] = load_targets(path, tuner=lambda target, log: seen.append(log) or target)
+    assert seen == [(tmp_path / "log.csv").resolve()] and t.family == "reduced_order"
+    with pytest.raises(TargetError, match="tune: log not found"):
+        load_targets(write(tmp_path, '[[target]]\nrobot = "seed000_2r"\ntune = "none.csv"\n'), tuner=lambda t, log: t)
+    with pytest.raises(TargetError, match="tune must be a string"):
+        load_targets(write(tmp_path, '[[target]]\nrobot = "seed000_2r"\ntune = 3\n'), tuner=lambda t, log: t)
 
 
 def test_defaults_variant_and_folder(tmp_path):
