@@ -312,6 +312,23 @@ def run_with(obs, p, Y, U, t, limit):
     return out
 
 
+def _check(obs, spec, tune, p):
+    """The stability check of a candidate: one tuned gain moved alone, against its recorded bound
+    (codegen.discrete.stability, in the target's metadata: the largest value stable with the others
+    at their defaults); several, the full check (``obs.check_params``). ValueError when unstable."""
+    recorded = ((getattr(obs, "meta", None) or {}).get("stability") or {}).get("gains") or {}
+    if len(tune) == 1:
+        (name,) = tune
+        for gain, g in recorded.items():
+            if list(g.get("slots", [])) == [name] and (g.get("max_stable") is not None or not g.get("limit_found")):
+                value = float(p[list(spec.p_names).index(name)])
+                if value < 0 or (g.get("limit_found") and value > g["max_stable"]):
+                    raise ValueError(f"{name} = {value:.6g} is outside its recorded stable range "
+                                     f"[0, {g['max_stable']:.6g}]")
+                return
+    obs.check_params(p)
+
+
 def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None, t_from=None):
     """The bandwidth of an observer chosen on the log (module docstring).
 
@@ -360,7 +377,7 @@ def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None, 
             break
         p = scaled(spec.p_names, p0, tune, s)
         try:
-            obs.check_params(p)
+            _check(obs, spec, tune, p)
         except ValueError as e:
             note = f"x {s:.3g} refused by the stability check ({str(e)[:80]}...)"
             continue
