@@ -586,7 +586,8 @@ class RealPlant(MujocoPlant):
         """The perturbation actually in the plant, JSON-ready: the draw (``Perturbation.to_dict``),
         each joint's body inertial nominal (the URDF's, lumped as MuJoCo fuses fixed links) and
         real (``body_inertials``, payload included), the friction (URDF's, drawn, total) and the
-        sensors (encoder step, torque noise and offset)."""
+        sensors and the clock (encoder step, position noise and decimals, torque noise and offset,
+        ``clock_settings``)."""
         mj = self._mj
         src = self.robot.source
         nominal = mj.MjModel.from_xml_string(mujoco_urdf(src["path"], src.get("locked_joints")))
