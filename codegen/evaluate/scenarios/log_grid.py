@@ -59,7 +59,9 @@ DESCRIPTIONS = {"log-grid": "synthetic real-arm logs with their truth: robots x 
 
 
 def cells(robots=ROBOTS, tasks=TASKS, torques=tuple(TORQUE_SENSORS), clocks=tuple(CLOCKS)):
-    """The cell names ``<robot>-<task>-<torque>-<clock>`` of the grid, in a fixed order."""
+    """The cell names ``<robot>-<task>-<torque>-<clock>`` of the grid, in a fixed order: every
+    combination of ``robots`` (of ``ROBOTS``), ``tasks`` (of ``TASKS``), ``torques`` (keys of
+    ``TORQUE_SENSORS``) and ``clocks`` (keys of ``CLOCKS``); ValueError naming an unknown one."""
     for name, options, known in (("robot", robots, ROBOTS), ("task", tasks, TASKS),
                                  ("torque", torques, tuple(TORQUE_SENSORS)), ("clock", clocks, tuple(CLOCKS))):
         bad = [v for v in options if v not in known]
@@ -77,7 +79,8 @@ def _parse(name):
 
 
 def task_reference(robot, task, T=T_TASK, seed=0):
-    """The reference t -> (q_d, qd_d, qdd_d) of ``task`` (one of ``TASKS``) for ``robot``."""
+    """The reference t -> (q_d, qd_d, qdd_d) of ``task`` (one of ``TASKS``) for ``robot``,
+    drawn with ``seed``; ``T`` (s) is the bursts task's length."""
     from ..sim.real_plant import drifts_and_bursts, fourier_excitation, point_to_point
     if task == "p2p":
         return point_to_point(robot, seed=seed)
@@ -164,6 +167,13 @@ def _r(plant):
 # ------------------------------------------------------------------------------ truth-side yardsticks
 def read_rows(folder, name="task"):
     """A log and its per-row truth (``<name>.csv``, ``<name>_truth.csv`` of a cell) as arrays.
+
+    Parameters
+    ----------
+    folder : path-like
+        The cell's folder.
+    name : {"task", "excitation"}
+        The run.
 
     Returns
     -------
@@ -304,7 +314,20 @@ def _cell(args):
 
 def grid(out, names=None, seed=0, T=T_TASK, T_excitation=T_EXCITATION, jobs=1, progress=True):
     """Write the cells ``names`` (default all 36 of ``cells()``) into ``out``, ``jobs`` processes
-    at a time, with a progress bar on stderr.
+    at a time, with a progress bar on stderr (``progress``).
+
+    Parameters
+    ----------
+    out : path-like
+        Parent folder of the cells.
+    names : list of str, optional
+        Cells (``cells()``).
+    seed, T, T_excitation
+        As in ``cell``.
+    jobs : int
+        Processes, >= 1.
+    progress : bool
+        A progress bar on stderr.
 
     Returns
     -------
