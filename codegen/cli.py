@@ -332,9 +332,9 @@ def cmd_simulate(args):
     """`simulate`: run a scenario of the seed papers (codegen.evaluate.scenarios).
     ``args``: the parsed argparse namespace; returns the exit status."""
     from .evaluate import scenarios
-    if args.name.startswith("mujoco-"):
+    if args.name.startswith("mujoco-") or args.name == "log-grid":
         _require("mujoco", f"scenario {args.name}")
-    options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T")
+    options = {k: getattr(args, k) for k in ("quantization", "noise", "mismatch", "T", "jobs")
                if getattr(args, k) is not None}
     return scenarios.run(args.name, reference=args.reference, out=args.out or work_dir() / "sim", **options)
 
@@ -737,7 +737,8 @@ def parser():
     s.add_argument("--quantization", type=float, help="encoder step (rad; mujoco-* scenarios)")
     s.add_argument("--noise", type=float, help="Gaussian noise std (rad; mujoco-* scenarios)")
     s.add_argument("--mismatch", type=float, help="plant masses and inertias x (1 + mismatch) (mujoco-*)")
-    s.add_argument("--T", type=float, help="length (s; mujoco-* scenarios)")
+    s.add_argument("--T", type=float, help="length (s; mujoco-* scenarios, log-grid's task runs)")
+    s.add_argument("--jobs", type=int, help="cells simulated in parallel processes (log-grid; default 1)")
     cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a MuJoCo "
                         "run of any URDF robot, a scenario or a CSV")
     cp.add_argument("source", nargs="?", help="a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>][, qdm_<joint>]; "

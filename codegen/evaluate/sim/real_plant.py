@@ -27,23 +27,55 @@ The plant (``draw_perturbation``, ``RealPlant``), drawn once per robot:
   per second);
 * torque-sensor offset: b_j = +-0.2 N m, seeded sign per joint.
 
-The run (``RealPlant.run``), drawn per run from ``seed``:
+The run (``RealPlant.run``), drawn per run from ``seed``, on one of two clocks (``log_clock``):
 
-* the controller (computed torque with MuJoCo's ``mj_inverse`` on the true state, the robot's own
-  controller: it knows the real plant, friction included) runs at jittered instants
-  t_k+1 = t_k + h_k, h_k ~ U(0.7, 1.6) ms rounded to a 1 us clock; the plant integrates exactly
-  over each interval (``MujocoPlant.advance``: RK4 steps of 1e-4 s, the last one shortened);
-* the log misses 1 % of the rows (each row but the first and last dropped with probability 0.01,
-  never two in a row; the control still happened);
-* logged position: the encoder, 2^16 counts per revolution: q_m = D round(q / D), D = 2 pi / 2^16;
+* ``"jitter"`` (the default): the controller (computed torque with MuJoCo's ``mj_inverse`` on the
+  true state, the robot's own controller: it knows the real plant, friction included) runs at
+  jittered instants t_k+1 = t_k + h_k, h_k ~ U(0.7, 1.6) ms rounded to a 1 us clock; the plant
+  integrates exactly over each interval (``MujocoPlant.advance``: RK4 steps of 1e-4 s, the last one
+  shortened); the log's stamps are those instants (a sampler that really jitters), and the log
+  misses 1 % of the rows (each row but the first and last dropped with probability 0.01, never two
+  in a row; the control still happened);
+* ``"receive"``: the controller runs on a fixed tick, s_k = k T_s (T_s = ``tick``, 1 ms), and the
+  robot sends every tick's state to a non-realtime logger whose ``t`` is when it received the row.
+  Row k of the log is written for tick k (one row per tick, N rows), with
+
+      d_k = sigma_d X_k / std(X),  X_k ~ (1 - w) Gamma(2, 1) + w LogNormal(ln 7, 0.25),  w = 0.004
+
+  (a delay >= 0: a gamma body and a rare log-normal tail, scaled so std(d) = sigma_d =
+  ``delay_std``, 0.4 ms; the tail's median, 7 body units, is 1.9 ms at sigma_d = 0.4 ms, and the
+  largest of 20 000 draws is ~4 ms; std(X)^2 = E X^2 - (E X)^2 with E X = 2 (1 - w) + w e^(mu + s^2/2),
+  E X^2 = 6 (1 - w) + w e^(2 mu + 2 s^2)), and the stamp, in units of the resolution r
+  (``stamp_resolution``, 0.1 ms),
+
+      m_k = max(round((s_k + d_k) / r), m_k-1 + 1),   t_k = m_k r,
+
+  so the stamps increase strictly in the order the logger writes them and a late row delays the
+  ones after it (bunching: after a 4 ms delay the next rows are written 0.1 ms apart). With
+  probability p (``repeat``, 0.05; never the first row) row k repeats the previous row's q and tau
+  exactly (the logger wrote a row before the new state arrived; tick k's own state is lost: some
+  ticks never appear in the log). Delays (stream ``delays``) and repeats (stream ``repeats``) are
+  drawn independently; ``receive_rows`` draws them without a simulation.
+
+The sensors, the same on both clocks:
+
+* logged position: the encoder of ``counts_per_rev`` (2^16) counts per revolution, q_m = D round((q +
+  sigma_q n) / D), D = 2 pi / counts_per_rev, with optional white noise sigma_q (``position_noise``,
+  rad, default 0; stream ``position``), then optionally written to ``position_decimals`` decimals
+  (a logger's format: a 2^20-count encoder logged to 1e-6 rad is ``counts_per_rev=2**20,
+  position_decimals=6``);
 * logged torque: tau_m = tau + sigma_j n_k + b_j, n_k ~ N(0, 1), sigma_j = 1 % of joint j's effort
   limit (the URDF's; a sensor's noise is a fraction of its full scale; ``torque_noise_of="rms"``:
-  of the run's applied-torque RMS instead, also used when the URDF gives no effort).
+  of the run's applied-torque RMS instead, also used when the URDF gives no effort;
+  ``"absolute"``: ``torque_noise`` N m on every joint).
 
-Outputs (``RealRun.write``): ``<name>.csv``, the log (t, q_<joint>, tau_<joint>: measured, jittered
-stamps, no qd, in the recording format of codegen.logs.recording), ``<name>_truth.csv`` (every
-controller instant: t, logged (1/0), true q_<joint>, qd_<joint> and applied tau_<joint>), and
-``RealPlant.truth()``: the perturbation actually drawn, as JSON.
+Outputs (``RealRun.write``): ``<name>.csv``, the log (t, q_<joint>, tau_<joint>: measured, the
+clock's stamps, no qd, in the recording format of codegen.logs.recording), ``<name>_truth.csv``
+(jitter: every controller instant: t, logged (1/0), true q_<joint>, qd_<joint> and applied
+tau_<joint>; receive, or ``truth="rows"``: every log row: its stamp t, the true sample time
+t_sample and integer tick of the state it carries (the controller instant's index on the jitter
+clock), repeat (1/0), and that sample's true q, qd and applied tau), and ``RealPlant.truth()``: the
+perturbation actually drawn and the sensors and clock, as JSON.
 """
 from __future__ import annotations
 
@@ -62,7 +94,12 @@ FRICTION_SOLREF = (0.002, 1.0)                      # time constant (s), damping
 FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)  # impedance d0, dwidth, width, midpoint, power
 PAYLOAD_RADIUS = 0.02                                # m
 STREAMS = {"inertial": 10, "payload": 11, "friction": 12, "offset": 13,
-           "steps": 1, "drops": 2, "noise": 3, "excitation": 20, "task": 21}
+           "steps": 1, "drops": 2, "noise": 3, "delays": 4, "repeats": 5, "position": 6,
+           "excitation": 20, "task": 21, "bursts": 22}
+CLOCKS = ("jitter", "receive")
+DELAY_TAIL = 0.004                                  # w: weight of the delays' log-normal tail
+DELAY_SHAPE = 2.0                                   # shape of the gamma body (scale 1)
+DELAY_TAIL_MU, DELAY_TAIL_S = float(np.log(7.0)), 0.25   # the tail's log-normal (body units)
 
 
 def _rng(seed, stream, robot=""):
@@ -420,24 +457,41 @@ class RealPlant(MujocoPlant):
     seed : int
         Seed of the default perturbation.
     torque_noise : float
-        Standard deviation of the logged torque's white noise, relative (0.01), >= 0.
-    torque_noise_of : {"effort", "rms"}
-        Relative to each joint's URDF effort limit, or to the run's applied-torque RMS.
+        Standard deviation of the logged torque's white noise, >= 0: relative (0.01) or, with
+        ``torque_noise_of="absolute"``, in N m.
+    torque_noise_of : {"effort", "rms", "absolute"}
+        Relative to each joint's URDF effort limit, to the run's applied-torque RMS, or absolute.
     counts_per_rev : int
         Encoder resolution (counts per revolution), >= 1.
     step_range : (float, float)
-        Controller step range (s), 0 < low <= high.
+        Controller step range of the jitter clock (s), 0 < low <= high.
     drop : float
-        Probability that a row is missing from the log, in [0, 0.5).
+        Probability that a row is missing from the log of the jitter clock, in [0, 0.5).
     clock : float
-        Resolution of the time stamps (s); 1 / clock must be an integer.
+        Resolution of the controller's clock and of the jitter clock's stamps (s); 1 / clock must
+        be an integer.
     timestep : float
         MuJoCo's RK4 step (s), the largest sub-step.
+    log_clock : {"jitter", "receive"}
+        The clock of the controller and the log (module docstring).
+    tick : float
+        The receive clock's controller period T_s (s), a whole number of ``clock`` units.
+    delay_std : float
+        sigma_d, the standard deviation of the receive delays (s), >= 0.
+    stamp_resolution : float
+        r, the resolution of the receive clock's stamps (s), a whole number of ``clock`` units.
+    repeat : float
+        p, the probability that a receive-clock row repeats the previous row's state, in [0, 0.5).
+    position_noise : float
+        sigma_q, white noise on the position before the encoder (rad), >= 0.
+    position_decimals : int, optional
+        The logged position rounded to this many decimals (rad); None: the encoder's value in full.
     """
 
     def __init__(self, robot, perturbation=None, seed=0, torque_noise=0.01, torque_noise_of="effort",
                  counts_per_rev=2 ** 16, step_range=(0.7e-3, 1.6e-3), drop=0.01, clock=1e-6,
-                 timestep=TIMESTEP):
+                 timestep=TIMESTEP, log_clock="jitter", tick=1e-3, delay_std=0.4e-3, stamp_resolution=1e-4,
+                 repeat=0.05, position_noise=0.0, position_decimals=None):
         src = getattr(robot, "source", {}) or {}
         if src.get("kind") != "urdf":
             raise ValueError(f"robot: the real plant needs a URDF robot, got source kind {src.get('kind')!r} "
@@ -447,8 +501,8 @@ class RealPlant(MujocoPlant):
             raise ValueError(f"perturbation: drawn for joints {p.joint_names}, the robot has {robot.joint_names}")
         if not (np.isfinite(torque_noise) and torque_noise >= 0):
             raise ValueError(f"torque_noise must be a finite number >= 0, got {torque_noise!r}")
-        if torque_noise_of not in ("effort", "rms"):
-            raise ValueError(f"torque_noise_of must be 'effort' or 'rms', got {torque_noise_of!r}")
+        if torque_noise_of not in ("effort", "rms", "absolute"):
+            raise ValueError(f"torque_noise_of must be 'effort', 'rms' or 'absolute', got {torque_noise_of!r}")
         if not (isinstance(counts_per_rev, (int, np.integer)) and counts_per_rev >= 1):
             raise ValueError(f"counts_per_rev must be an integer >= 1, got {counts_per_rev!r}")
         lo, hi = (float(v) for v in step_range)
@@ -459,6 +513,26 @@ class RealPlant(MujocoPlant):
         ticks = round(1.0 / clock) if np.isfinite(clock) and clock > 0 else 0
         if ticks < 1 or abs(ticks * clock - 1) > 1e-9 or clock > lo:
             raise ValueError(f"clock must be 1/N s (N an integer) and <= the shortest step, got {clock!r}")
+        if log_clock not in CLOCKS:
+            raise ValueError(f"log_clock must be one of {', '.join(CLOCKS)}, got {log_clock!r}")
+        units = {}
+        for name, v in (("tick", tick), ("stamp_resolution", stamp_resolution)):
+            u = round(float(v) * ticks) if np.isfinite(v) and v > 0 else 0
+            if u < 1 or abs(u - float(v) * ticks) > 1e-6:
+                raise ValueError(f"{name} must be a positive whole number of clock units ({clock:g} s), got {v!r}")
+            units[name] = u
+        if units["stamp_resolution"] > units["tick"]:
+            raise ValueError(f"stamp_resolution must be <= tick ({tick:g} s), got {stamp_resolution!r}")
+        if not (np.isfinite(delay_std) and delay_std >= 0):
+            raise ValueError(f"delay_std must be a finite number of seconds >= 0, got {delay_std!r}")
+        if not (np.isfinite(repeat) and 0 <= repeat < 0.5):
+            raise ValueError(f"repeat must be a probability in [0, 0.5), got {repeat!r}")
+        if not (np.isfinite(position_noise) and position_noise >= 0):
+            raise ValueError(f"position_noise must be a finite number of radians >= 0, got {position_noise!r}")
+        if position_decimals is not None and not (isinstance(position_decimals, (int, np.integer))
+                                                  and not isinstance(position_decimals, bool)
+                                                  and 0 <= position_decimals <= 15):
+            raise ValueError(f"position_decimals must be None or an integer in [0, 15], got {position_decimals!r}")
         text = perturbed_urdf(src["path"], p, src.get("locked_joints"))
         super().__init__(robot, timestep=timestep, urdf_text=text)
         mj, m = self._mj, self.model
@@ -474,6 +548,11 @@ class RealPlant(MujocoPlant):
         self.torque_noise, self.torque_noise_of = float(torque_noise), torque_noise_of
         self.counts_per_rev, self.step_range, self.drop = int(counts_per_rev), (lo, hi), float(drop)
         self.clock, self._ticks = float(clock), int(ticks)
+        self.log_clock, self.tick, self.delay_std = log_clock, float(tick), float(delay_std)
+        self.stamp_resolution, self.repeat = float(stamp_resolution), float(repeat)
+        self._tick_units, self._stamp_units = units["tick"], units["stamp_resolution"]
+        self.position_noise = float(position_noise)
+        self.position_decimals = None if position_decimals is None else int(position_decimals)
 
     @property
     def encoder_step(self):
@@ -493,7 +572,10 @@ class RealPlant(MujocoPlant):
     def torque_noise_std(self, tau=None):
         """sigma_j of the logged torque's noise: ``torque_noise`` x effort limit (or x RMS of the
         applied torque ``tau`` (N, n) for ``torque_noise_of="rms"`` and where the URDF gives no
-        effort; NaN there when ``tau`` is None)."""
+        effort; NaN there when ``tau`` is None); ``torque_noise`` N m on every joint for
+        ``torque_noise_of="absolute"``."""
+        if self.torque_noise_of == "absolute":
+            return np.full(self.n, self.torque_noise)
         eff = self.limits["effort"]
         rms = (np.sqrt(np.mean(np.asarray(tau) ** 2, axis=0)) if tau is not None
                else np.full(self.n, np.nan))
@@ -504,7 +586,8 @@ class RealPlant(MujocoPlant):
         """The perturbation actually in the plant, JSON-ready: the draw (``Perturbation.to_dict``),
         each joint's body inertial nominal (the URDF's, lumped as MuJoCo fuses fixed links) and
         real (``body_inertials``, payload included), the friction (URDF's, drawn, total) and the
-        sensors (encoder step, torque noise and offset)."""
+        sensors and the clock (encoder step, position noise and decimals, torque noise and offset,
+        ``clock_settings``)."""
         mj = self._mj
         src = self.robot.source
         nominal = mj.MjModel.from_xml_string(mujoco_urdf(src["path"], src.get("locked_joints")))
@@ -525,12 +608,23 @@ class RealPlant(MujocoPlant):
                             "torque_noise": self.torque_noise, "torque_noise_of": self.torque_noise_of,
                             "torque_noise_std": [None if not np.isfinite(s) else float(s) for s in std],
                             "torque_offset": self.perturbation.torque_offset.tolist(),
-                            "step_range": list(self.step_range), "drop": self.drop, "clock": self.clock},
+                            "step_range": list(self.step_range), "drop": self.drop, "clock": self.clock,
+                            "position_noise": self.position_noise, "position_decimals": self.position_decimals,
+                            **self.clock_settings()},
                 "effort": [None if not np.isfinite(e) else float(e) for e in self.limits["effort"]]}
 
+    def clock_settings(self):
+        """The clock of the log, JSON-ready: ``log_clock`` and, for the receive clock, its tick,
+        delay std, stamp resolution and repeat probability (s, s, s, -)."""
+        if self.log_clock == "jitter":
+            return {"log_clock": "jitter"}
+        return {"log_clock": "receive", "tick": self.tick, "delay_std": self.delay_std,
+                "stamp_resolution": self.stamp_resolution, "repeat": self.repeat}
+
     def instants(self, T, seed=0):
-        """Controller instants on [0, T]: t_0 = 0, t_k+1 = t_k + h_k, h_k ~ U(step_range) rounded
-        to the clock (stream ``steps`` of ``seed``).
+        """Controller instants on [0, T]: on the jitter clock t_0 = 0, t_k+1 = t_k + h_k, h_k ~
+        U(step_range) rounded to the clock (stream ``steps`` of ``seed``); on the receive clock
+        the ticks s_k = k T_s, k = 0 .. floor(T / T_s) (``seed`` unused).
 
         Parameters
         ----------
@@ -543,6 +637,11 @@ class RealPlant(MujocoPlant):
         -------
         (N,) array
         """
+        if self.log_clock == "receive":
+            if not (np.isfinite(T) and T >= self.tick):
+                raise ValueError(f"T must be a number of seconds >= the tick {self.tick:g}, got {T!r}")
+            K = int(np.floor(T * self._ticks / self._tick_units + 1e-9))
+            return np.arange(K + 1) * self._tick_units / self._ticks
         if not (np.isfinite(T) and T > self.step_range[1]):
             raise ValueError(f"T must be a number of seconds > {self.step_range[1]:g}, got {T!r}")
         rng = _rng(seed, "steps")
@@ -573,8 +672,71 @@ class RealPlant(MujocoPlant):
                 mask[k] = False
         return mask
 
+    def delays(self, N, seed=0):
+        """N receive delays d_k = sigma_d X_k / std(X) >= 0 (s), X_k from the gamma/log-normal
+        mixture of the module docstring (stream ``delays`` of ``seed``).
+
+        Parameters
+        ----------
+        N : int
+            Number of delays.
+        seed : int or tuple of int
+            Seed of the run.
+
+        Returns
+        -------
+        (N,) array
+        """
+        rng = _rng(seed, "delays")
+        body = rng.gamma(DELAY_SHAPE, 1.0, N)
+        tail = rng.lognormal(DELAY_TAIL_MU, DELAY_TAIL_S, N)
+        x = np.where(rng.random(N) < DELAY_TAIL, tail, body)
+        w, k, mu, s2 = DELAY_TAIL, DELAY_SHAPE, DELAY_TAIL_MU, DELAY_TAIL_S ** 2
+        mean = (1 - w) * k + w * np.exp(mu + s2 / 2)
+        second = (1 - w) * (k + k * k) + w * np.exp(2 * mu + 2 * s2)
+        return self.delay_std * x / np.sqrt(second - mean * mean)
+
+    def receive_rows(self, N, seed=0):
+        """The receive clock's log rows for N ticks (module docstring), without a simulation.
+
+        Parameters
+        ----------
+        N : int
+            Number of ticks, >= 1 (one row each).
+        seed : int or tuple of int
+            Seed of the run (streams ``delays`` and ``repeats``).
+
+        Returns
+        -------
+        stamps : (N,) array
+            t_k = m_k r (s), strictly increasing.
+        source : (N,) int array
+            The tick whose state row k carries (k, or the previous row's for a repeat).
+        repeat : (N,) bool array
+            Rows that repeat the previous row's state.
+        """
+        k = np.arange(N)
+        a = (k * self._tick_units + self.delays(N, seed) * self._ticks) / self._stamp_units
+        m = np.rint(a).astype(np.int64) - k                  # m_k = max(round(a_k), m_k-1 + 1)
+        m = np.maximum.accumulate(m) + k
+        stamps = m * self._stamp_units / self._ticks
+        repeat = _rng(seed, "repeats").random(N) < self.repeat
+        repeat[0] = False
+        source = np.maximum.accumulate(np.where(repeat, 0, k))
+        return stamps, source, repeat
+
+    def measure_position(self, q, seed=0):
+        """The logged position of the true q (N, n): D round((q + sigma_q n) / D), n ~ N(0, 1)
+        (stream ``position`` of ``seed``; none when sigma_q = 0), then rounded to
+        ``position_decimals`` decimals when set (rad)."""
+        D = self.encoder_step
+        if self.position_noise > 0:
+            q = q + self.position_noise * _rng(seed, "position").standard_normal(np.shape(q))
+        q_meas = D * np.round(q / D)
+        return q_meas if self.position_decimals is None else np.round(q_meas, self.position_decimals)
+
     def run(self, reference, T, seed=0, kp=KP, kd=KD):
-        """One run: the closed loop at jittered instants, the log and the truth (module docstring).
+        """One run: the closed loop on the plant's clock, the log and the truth (module docstring).
 
         Parameters
         ----------
@@ -583,7 +745,8 @@ class RealPlant(MujocoPlant):
         T : float
             Length (s).
         seed : int or tuple of int
-            Seed of the instants, the dropped rows and the torque noise.
+            Seed of the instants (jitter), the dropped rows (jitter), the delays and repeated rows
+            (receive) and the sensors' noise.
         kp, kd : float
             Computed-torque gains (1/s^2, 1/s).
 
@@ -594,15 +757,24 @@ class RealPlant(MujocoPlant):
         t = self.instants(T, seed)
         rec = self.track_at(reference, t, kp=kp, kd=kd)
         q_ref = np.array([reference(tk)[0] for tk in t])
-        D = self.encoder_step
         std = self.torque_noise_std(rec.tau)
         noise = _rng(seed, "noise").standard_normal(rec.tau.shape)
+        if self.log_clock == "jitter":
+            logged = ~self.dropped(len(t), seed)
+            rows = dict(row_t=t[logged], row_source=np.flatnonzero(logged), row_repeat=np.zeros(logged.sum(), bool))
+        else:
+            stamps, source, repeat = self.receive_rows(len(t), seed)
+            logged = np.zeros(len(t), bool)
+            logged[source] = True
+            rows = dict(row_t=stamps, row_source=source, row_repeat=repeat)
         return RealRun(joint_names=list(self.robot.joint_names), t=t, q=rec.q, qd=rec.qd, tau=rec.tau,
-                       q_meas=D * np.round(rec.q / D), tau_meas=rec.tau + std * noise + self.perturbation.torque_offset,
-                       logged=~self.dropped(len(t), seed), torque_noise_std=std,
-                       torque_offset=self.perturbation.torque_offset.copy(), encoder_step=D,
+                       q_meas=self.measure_position(rec.q, seed),
+                       tau_meas=rec.tau + std * noise + self.perturbation.torque_offset,
+                       logged=logged, torque_noise_std=std,
+                       torque_offset=self.perturbation.torque_offset.copy(), encoder_step=self.encoder_step,
                        tracking_error=np.max(np.abs(rec.q - q_ref), axis=0), effort=self.limits["effort"],
-                       velocity_limit=self.limits["velocity"], step_range=self.step_range)
+                       velocity_limit=self.limits["velocity"], step_range=self.step_range,
+                       clock=self.clock_settings(), **rows)
 
 
 @dataclass
@@ -619,7 +791,7 @@ class RealRun:
     q_meas, tau_meas : (N, n) arrays
         Encoder reading and torque-sensor reading.
     logged : (N,) bool array
-        Rows the log keeps.
+        Instants whose state the log holds.
     torque_noise_std, torque_offset : (n,) arrays
         Stated sigma and offset of the torque sensor (N m).
     encoder_step : float
@@ -630,6 +802,14 @@ class RealRun:
         The URDF's limits (NaN where absent).
     step_range : (float, float)
         The controller's step range (s).
+    row_t : (R,) array
+        The log's stamps (s), one per row.
+    row_source : (R,) int array
+        The instant whose state each row carries (an index into ``t``).
+    row_repeat : (R,) bool array
+        Rows that repeat the previous row's state.
+    clock : dict
+        ``RealPlant.clock_settings()``.
     """
     joint_names: list
     t: np.ndarray
@@ -646,17 +826,27 @@ class RealRun:
     effort: np.ndarray
     velocity_limit: np.ndarray
     step_range: tuple
+    row_t: np.ndarray = None
+    row_source: np.ndarray = None
+    row_repeat: np.ndarray = None
+    clock: dict = field(default_factory=lambda: {"log_clock": "jitter"})
+
+    def __post_init__(self):
+        if self.row_t is None:                    # the jitter clock's rows: the logged instants
+            self.row_source = np.flatnonzero(self.logged)
+            self.row_t = self.t[self.row_source]
+            self.row_repeat = np.zeros(len(self.row_source), bool)
 
     def log(self):
-        """The user's log as a Recording (jittered stamps, measured q and tau, no qd)."""
-        k = self.logged
-        return Recording(t=self.t[k], q=self.q_meas[k], tau=self.tau_meas[k], qd=None,
+        """The user's log as a Recording (the clock's stamps, measured q and tau, no qd)."""
+        k = self.row_source
+        return Recording(t=self.row_t, q=self.q_meas[k], tau=self.tau_meas[k], qd=None,
                          joint_names=list(self.joint_names))
 
     def log_columns(self):
-        """name -> column of the log: t, q_<joint>..., tau_<joint>... (logged rows)."""
-        k = self.logged
-        cols = {"t": self.t[k]}
+        """name -> column of the log: t, q_<joint>..., tau_<joint>... (one per log row)."""
+        k = self.row_source
+        cols = {"t": self.row_t}
         cols.update({f"q_{j}": self.q_meas[k, i] for i, j in enumerate(self.joint_names)})
         cols.update({f"tau_{j}": self.tau_meas[k, i] for i, j in enumerate(self.joint_names)})
         return cols
@@ -669,7 +859,18 @@ class RealRun:
             cols.update({f"{g}_{j}": a[:, i] for i, j in enumerate(self.joint_names)})
         return cols
 
-    def write(self, folder, name):
+    def row_truth_columns(self):
+        """name -> column of the truth of each log row: t (its stamp), t_sample and tick (the
+        true time and the index of the controller instant whose state it carries), repeat (1/0),
+        and that instant's true q_<joint>, qd_<joint> and applied tau_<joint>."""
+        k = self.row_source
+        cols = {"t": self.row_t, "t_sample": self.t[k], "tick": k.astype(float),
+                "repeat": self.row_repeat.astype(float)}
+        for g, a in (("q", self.q), ("qd", self.qd), ("tau", self.tau)):
+            cols.update({f"{g}_{j}": a[k, i] for i, j in enumerate(self.joint_names)})
+        return cols
+
+    def write(self, folder, name, truth=None):
         """Write ``<name>.csv`` (the log) and ``<name>_truth.csv`` into ``folder`` (created),
         atomically (codegen.core.columns.write_columns).
 
@@ -678,47 +879,68 @@ class RealRun:
         folder : path-like
         name : str
             File stem.
+        truth : {"instants", "rows"}, optional
+            The truth of every controller instant (``truth_columns``) or of every log row
+            (``row_truth_columns``); default "instants" on the jitter clock, "rows" on the
+            receive clock.
 
         Returns
         -------
         (pathlib.Path, pathlib.Path)
             The log and the truth.
         """
+        truth = truth or ("instants" if self.clock["log_clock"] == "jitter" else "rows")
+        if truth not in ("instants", "rows"):
+            raise ValueError(f"truth must be 'instants' or 'rows', got {truth!r}")
         folder = Path(folder)
+        cols = self.truth_columns() if truth == "instants" else self.row_truth_columns()
         return (write_columns(folder / f"{name}.csv", self.log_columns()),
-                write_columns(folder / f"{name}_truth.csv", self.truth_columns()))
+                write_columns(folder / f"{name}_truth.csv", cols))
 
     def stats(self):
         """Summary of the run, JSON-ready: sample times (all instants and the log), dropped rows,
         the torque sensor's error (measured - applied over the logged rows: mean and std per
         joint, with the stated offset and sigma), the encoder step, tracking error, peak |qd|
-        and |tau| against the URDF's limits."""
+        and |tau| against the URDF's limits; on the receive clock also the rows, repeats, lost
+        ticks, and the delay of each stamp behind its row's tick, t_k - s_k (ms)."""
         steps = np.diff(self.t)
-        log_steps = np.diff(self.t[self.logged])
+        log_steps = np.diff(self.row_t)
         lo, hi = self.step_range
         single = (log_steps >= lo - 1e-12) & (log_steps <= hi + 1e-12)
         err = (self.tau_meas - self.tau)[self.logged]
         ms = lambda a: {"min": float(a.min() * 1e3), "mean": float(a.mean() * 1e3),
                         "max": float(a.max() * 1e3), "std": float(a.std() * 1e3)}
         lst = lambda a: [None if not np.isfinite(x) else float(x) for x in a]
-        return {"T": float(self.t[-1]), "instants": len(self.t), "logged": int(self.logged.sum()),
-                "dropped": int((~self.logged).sum()), "dropped_fraction": float((~self.logged).mean()),
-                "step_ms": ms(steps), "log_step_ms": ms(log_steps),
-                "log_steps_outside_range": int((~single).sum()),
-                "torque_error_mean": lst(err.mean(axis=0)), "torque_offset": lst(self.torque_offset),
-                "torque_error_std": lst(err.std(axis=0)), "torque_noise_std": lst(self.torque_noise_std),
-                "encoder_step": float(self.encoder_step), "tracking_error_max": lst(self.tracking_error),
-                "qd_max": lst(np.abs(self.qd).max(axis=0)), "velocity_limit": lst(self.velocity_limit),
-                "tau_max": lst(np.abs(self.tau).max(axis=0)), "effort": lst(self.effort)}
+        out = {"T": float(self.t[-1]), "instants": len(self.t), "logged": int(self.logged.sum()),
+               "dropped": int((~self.logged).sum()), "dropped_fraction": float((~self.logged).mean()),
+               "step_ms": ms(steps), "log_step_ms": ms(log_steps),
+               "log_steps_outside_range": int((~single).sum()),
+               "torque_error_mean": lst(err.mean(axis=0)), "torque_offset": lst(self.torque_offset),
+               "torque_error_std": lst(err.std(axis=0)), "torque_noise_std": lst(self.torque_noise_std),
+               "encoder_step": float(self.encoder_step),
+               "position_error_max": lst(np.abs(self.q_meas - self.q)[self.logged].max(axis=0)),
+               "tracking_error_max": lst(self.tracking_error), "qd_max": lst(np.abs(self.qd).max(axis=0)), "velocity_limit": lst(self.velocity_limit),
+               "tau_max": lst(np.abs(self.tau).max(axis=0)), "effort": lst(self.effort)}
+        if self.clock["log_clock"] == "receive":
+            delay = self.row_t - self.t[:len(self.row_t)]           # row k is written for tick k
+            out.update({"rows": len(self.row_t), "repeats": int(self.row_repeat.sum()),
+                        "repeat_fraction": float(self.row_repeat.mean()), "delay_ms": ms(delay),
+                        "bunched_rows": int(np.sum(log_steps <= self.clock["stamp_resolution"] * (1 + 1e-9)))})
+        return out
 
 
 # ------------------------------------------------------------------------------ trajectories
+def _urdf_velocity(robot):
+    """Each joint's URDF velocity limit (rad/s); NaN where there is none."""
+    src = getattr(robot, "source", {}) or {}
+    return (urdf_joint_limits(src["path"], robot.joint_names)["velocity"] if src.get("kind") == "urdf"
+            else np.full(robot.n, np.nan))
+
+
 def _amplitude_and_speed(robot, fill, max_amplitude, speed):
     lo, hi = np.asarray(robot.q_lower, dtype=float), np.asarray(robot.q_upper, dtype=float)
     A = np.minimum(fill * (hi - lo), max_amplitude)
-    src = getattr(robot, "source", {}) or {}
-    v = (urdf_joint_limits(src["path"], robot.joint_names)["velocity"] if src.get("kind") == "urdf"
-         else np.full(robot.n, np.nan))
+    v = _urdf_velocity(robot)
     vmax = np.where(np.isfinite(v) & (v > 0), speed * v, np.inf)
     return 0.5 * (lo + hi), A, vmax
 
@@ -845,4 +1067,128 @@ def point_to_point(robot, moves=4, move=3.0, dwell=2.0, fill=0.3, max_amplitude=
         sd = 30 * x * x * (1 - x) ** 2 / move
         sdd = 60 * x * (1 - x) * (1 - 2 * x) / move ** 2
         return W[j] + d * s, d * sd, d * sdd
+    return reference
+
+
+def drifts_and_bursts(robot, T=20.0, bursts=None, burst_duration=(0.2, 0.5), burst_speed=(0.5, 0.7),
+                      drift=0.25, drift_speed=0.1, drift_frequency=(0.02, 0.1), fill=0.3, max_amplitude=1.0,
+                      seed=0):
+    """A task of slow drifts with fast bursts: every joint drifts slowly, and a few times a few
+    joints make a short, fast minimum-jerk move to a new level,
+
+        q_d,i(t) = c_i + sum_{l=1}^{3} a_il (1 - cos(2 pi f_il t)) + b_i(t),
+
+    c_i the middle of joint i's range, f_il ~ U(drift_frequency) (Hz), a_il = k_i r_il (+-1),
+    r_il ~ U(0.5, 1), k_i the largest scale with 2 sum_l |a_il| <= drift x A_i and sum_l |a_il|
+    2 pi f_il <= drift_speed x v_i (A_i = min(fill x range, max_amplitude), v_i the URDF's
+    velocity limit, 1 rad/s where it gives none). b_i is piecewise constant but for ``bursts``
+    moves: burst j starts at a seeded instant in its slot (the slots split [t_a, T - t_b], t_a =
+    min(1, T / 10), t_b = min(0.5, T / 20), in ``bursts`` equal parts), lasts D_j ~
+    U(burst_duration) s and moves m_j ~ U{1, .., ceil(n / 2)} seeded joints by
+
+        b_i(t) = b_i,j + Delta_ij s((t - t_j) / D_j),   s(x) = 10 x^3 - 15 x^4 + 6 x^5,
+
+    |Delta_ij| = u_ij v_i D_j / 1.875 (peak speed u_ij x v_i, u_ij ~ U(burst_speed)), its sign
+    drawn among those that keep |b_i| <= (1 - drift) A_i (the step shortened to reach that bound
+    when neither does). So |q_d - c| <= A and |qd_d| <= (drift_speed + burst_speed high) x v;
+    at t = 0 the task is at rest (qd_d = 0) at c. Seeded (stream ``bursts``).
+
+    Parameters
+    ----------
+    robot : models.RobotModel
+        Read for n, q_lower, q_upper, joint_names and its URDF's velocity limits.
+    T : float
+        Length (s), long enough for the bursts: each slot >= burst_duration high.
+    bursts : int, optional
+        Number of bursts, >= 0; default round(0.3 T) (6 in 20 s), fewer if they do not fit.
+    burst_duration : (float, float)
+        Range of a burst's duration (s), 0 < low <= high.
+    burst_speed : (float, float)
+        Range of a burst's peak speed, fractions of the velocity limit, 0 < low <= high.
+    drift : float
+        The drifts' share of the excursion A, in (0, 1).
+    drift_speed : float
+        The drifts' largest speed, a fraction of the velocity limit, > 0, with drift_speed +
+        burst_speed high <= 1.
+    drift_frequency : (float, float)
+        Range of the drifts' frequencies (Hz), 0 < low <= high.
+    fill, max_amplitude : float
+        As in ``fourier_excitation`` (A above).
+    seed : int
+        Seed of the drifts and bursts.
+
+    Returns
+    -------
+    callable
+        t -> (q_d, qd_d, qdd_d), the task.
+    """
+    if not (bursts is None or isinstance(bursts, (int, np.integer)) and bursts >= 0):
+        raise ValueError(f"bursts must be an integer >= 0, got {bursts!r}")
+    if not (np.isfinite(T) and T > 0):
+        raise ValueError(f"T must be a positive number of seconds, got {T!r}")
+    (d_lo, d_hi), (u_lo, u_hi), (f_lo, f_hi) = (
+        _check_range(name, r) for name, r in (("burst_duration", burst_duration), ("burst_speed", burst_speed),
+                                              ("drift_frequency", drift_frequency)))
+    if not (d_lo > 0 and u_lo > 0 and f_lo > 0):
+        raise ValueError(f"burst_duration, burst_speed and drift_frequency must be positive ranges, got "
+                         f"{burst_duration!r}, {burst_speed!r}, {drift_frequency!r}")
+    if not (np.isfinite(drift) and 0 < drift < 1):
+        raise ValueError(f"drift must be in (0, 1), got {drift!r}")
+    if not (np.isfinite(drift_speed) and drift_speed > 0 and drift_speed + u_hi <= 1):
+        raise ValueError(f"drift_speed must be > 0 with drift_speed + burst_speed high <= 1, got "
+                         f"{drift_speed!r} + {u_hi!r}")
+    if not (np.isfinite(fill) and 0 < fill <= 0.5):
+        raise ValueError(f"fill must be in (0, 0.5], got {fill!r}")
+    if not (np.isfinite(max_amplitude) and max_amplitude > 0):
+        raise ValueError(f"max_amplitude must be a positive number, got {max_amplitude!r}")
+    t_a, t_b = min(1.0, T / 10), min(0.5, T / 20)
+    if bursts is None:
+        bursts = max(0, min(round(0.3 * T), int((T - t_a - t_b) // d_hi)))
+    slot = (T - t_a - t_b) / max(bursts, 1)
+    if bursts and slot < d_hi:
+        raise ValueError(f"T: {T:g} s has no room for {bursts} bursts of up to {d_hi:g} s (slots of {slot:g} s)")
+    n = robot.n
+    lo, hi = np.asarray(robot.q_lower, dtype=float), np.asarray(robot.q_upper, dtype=float)
+    v = _urdf_velocity(robot)
+    c, A, v = 0.5 * (lo + hi), np.minimum(fill * (hi - lo), max_amplitude), np.where(np.isfinite(v) & (v > 0), v, 1.0)
+    rng = _rng(seed, "bursts")
+    w = 2 * np.pi * rng.uniform(f_lo, f_hi, (n, 3))
+    a = rng.uniform(0.5, 1.0, (n, 3)) * _sign(rng, 3 * n).reshape(n, 3)
+    k = np.minimum(drift * A / (2 * np.abs(a).sum(1)), drift_speed * v / (np.abs(a) * w).sum(1))
+    a = k[:, None] * a
+    B = (1 - drift) * A
+    starts, durations, steps, levels = [], [], [], [np.zeros(n)]
+    for j in range(bursts):
+        D = rng.uniform(d_lo, d_hi)
+        start = t_a + j * slot + rng.uniform(0, slot - D)
+        joints = rng.permutation(n)[:rng.integers(1, (n + 1) // 2 + 1)]
+        u, coin = rng.uniform(u_lo, u_hi, n), rng.random(n)
+        b, step = levels[-1], np.zeros(n)
+        for i in joints:
+            size = u[i] * v[i] * D / 1.875
+            fits = [sg for sg in (1.0, -1.0) if abs(b[i] + sg * size) <= B[i]]
+            if fits:
+                step[i] = (fits[0] if len(fits) == 1 or coin[i] < 0.5 else fits[1]) * size
+            else:                                       # as far as the bound on the other side
+                step[i] = -np.sign(b[i]) * B[i] - b[i]
+        starts.append(start)
+        durations.append(D)
+        steps.append(step)
+        levels.append(b + step)
+    starts = np.array(starts)
+
+    def reference(t):
+        x = w * t
+        q = c + (a * (1 - np.cos(x))).sum(1)
+        qd = (a * w * np.sin(x)).sum(1)
+        qdd = (a * w * w * np.cos(x)).sum(1)
+        j = int(np.searchsorted(starts, t, side="right")) - 1
+        if j < 0:
+            return q, qd, qdd
+        D, d = durations[j], steps[j]
+        y = min((t - starts[j]) / D, 1.0)
+        s = y ** 3 * (10 - 15 * y + 6 * y * y)
+        sd = 30 * y * y * (1 - y) ** 2 / D
+        sdd = 60 * y * (1 - y) * (1 - 2 * y) / D ** 2
+        return q + levels[j] + d * s, qd + d * sd, qdd + d * sdd
     return reference
