@@ -312,7 +312,7 @@ def run_with(obs, p, Y, U, t, limit):
     return out
 
 
-def _check(obs, spec, tune, p):
+def check_candidate(obs, spec, tune, p):
     """The stability check of a candidate: one tuned gain moved alone, against its recorded bound
     (codegen.discrete.stability, in the target's metadata: the largest value stable with the others
     at their defaults); several, the full check (``obs.check_params``). ValueError when unstable."""
@@ -377,7 +377,7 @@ def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None, 
             break
         p = scaled(spec.p_names, p0, tune, s)
         try:
-            _check(obs, spec, tune, p)
+            check_candidate(obs, spec, tune, p)
         except ValueError as e:
             note = f"x {s:.3g} refused by the stability check ({str(e)[:80]}...)"
             continue
