@@ -313,7 +313,8 @@ def run_with(obs, p, Y, U, t, limit):
 
 
 def check_candidate(obs, spec, tune, p):
-    """The stability check of a candidate: one tuned gain moved alone, against its recorded bound
+    """The stability check of a candidate ``p`` (np,) of ``obs`` (built from ``spec``; ``tune`` its
+    bandwidth's {parameter: exponent}): one tuned gain moved alone, against its recorded bound
     (codegen.discrete.stability, in the target's metadata: the largest value stable with the others
     at their defaults); several, the full check (``obs.check_params``). ValueError when unstable."""
     recorded = ((getattr(obs, "meta", None) or {}).get("stability") or {}).get("gains") or {}

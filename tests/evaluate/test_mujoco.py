@@ -140,13 +140,14 @@ def test_compare_cli_errors(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def ur5_quantised():
     """3 s of MuJoCo ur5 with a 1e-4 rad encoder: the reduced-order observer with the gain the
-    design gives for that encoder (codegen.evaluate.compare.design_inputs) and every baseline tuned on
-    the run (codegen.evaluate.compare)."""
+    design gives for that encoder (codegen.evaluate.compare.design_inputs; ``tune="none"``: the
+    designed gains, not tuned on the log) and every baseline tuned on the run's truth
+    (codegen.evaluate.compare)."""
     from codegen.evaluate.compare import compare, design_inputs
     from codegen.evaluate.scenarios import mujoco
     rec = mujoco.recording("ur5", T=3.0, quantization=1e-4)
     return compare(rec, load_robot("ur5"), families=("reduced_order", "reduced_order_switched"), t_ss=1.0,
-                   design=design_inputs(quantization=1e-4))
+                   design=design_inputs(quantization=1e-4), tune="none")
 
 
 def test_observer_beats_the_tuned_baselines_on_mujoco(ur5_quantised):

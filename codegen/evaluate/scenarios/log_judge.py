@@ -152,8 +152,8 @@ def _identified(folder, robot, progress):
 
 
 def judge_all(out, model="urdf", names=None, progress=True):
-    """``judge`` every cell folder under ``out`` (or ``names`` of them); writes
-    ``out/judged-<model>.json`` and returns the summary: per cell its line, and the worst of each
+    """``judge`` every cell folder under ``out`` (or ``names`` of them), a progress bar on stderr
+    (``progress``); writes ``out/judged-<model>.json`` and returns the summary: the worst of each
     criterion over the cells."""
     import sys
 
