@@ -19,7 +19,7 @@ Measured on the log's sample clock (codegen.logs.clock), per joint:
 * **torque** (with a robot model): the measured torque against the model's inverse dynamics
   M(q) qdd + C(q, qd) qd + g(q) + tau_f(qd) at the zero-phase derivatives of q (cut off at twice the
   motion's band), both through the same low-pass: its mean (an offset) and RMS (the model's
-  error in the band), and the torque's white noise, from its third differences (``white_noise``);
+  error in the band), and the torque's white noise, about a local cubic as the positions';
   ``torque_uncertainty`` = sqrt(model RMS^2 + white^2) per joint, what a design that takes the
   model's torque error (kalman_model) needs.
 
@@ -280,23 +280,6 @@ def measure(t, q, tau=None, robot=None):
     return out
 
 
-def white_noise(t, y):
-    """(k,) std of the white noise on the columns of y (N, k) sampled at ``t`` (N,): var(d3 y) / 20
-    over the third differences d3 of consecutive samples a median step apart (white noise's third
-    difference has variance 20 sigma^2; a sampled motion's, h^3 times its third derivative, is far
-    below it), the rarest 0.1 % left out."""
-    h = float(np.median(np.diff(t)))
-    steps = np.diff(t)
-    even = np.abs(steps - h) <= 1e-3 * h
-    run = even[:-2] & even[1:-1] & even[2:]
-    d3 = np.diff(np.asarray(y, dtype=float), 3, axis=0)[run]
-    out = np.empty(d3.shape[1])
-    for j in range(d3.shape[1]):
-        z2 = np.sort(d3[:, j] ** 2)[: max(1, int(np.ceil(0.999 * len(d3))))]
-        out[j] = np.sqrt(np.mean(z2) / 20.0)
-    return out
-
-
 def _torque(out, t, q, tau, robot):
     """Fill ``out``'s torque fields: the measured torque against the model (module docstring)."""
     from ..verify.trajectory import inverse_dynamics_function
@@ -311,5 +294,5 @@ def _torque(out, t, q, tau, robot):
     res = (lp - model)[v]
     out.torque_offset = res.mean(axis=0)
     out.torque_model_rms = np.sqrt(np.mean((res - out.torque_offset) ** 2, axis=0))
-    out.torque_white = white_noise(t, tau)
+    out.torque_white = position_noise(t, tau)       # the same estimator: white noise about a local cubic
     out.torque_uncertainty = np.sqrt(out.torque_model_rms ** 2 + out.torque_white ** 2)

@@ -159,8 +159,10 @@ def judge_all(out, model="urdf", names=None, progress=True):
 
     from tqdm import tqdm
     out = Path(out)
-    folders = sorted(p for p in out.iterdir() if (p / "task_truth.csv").is_file()) if names is None else \
-        [out / n for n in names]
+    if names is None:
+        folders = sorted(p for p in out.iterdir() if not p.name.startswith(".") and (p / "task_truth.csv").is_file())
+    else:
+        folders = [out / n for n in names]
     cells = {}
     for folder in tqdm(folders, desc="log-judge", unit="cell", file=sys.stderr, disable=not progress):
         cells[folder.name] = judge(folder, model)
