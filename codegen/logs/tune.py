@@ -161,7 +161,7 @@ class Search:
 def search(score, s0, lo=None, hi=None, grid=GRID, golden=GOLDEN, extend=None):
     """Minimise ``score(s)`` over s > 0 in log(s): ``grid`` log-spaced candidates over [lo, hi]
     (default s0 / RANGE .. s0 * RANGE); while the best is at an end of the range, the range is
-    extended past it by the grid's step (at most ``extend`` times, default ``grid``, and never
+    extended past it by the grid's step (at most ``extend`` times, default 4 ``grid``, and never
     past a given ``lo``/``hi``); then ``golden`` golden-section steps in the bracket around the
     best (a score that is not finite counts as worse than any finite one).
 
@@ -184,7 +184,7 @@ def search(score, s0, lo=None, hi=None, grid=GRID, golden=GOLDEN, extend=None):
     xs = list(np.exp(np.linspace(math.log(lo), math.log(hi), grid)))
     step = (math.log(hi) - math.log(lo)) / (grid - 1)
     vals = [f(x) for x in xs]
-    for _ in range(grid if extend is None else extend):
+    for _ in range(4 * grid if extend is None else extend):
         k = int(np.argmin(vals))
         if not math.isfinite(vals[k]):
             break
