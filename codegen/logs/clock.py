@@ -459,6 +459,8 @@ def _fit_ticks(s, Q, period=None, skipped=None):
             post = _posterior(emit, trans, path)
             break
     res_ticks = _loo_residual(tau, Q, span)[0]
+    if period is None:                  # the ticks settled: the stamps' least-squares slope on them
+        T, c = (float(v) for v in np.polyfit(n.astype(float), s, 1))
     c = c + float(np.min(s - c - n * T))
     d = s - c - n * T
     nc = n - n.mean()
