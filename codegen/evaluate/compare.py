@@ -511,7 +511,6 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
                     t_ss, level, progress):
     """The Entry of one family on the log: built (designed for the log's sensor), tuned on it
     when ``tune_on`` (the better variant kept), run."""
-    from ..discrete.stability import UnstableDiscretization
     from ..pipeline.load import ObserverError
     t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
     inputs = {**design_for(fam, design), **given}
@@ -521,10 +520,7 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
         if slots is None or spec.ny != robot.n:
             raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
                              f"est = {', '.join(spec.est_names)})")
-        try:
-            obs, notes = observer_block(spec, dt, reference, stamped=True, stepping=stepping)
-        except UnstableDiscretization:
-            raise
+        obs, notes = observer_block(spec, dt, reference, stamped=True, stepping=stepping)
         tuned, p = (None, np.array(spec.p_default, dtype=float))
         if tune_on and not given:
             tuned, p = tuning.tune_observer(obs, spec, fam, Y, U, t, val, obs.dt_limit, slots,
