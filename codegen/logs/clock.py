@@ -443,8 +443,11 @@ def _fit_ticks(s, Q, period=None, skipped=None):
         r = dq - v * (np.diff(n) * T)[:, None]
         sig = _sigma(r[ok])
         delta = cand[1:, None, :] - cand[:-1, :, None]                      # (M-1, K prev, K cur)
-        z2 = ((dq[:, None, None, :] - v[:, None, None, :] * (delta[..., None] * T)) / sig) ** 2
-        fit = _huber(z2).sum(axis=3)
+        fit = np.empty(delta.shape)
+        for a in range(0, len(delta), 4096):           # in blocks: (rows, K, K, joints) stays small
+            b = a + 4096
+            z2 = ((dq[a:b, None, None, :] - v[a:b, None, None, :] * (delta[a:b, ..., None] * T)) / sig) ** 2
+            fit[a:b] = _huber(z2).sum(axis=3)
         fit[~ok] = 0.0
         trans = _transitions(delta, np.diff(n), skipped) + fit
         path = _viterbi(emit, trans)
