@@ -591,7 +591,12 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
             tuned, p = tuning.tune_observer(obs, spec, fam, Y, U, t, val, obs.dt_limit, slots,
                                             progress=progress, t_from=t_ss)
         try:
-            full, resets = _run_checked(obs, p, Y, U, t)
+            try:
+                full, resets = _run_checked(obs, p, Y, U, t)
+            except ValueError as e:             # a tuned value the full stability check refuses
+                notes.append(f"tuned parameters refused ({e}); the designed ones")
+                tuned, p = None, np.array(spec.p_default, dtype=float)
+                full, resets = _run_checked(obs, p, Y, U, t)
             if resets:
                 notes.append(f"reset after {resets} interval(s) longer than {obs.dt_limit:.3g} s")
         except (ObserverError, FloatingPointError) as e:
@@ -617,7 +622,7 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
 
 def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level=1e-2,
             baseline_names=None, reference=False, title="", ref_cutoff=None, progress=False, stepping=None,
-            tune="log", clock=None, noise=None):
+            tune="log", clock=None, noise=None, jobs=None):
     """Observers, baselines and the robot's own velocity signal on one recorded run, every gain
     and every baseline's parameter chosen on the log without truth (``tune="log"``).
 
@@ -665,6 +670,9 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         The clock ``rec`` is on (its line opens the header).
     noise : codegen.logs.noise.Noise, optional
         The log's measured noise (default measured here).
+    jobs : int, optional
+        Families built, compiled, tuned and run in this many processes at once (default one per
+        core; 1: in this process).
 
     Returns
     -------
@@ -705,12 +713,10 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     bar = tqdm(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
                file=sys.stderr, disable=not progress, leave=False)
     with bar:
-        for item, fam, given in parsed:
-            bar.set_postfix_str(item)
-            entries.append(_observer_entry(item, fam, given, robot, rec, design, noise, val, tune == "log",
-                                           reference, stepping, ref, t_ss, level,
-                                           (lambda text: bar.set_postfix_str(text)) if progress else None))
-            bar.update()
+        work = [(item, fam, given, robot, rec, design, noise, val, tune == "log", reference, stepping, ref, t_ss,
+                 level) for item, fam, given in parsed]
+        for entry in _entries(work, jobs, bar, progress):
+            entries.append(entry)
         for name in names:
             bar.set_postfix_str(name)
             if tune == "log":
@@ -734,6 +740,43 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     if clock is not None:
         info["clock"] = clock.describe()
     return Comparison(t=t, truth=ref.qd, entries=entries, t_ss=t_ss, level=level, title=title, info=info, ref=ref)
+
+
+_WORK = None          # the families' arguments, inherited by the forked workers of ``_entries``
+
+
+def _entry_job(i):
+    return _observer_entry(*_WORK[i], None)
+
+
+def _entries(work, jobs, bar, progress):
+    """The observers' entries of ``work`` (``_observer_entry``'s arguments but the progress), in
+    order: in this process, or ``jobs`` forked processes at a time (the robot and the log are
+    inherited, not pickled; the entries come back), the bar advanced as each finishes."""
+    import multiprocessing as mp
+    import os
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    global _WORK
+    jobs = max(1, min(jobs or os.cpu_count() or 1, len(work)))
+    if jobs == 1:
+        for args in work:
+            bar.set_postfix_str(args[0])
+            yield _observer_entry(*args, (lambda text: bar.set_postfix_str(text)) if progress else None)
+            bar.update()
+        return
+    _WORK = work
+    try:
+        with ProcessPoolExecutor(jobs, mp_context=mp.get_context("fork")) as pool:
+            futures = {pool.submit(_entry_job, i): i for i in range(len(work))}
+            done = {}
+            for f in as_completed(futures):
+                done[futures[f]] = f.result()
+                bar.set_postfix_str(work[futures[f]][0])
+                bar.update()
+        for i in range(len(work)):
+            yield done[i]
+    finally:
+        _WORK = None
 
 
 def design_on_log(rec, robot, family, design=None, clock=None, noise=None, reference=False, stepping=None,

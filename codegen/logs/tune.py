@@ -320,13 +320,16 @@ def check_candidate(obs, spec, tune, p):
     recorded = ((getattr(obs, "meta", None) or {}).get("stability") or {}).get("gains") or {}
     if len(tune) == 1:
         (name,) = tune
-        for gain, g in recorded.items():
-            if list(g.get("slots", [])) == [name] and (g.get("max_stable") is not None or not g.get("limit_found")):
+        for g in recorded.values():
+            if list(g.get("slots", [])) == [name] and g.get("max_stable") is not None:
                 value = float(p[list(spec.p_names).index(name)])
-                if value < 0 or (g.get("limit_found") and value > g["max_stable"]):
-                    raise ValueError(f"{name} = {value:.6g} is outside its recorded stable range "
-                                     f"[0, {g['max_stable']:.6g}]")
-                return
+                if value < 0:
+                    raise ValueError(f"{name} = {value:.6g} is negative")
+                if value <= g["max_stable"]:
+                    return                  # within the checked range (beyond it: the full check)
+                if g.get("limit_found"):
+                    raise ValueError(f"{name} = {value:.6g} is above its recorded stable bound "
+                                     f"{g['max_stable']:.6g}")
     obs.check_params(p)
 
 
