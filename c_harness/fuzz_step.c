@@ -21,7 +21,8 @@
  * turned on and off by an operation. Checked on every call (a violation prints what and aborts;
  * libFuzzer keeps the input):
  *   - the status is one the header documents;
- *   - a dt outside (0, SPLIT_MAX * DT_MAX] (NaN, Inf, <= 0, huge) gives ERR_BAD_ARG; otherwise
+ *   - a dt outside (0, SPLIT_MAX * DT_MAX] (NaN, Inf, <= 0, huge; first-order hold: with the time
+ *     skipped since the last accepted sample) gives ERR_BAD_ARG; otherwise
  *     a non-finite argument gives ERR_NONFINITE_INPUT, a finite one outside the declared ranges
  *     (the header's Y_LOWER, Y_UPPER, U_MAX) ERR_OUT_OF_RANGE, one inside neither; in the skip
  *     mode after the first sample both are SKIPPED instead;
@@ -31,8 +32,10 @@
  *   - OK: outputs and the new state are finite; run() equals as many step() calls, run_t()
  *     as many step_dt() calls over the intervals its header documents, step() is step_dt(DT),
  *     and estimate() (estimate_dt()) equals the estimate step() (step_dt()) returns, bit for bit;
- *   - SKIPPED: the estimate and the state are those of the step on the last accepted y and u
- *     (y_prev, u_prev), bit for bit, and the skip counter is one more;
+ *   - SKIPPED: first-order hold, the estimate is estimate_dt()'s on the last accepted y and u
+ *     (y_prev, u_prev) and the state is kept but for the time skipped (t_skip), the stamp and the
+ *     counters; zero-order hold, the estimate and the state are the step's on y_prev, u_prev; bit
+ *     for bit, and the skip counter is one more;
  *   - a wild sample in a long run (once per input: a fresh state in the skip mode, 200 samples of
  *     a sine per measurement about the middle of its range, one of them, after the first half,
  *     replaced by a fuzzed value outside the ranges or not finite): every status OK but that
@@ -119,7 +122,8 @@ static int same_state(const OBS_STATE *a, const OBS_STATE *b)
         && memcmp(a->u_prev, b->u_prev, sizeof a->u_prev) == 0
         && memcmp(a->m_prev, b->m_prev, sizeof a->m_prev) == 0 && a->primed == b->primed
         && memcmp(&a->t_last, &b->t_last, sizeof a->t_last) == 0 && a->stamped == b->stamped
-        && a->skip == b->skip && a->clipped == b->clipped && a->skipped == b->skipped;
+        && a->skip == b->skip && a->clipped == b->clipped && a->skipped == b->skipped
+        && memcmp(&a->t_skip, &b->t_skip, sizeof a->t_skip) == 0;
 }
 
 /* The declared ranges, from the header's macros (the contract, not the C's own check). */
@@ -151,9 +155,11 @@ static real dt_limit(void)
     return (real)ST(SPLIT_MAX) * ST(DT_MAX);
 }
 
-static int dt_ok(real dt)
+/* dt is a valid elapsed time for state s (first-order hold: with the time skipped since its last
+   accepted sample). */
+static int dt_ok(const OBS_STATE *s, real dt)
 {
-    return dt > 0 && dt <= dt_limit();
+    return dt > 0 && dt <= dt_limit() && (!ST(HOLD_FOH) || dt + s->t_skip <= dt_limit());
 }
 
 /* An elapsed time: the limit, just above it, or DT times a number. */
@@ -195,8 +201,21 @@ static int changed(int status)
     return status == ST(OK) || status == ST(SKIPPED);
 }
 
-/* A SKIPPED step of `before` (estimate est, state after) is the step_dt(dt) of the last accepted
-   sample, bit for bit, with one more skip. */
+/* 1 when a velocity estimate of est lies beyond the header's V_BOUND. */
+static int at_bound(const real *est)
+{
+    static const int slot[OBS_LEN(ST(NV))] = ST(V_SLOTS);
+    static const real bound[OBS_LEN(ST(NV))] = ST(V_BOUND);
+    int i;
+    for (i = 0; i < ST(NV); ++i)
+        if (est[slot[i]] < -bound[i] || est[slot[i]] > bound[i]) return 1;
+    return 0;
+}
+
+/* A SKIPPED step_dt(dt) of `before` (estimate est, state after), bit for bit: first-order hold,
+   the estimate estimate_dt(dt) gives on the last accepted sample, the state kept but for the time
+   skipped, the stamp and the counters; zero-order hold, the step_dt(dt) of the last accepted
+   sample, one more skip. */
 static void check_skipped(const OBS_STATE *before, const OBS_STATE *after, real dt, const real *est, const char *call)
 {
     OBS_STATE t = *before;
@@ -204,7 +223,14 @@ static void check_skipped(const OBS_STATE *before, const OBS_STATE *after, real 
     int st;
     memcpy(y, before->y_prev, sizeof y);
     memcpy(u, before->u_prev, sizeof u);
-    st = OBS_FN(step_dt)(&t, dt, y, u, e);
+    if (ST(HOLD_FOH)) {
+        st = OBS_FN(estimate_dt)(&t, dt, y, u, e);
+        t.t_skip += dt;
+        t.t_last += dt;
+        t.clipped += (unsigned long)at_bound(e);
+    } else {
+        st = OBS_FN(step_dt)(&t, dt, y, u, e);
+    }
     t.skipped += 1;
     if (st != ST(OK) || memcmp(e, est, sizeof e) != 0 || !same_state(&t, after))
         fail(call, st);
@@ -218,7 +244,7 @@ static void step_op(OBS_STATE *s, source *in)
     numbers(in, y, OBS_NY);
     numbers(in, u, OBS_NU);
     st = OBS_FN(step)(s, y, u, est);
-    check_sample(st, expected(&before, y, u), "step: status");
+    check_sample(st, dt_ok(&before, ST(DT)) ? expected(&before, y, u) : ST(ERR_BAD_ARG), "step: status");
     if (!changed(st) && !same_state(s, &before)) fail("step: state changed on error", st);
     if (changed(st) && !(finite(est, OBS_NEST) && finite(s->x, OBS_NX)))
         fail("step: OK with a non-finite estimate or state", st);
@@ -234,7 +260,7 @@ static void step_dt_op(OBS_STATE *s, source *in)
     numbers(in, y, OBS_NY);
     numbers(in, u, OBS_NU);
     st = OBS_FN(step_dt)(s, dt, y, u, est);
-    if (!dt_ok(dt)) {
+    if (!dt_ok(&before, dt)) {
         if (st != ST(ERR_BAD_ARG)) fail("step_dt: a dt outside (0, SPLIT_MAX * DT_MAX] is not ERR_BAD_ARG", st);
     } else {
         check_sample(st, expected(&before, y, u), "step_dt: status");
@@ -259,7 +285,7 @@ static void estimate_dt_op(OBS_STATE *s, source *in)
     numbers(in, y, OBS_NY);
     numbers(in, u, OBS_NU);
     st = OBS_FN(estimate_dt)(s, dt, y, u, est);
-    if (!dt_ok(dt)) {
+    if (!dt_ok(&before, dt)) {
         if (st != ST(ERR_BAD_ARG)) fail("estimate_dt: a bad dt is not ERR_BAD_ARG", st);
     } else {
         check_sample(st, expected(&before, y, u), "estimate_dt: status");
@@ -328,7 +354,7 @@ static void estimate_op(OBS_STATE *s, source *in)
     numbers(in, y, OBS_NY);
     numbers(in, u, OBS_NU);
     st = OBS_FN(estimate)(s, y, u, est);
-    check_sample(st, expected(&before, y, u), "estimate: status");
+    check_sample(st, dt_ok(&before, ST(DT)) ? expected(&before, y, u) : ST(ERR_BAD_ARG), "estimate: status");
     if (!same_state(s, &before)) fail("estimate: state changed", st);
     if (!changed(st)) return;
     if (!finite(est, OBS_NEST)) fail("estimate: OK with a non-finite estimate", st);

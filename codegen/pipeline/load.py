@@ -170,7 +170,7 @@ class CompiledObserver:
             return ""
         kind, i, value, (lo, hi) = bad
         name = self.meta["names"][kind][i]
-        return f"{name} = {value:.6g} outside [{lo:.6g}, {hi:.6g}] (the declared range, {self.limits.get('rule', '')})"
+        return f"{name} = {value:.6g} outside [{lo:.6g}, {hi:.6g}], its declared range"
 
     @property
     def skip(self):

@@ -168,6 +168,7 @@ class ReferenceObserver:
         # the declared ranges of y and u (codegen.core.limits), the skip mode and the counters of the C
         self.limits = desc.get("limits") or {}
         self.skip, self.skipped, self.clipped = False, 0, 0
+        self._pending = 0.0     # first-order hold: the time skipped since the last accepted sample
         bound = getattr(self.options, "v_bound", ()) or ()
         slots = [i for i, s in enumerate(self.est_names) if s.startswith("qd_hat_")]
         self._v = (slots, np.asarray(bound, dtype=float)) if len(bound) == len(slots) and slots else None
@@ -317,7 +318,7 @@ class ReferenceObserver:
         self._refuse(y0, None, "y0")
         self._p, self._x, self._prev, self._y_last, self._stamp = p, x0, None, y0, None
         self._m = np.zeros(self.nm)
-        self.skip, self.skipped, self.clipped = False, 0, 0
+        self.skip, self.skipped, self.clipped, self._pending = False, 0, 0, 0.0
         return self.state
 
     def _outside(self, y, u):
@@ -362,6 +363,22 @@ class ReferenceObserver:
             return 0
         slots, bound = self._v
         return int(np.any(np.abs(est[slots]) > bound))
+
+    def _sample(self, x, prev, mem, pending, y, u, h, what="sample"):
+        """(est, x_next, memory_next, pending_next, skipped) of one sample as the C's step_dt takes it
+        (``_accepted``): a skipped sample under the first-order hold leaves x and the memory at the
+        last accepted sample, its estimate integrates the time since (``pending`` + h, y held), and
+        the next accepted one integrates all of it; otherwise (zero-order hold: the held sample
+        stepped) the step of the elapsed time ``h`` (+ ``pending``, first-order)."""
+        y, u, skipped = self._accepted(y, u, prev, what)
+        total = h + pending if self.hold == "foh" else h
+        if not total <= self.dt_limit:
+            raise ValueError(f"{what}: {total:g} s since the last accepted sample, more than {self.dt_limit:g} s "
+                             f"(split_max x dt_max)")
+        if skipped and self.hold == "foh":
+            return self._advance(x, prev, y, u, total, mem)[0], x, mem, pending + h, True
+        est, x, mem = self._advance(x, prev, y, u, total, mem)
+        return est, x, mem, 0.0, skipped
 
     def _flow(self, x, y_of_t, u, dt, m, midpoint=False):
         """(x, m) advanced over dt with y = y_of_t(t) and u held; ``midpoint`` (first-order hold
@@ -458,11 +475,12 @@ class ReferenceObserver:
         h = self._elapsed(dt)
         y = as_vector("y", y, self.ny)
         u = as_vector("u", u, self.nu)
-        y, u, skipped = self._accepted(y, u, self._prev)
-        est, self._x, self._m = self._advance(self._x, self._prev, y, u, h)
+        est, self._x, self._m, self._pending, skipped = self._sample(self._x, self._prev, self._m, self._pending,
+                                                                     y, u, h)
         if self._prev is not None and self._stamp is not None:
             self._stamp += h
-        self._prev, self._y_last = (y, u), y
+        if not skipped:
+            self._prev, self._y_last = (y, u), y
         self.skipped += skipped
         self.clipped += self._at_bound(est)
         return est
@@ -472,8 +490,7 @@ class ReferenceObserver:
         self._require_reset()
         h = self._elapsed(dt)
         y, u = as_vector("y", y, self.ny), as_vector("u", u, self.nu)
-        y, u, _ = self._accepted(y, u, self._prev)
-        return self._advance(self._x, self._prev, y, u, h)[0]
+        return self._sample(self._x, self._prev, self._m, self._pending, y, u, h)[0]
 
     def run(self, Y, U, t=None):
         """Repeated ``step``, all-or-nothing: on an error the state is left unchanged.
@@ -517,19 +534,19 @@ class ReferenceObserver:
             if len(bad):
                 raise ValueError(f"t: the interval of sample {int(bad[0])} is {H[bad[0]]:g} s, expected "
                                  f"0 < interval <= {self.dt_limit:g} s (split_max x dt_max)")
-        x, prev, stamp, mem = self._x, self._prev, self._stamp, self._m
+        x, prev, stamp, mem, pending = self._x, self._prev, self._stamp, self._m, self._pending
         EST = np.empty((N, self.nest))
         skipped = clipped = 0
         for k in range(N):
-            y, u, skip = self._accepted(Y[k], U[k], prev, f"sample {k}")
-            EST[k], x, mem = self._advance(x, prev, y, u, float(H[k]), mem)
+            EST[k], x, mem, pending, skip = self._sample(x, prev, mem, pending, Y[k], U[k], float(H[k]), f"sample {k}")
             if prev is not None and stamp is not None:
                 stamp += H[k]
-            prev = (y, u)
+            if not skip:
+                prev = (Y[k], U[k])
             if t is not None:
                 stamp = float(t[k])
             skipped, clipped = skipped + skip, clipped + self._at_bound(EST[k])
-        self._x, self._prev, self._stamp, self._m = x, prev, stamp, mem
+        self._x, self._prev, self._stamp, self._m, self._pending = x, prev, stamp, mem, pending
         self.skipped, self.clipped = self.skipped + skipped, self.clipped + clipped
         if len(Y):
             self._y_last = prev[0]
