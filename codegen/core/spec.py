@@ -139,6 +139,9 @@ class ObserverSpec:
                   discrete stability check bisects on, codegen.discrete.stability)
       clocks      clock state name -> the parameter (a time, s) it counts up to, s' = 1: the
                   stability check refuses a time the clock cannot reach in the precision
+      limits      the ranges of y and u the user declared (None: the robot's declared limits with
+                  their margins; "none": no range; codegen.core.limits); ``input_limits`` are the
+                  ranges the C checks every sample against
     """
 
     family: str
@@ -168,6 +171,14 @@ class ObserverSpec:
     rate_states: tuple = ()
     gains: dict = field(default_factory=dict)
     clocks: dict = field(default_factory=dict)
+    limits: object = None
+
+    @property
+    def input_limits(self):
+        """The declared ranges of y and u (codegen.core.limits.input_ranges: ``y_lower``,
+        ``y_upper``, ``u_max``, None where a slot is not checked, and the ``rule``)."""
+        from .limits import input_ranges
+        return input_ranges(self.robot, self.y_names, self.u_names, self.limits)
 
     def __setattr__(self, name, value):
         """Every design report assigned (at construction or later) is a DesignReport."""
@@ -259,15 +270,16 @@ class ObserverSpec:
     def describe(self):
         """Plain data (JSON-able) the reference rebuilds this observer from: family, variant,
         robot source, slot names, default parameters, options, whether it is hybrid, its rate states
-        whether it splits its flow's y (``rhs_split``) and the size of its model part (``model``;
-        0: none)."""
+        whether it splits its flow's y (``rhs_split``), the size of its model part (``model``;
+        0: none) and the declared ranges of its inputs (``input_limits``)."""
         return {"family": self.family, "variant": self.variant, "robot": self.robot_source,
                 "names": {"x": list(self.x_names), "y": list(self.y_names), "u": list(self.u_names),
                           "p": list(self.p_names), "est": list(self.est_names)},
                 "p_default": [float(v) for v in self.p_default], "options": self.options.to_dict(),
                 "hybrid": self.jump is not None, "rate_states": list(self.rate_states),
                 "rhs_split": self.rhs_split is not None, "rhs_model": self.model_size,
-                "gains": {g: list(slots) for g, slots in self.gains.items()}}
+                "gains": {g: list(slots) for g, slots in self.gains.items()},
+                "limits": self.input_limits}
 
 
 def split_flow(x, y_cfg, y, u, p, xdot):
