@@ -118,3 +118,24 @@ def test_a_receive_time_csv_is_read_on_its_clock(tmp_path):
     assert len(rows) == len(stamps) and np.array_equal(Q, rec.q[rows])
     with pytest.raises(RecordingError, match="log.csv.*must increase strictly"):
         read_log(path, JOINTS, "stamps")
+
+
+@pytest.mark.slow
+def test_memory_does_not_grow_with_the_neighbours():
+    """Issue 34, R4: a 200 MB log (1.4 M rows, 7 joints) took 16 GB to rebuild its clock (the local
+    fits held rows x 97 neighbours x joints at once, the tick fit rows x 24^2 candidates); the fits
+    now go in blocks of rows (measured: 1.8 GB for that log, the same ticks). Here: doubling the
+    rows adds less memory than 100 copies of the added positions (measured: 48, the whole-log arrays
+    of 24 candidate ticks a row, costs and forward-backward; it was 209), and the ticks are still
+    all right."""
+    import tracemalloc
+    peaks = []
+    for N in (20000, 40000):
+        stamps, Q, TAU, source, _ = _log(N=N, seed=4)
+        tracemalloc.start()
+        clock = rebuild(stamps, Q, TAU)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+        assert clock.kind == "ticks" and _right(clock, source) >= 0.999
+    added = 20000 * len(JOINTS) * 8
+    assert peaks[1] - peaks[0] < 100 * added, (peaks, added)
