@@ -713,22 +713,11 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     bar = tqdm(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
                file=sys.stderr, disable=not progress, leave=False)
     with bar:
-        work = [(item, fam, given, robot, rec, design, noise, val, tune == "log", reference, stepping, ref, t_ss,
-                 level) for item, fam, given in parsed]
+        work = [(_observer_entry, item, fam, given, robot, rec, design, noise, val, tune == "log", reference,
+                 stepping, ref, t_ss, level) for item, fam, given in parsed]
+        work += [(_baseline_entry, name, rec, val, noise, tune == "log", ref, t_ss, level) for name in names]
         for entry in _entries(work, jobs, bar, progress):
             entries.append(entry)
-        for name in names:
-            bar.set_postfix_str(name)
-            if tune == "log":
-                params, est, tuned = tune_baseline(name, Y, t, dt, val, noise, t_ss)
-            else:
-                (params, est), tuned = tune_on_reference(name, Y, t, ref.qd, t_ss, dt, valid=ref.valid), None
-            m = measure(ref, t, est, t_ss, level)
-            m["validation_rms"] = val.rms(est, t_ss)
-            entries.append(Entry(name, "baseline", params, est, m,
-                                 "tuned on the log (forward validation)" if tuned is not None else "",
-                                 tuned=tuned))
-            bar.update()
         if rec.qdm is not None:
             bar.set_postfix_str("qdm")
             m = measure(ref, t, rec.qdm, t_ss, level)
@@ -745,23 +734,38 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
 _WORK = None          # the families' arguments, inherited by the forked workers of ``_entries``
 
 
+def _baseline_entry(name, rec, val, noise, tune_on, ref, t_ss, level, progress=None):
+    """The Entry of the baseline ``name`` on the recording ``rec``: tuned on the log (forward
+    validation ``val``, the measured ``noise``) with ``tune_on``, else against the reference ``ref``."""
+    t, Y, dt = rec.t, rec.q, rec.dt
+    if tune_on:
+        params, est, tuned = tune_baseline(name, Y, t, dt, val, noise, t_ss)
+    else:
+        (params, est), tuned = tune_on_reference(name, Y, t, ref.qd, t_ss, dt, valid=ref.valid), None
+    m = measure(ref, t, est, t_ss, level)
+    m["validation_rms"] = val.rms(est, t_ss)
+    return Entry(name, "baseline", params, est, m, "tuned on the log (forward validation)" if tuned is not None else "",
+                 tuned=tuned)
+
+
 def _entry_job(i):
-    return _observer_entry(*_WORK[i], None)
+    return _WORK[i][0](*_WORK[i][1:], None)
 
 
 def _entries(work, jobs, bar, progress):
-    """The observers' entries of ``work`` (``_observer_entry``'s arguments but the progress), in
-    order: in this process, or ``jobs`` forked processes at a time (the robot and the log are
-    inherited, not pickled; the entries come back), the bar advanced as each finishes."""
+    """The entries of ``work`` (each a function, ``_observer_entry`` or ``_baseline_entry``, and its
+    arguments but the progress), in order: in this process, or ``jobs`` forked processes at a time
+    (the robot and the log are inherited, not pickled; the entries come back), the bar advanced as
+    each finishes."""
     import multiprocessing as mp
     import os
     from concurrent.futures import ProcessPoolExecutor, as_completed
     global _WORK
     jobs = max(1, min(jobs or os.cpu_count() or 1, len(work)))
     if jobs == 1:
-        for args in work:
+        for job, *args in work:
             bar.set_postfix_str(args[0])
-            yield _observer_entry(*args, (lambda text: bar.set_postfix_str(text)) if progress else None)
+            yield job(*args, (lambda text: bar.set_postfix_str(text)) if progress else None)
             bar.update()
         return
     _WORK = work
@@ -771,7 +775,7 @@ def _entries(work, jobs, bar, progress):
             done = {}
             for f in as_completed(futures):
                 done[futures[f]] = f.result()
-                bar.set_postfix_str(work[futures[f]][0])
+                bar.set_postfix_str(work[futures[f]][1])
                 bar.update()
         for i in range(len(work)):
             yield done[i]
