@@ -46,6 +46,8 @@ static const char *obs_status_name(int status)
     if (status == OBS_SIZE(ERR_NONFINITE_INPUT)) return "ERR_NONFINITE_INPUT (NaN or Inf in y or u)";
     if (status == OBS_SIZE(ERR_NONFINITE_RESULT)) return "ERR_NONFINITE_RESULT (NaN or Inf in the result)";
     if (status == OBS_SIZE(ERR_KERNEL)) return "ERR_KERNEL (a generated kernel failed)";
+    if (status == OBS_SIZE(ERR_OUT_OF_RANGE)) return "ERR_OUT_OF_RANGE (y or u outside the declared ranges)";
+    if (status == OBS_SIZE(SKIPPED)) return "SKIPPED (skip mode: predicted through a rejected sample)";
     return "unknown status";
 }
 

@@ -155,7 +155,7 @@ def tune_target(target, log):
     from .evaluate.compare import design_on_log
     from .logs.recording import read_log
     robot = from_source(target.robot)
-    rec, clock = read_log(log, robot.joint_names)
+    rec, clock = read_log(log, robot.joint_names, robot=robot)
     entry, _, _ = design_on_log(rec, robot, target.family, design=dict(target.build), clock=clock)
     tuned = entry.tuned.params if entry.tuned is not None else {}
     print(f"{target.prefix}: tuned on {Path(log).name}: "
@@ -423,7 +423,7 @@ def _compare_source(args):
         raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}) or a .csv file, "
                          f"got {args.source!r}{hint}")
     robot = _compare_robot(args)
-    rec, clock = read_log(args.source, robot.joint_names, args.clock)
+    rec, clock = read_log(args.source, robot.joint_names, args.clock, robot=robot)
     return rec, robot, f"{Path(args.source).name} ({robot.name})", clock
 
 
@@ -538,7 +538,7 @@ def cmd_identify(args):
     from .logs.recording import read_log
     from .logs.identify import identify
     robot = _robot_of(args)
-    rec, clock = read_log(args.log, robot.joint_names, args.clock)
+    rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
     print(clock.describe())
     ident = identify(rec, robot, cutoff=args.cutoff,
                      test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
@@ -569,7 +569,7 @@ def cmd_describe(args):
     from .logs.recording import read_log
     robot = _robot_of(args) if (args.robot or args.urdf) else None
     joints = list(robot.joint_names) if robot is not None else _log_joints(args.log)
-    rec, clock = read_log(args.log, joints, args.clock)
+    rec, clock = read_log(args.log, joints, args.clock, robot=robot)
     nz = noise_of.measure(rec.t, rec.q, rec.tau if robot is not None else None, robot)
     print(clock.describe())
     print(f"recording: {rec.describe()}")
@@ -596,7 +596,7 @@ def cmd_design(args):
     from .evaluate.sim.blocks import stage_lines
     from .logs.recording import read_log
     robot = _robot_of(args)
-    rec, clock = read_log(args.log, robot.joint_names, args.clock)
+    rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
     print(clock.describe())
     print(f"recording: {rec.describe()}")
     sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization, args.noise)
@@ -824,8 +824,9 @@ def parser():
             x.add_argument("--seed", type=int, default=0, help="seed of the optimiser's starts")
             x.add_argument("--out", metavar="CSV", default="traj.csv", help="the trajectory (default traj.csv)")
         else:
-            x.add_argument("--cutoff", type=float, default=idf.DEFAULT_CUTOFF,
-                           help=f"zero-phase low-pass (Hz, default {idf.DEFAULT_CUTOFF:g})")
+            x.add_argument("--cutoff", type=float,
+                           help="zero-phase low-pass (Hz; default chosen on the log: its acceleration's least "
+                                "predicted error on the measured spectrum)")
             x.add_argument("--test-fraction", type=float, default=idf.DEFAULT_TEST_FRACTION,
                            help=f"held-out tail of the log (default {idf.DEFAULT_TEST_FRACTION:g})")
             x.add_argument("--coulomb-width", type=_width, default="auto",

@@ -54,6 +54,9 @@ class ElasticRobot:
         self.name = name or f"{rigid.name}_elastic"
         self.joint_names = list(rigid.joint_names)
         self.q_lower, self.q_upper = np.asarray(rigid.q_lower), np.asarray(rigid.q_upper)
+        # the link side's declared limits (models/robot.py), the motor torque bound by the joint's effort
+        self.position_limited = getattr(rigid, "position_limited", np.zeros(self.n, dtype=bool))
+        self.effort_limit = getattr(rigid, "effort_limit", np.full(self.n, np.inf))
         j = self.joint_names
         self.state_names = ([f"q1_{a}" for a in j] + [f"q1d_{a}" for a in j]
                             + [f"q2_{a}" for a in j] + [f"q2d_{a}" for a in j])

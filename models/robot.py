@@ -49,6 +49,11 @@ class RobotModel:
     ``masses``      (n,) mass of each link (the body moved by joint i)
     ``q_lower``, ``q_upper``  (n,) joint ranges used to sample configurations
     ``v_limit``     (n,) joint speed limits (informative)
+
+    and, when the description declares them (a URDF's ``<limit>``), ``_position_limited`` ((n,)
+    bools: q_lower, q_upper are the joint's declared limits, not a sampling range) and
+    ``_effort_limit`` ((n,) N m or N, inf where not declared): ``position_limited``,
+    ``effort_limit``.
     ``joint_names`` list of n names
     ``source``      JSON-able dict saying how to rebuild the robot *without* our
                     symbolic code (the independent reference reads it)
@@ -74,6 +79,19 @@ class RobotModel:
     # cached properties that depend on the friction (dropped by ``with_friction``); a subclass
     # with more of them extends the tuple
     _FRICTION_CACHED = ("fd", "tau_f")
+
+    @property
+    def position_limited(self):
+        """(n,) bools: joint i's ``q_lower``, ``q_upper`` are limits its description declares (a
+        URDF's revolute or prismatic ``<limit lower upper>``), not only the range configurations
+        are sampled in (a continuous joint, a closed form, a DH table: none declared)."""
+        return np.asarray(getattr(self, "_position_limited", np.zeros(self.n, dtype=bool)), dtype=bool)
+
+    @property
+    def effort_limit(self):
+        """(n,) the declared effort limits, N m (N on a prismatic joint); inf where none is declared
+        (a URDF's ``<limit effort>``, absent or 0: none)."""
+        return np.asarray(getattr(self, "_effort_limit", np.full(self.n, np.inf)), dtype=float)
 
     @property
     def periodic(self):

@@ -59,6 +59,7 @@ __all__ = ["UrdfRobot", "load_urdf", "read_friction_file", "friction_file_path",
 _URDF_SUPPORTED = {"revolute", "continuous", "prismatic", "fixed"}
 _URDF_KNOWN = _URDF_SUPPORTED | {"floating", "planar"}
 _HUGE_LIMIT = 1e4   # a limit beyond this (or non-finite) counts as "no range given"
+_HUGE_EFFORT = 1e9  # an effort limit (N m, N) beyond this (or 0, or non-finite) counts as none declared
 
 
 # =============================================================================================
@@ -260,6 +261,7 @@ class UrdfRobot(RobotModel):
         self.v_limit = np.array(pm.velocityLimit, dtype=float)
         self._idx_q = [pm.joints[i].idx_q for i in range(1, pm.njoints)]
         lo, up = np.empty(self.n), np.empty(self.n)
+        limited = np.zeros(self.n, dtype=bool)
         for k, b in enumerate(self.tree.bodies):
             lo[k], up[k] = -math.pi, math.pi
             if b.continuous:
@@ -270,8 +272,11 @@ class UrdfRobot(RobotModel):
                 raise ModelError(f"joint {b.joint!r}: lower limit {l_} > upper limit {u_}")
             if (math.isfinite(l_) and math.isfinite(u_) and max(abs(l_), abs(u_)) <= _HUGE_LIMIT
                     and l_ < u_):
-                lo[k], up[k] = l_, u_
+                lo[k], up[k], limited[k] = l_, u_, True
         self.q_lower, self.q_upper = lo, up
+        self._position_limited = limited
+        effort = np.array([float(pm.effortLimit[pm.joints[i].idx_v]) for i in range(1, pm.njoints)])
+        self._effort_limit = np.where(np.isfinite(effort) & (effort > 0) & (effort <= _HUGE_EFFORT), effort, np.inf)
         self.snap_tol = float(snap_tol)
         self.source = source if source is not None else {
             "kind": "pin_model", "name": self.name, "snap_tol": self.snap_tol}

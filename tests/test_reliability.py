@@ -19,6 +19,7 @@ from codegen.pipeline.load import CompiledObserver, ObserverError, load
 from conftest import ROOT
 from models import load_robot
 from urdf_chain import revolute_chain, write_chain
+from codegen.core.estimator import velocity_slots
 
 _D = ct.POINTER(ct.c_double)
 
@@ -174,3 +175,113 @@ def test_corrupt_cached_library_is_rebuilt_or_refused(spec_of, tmp_path):
     obs = CompiledObserver(lib, meta)
     obs.reset([0.0, 0.0])
     assert np.all(np.isfinite(obs.step([0.1, 0.2], [0.0, 0.0])))
+
+
+# ------------------------------------------------------------------ issue 34, R1: wild samples
+WILD = {"seed000_2r": {"q_lower": -4.0, "q_upper": 4.0, "tau_max": 2000.0}}   # declared: a closed form has none
+
+
+def _wild_setup(robot_name, family="reduced_order", T=3.0, noise=1e-4, seed=3):
+    """(compiled observer with the robot's (or WILD's) declared ranges, t, Q measured (encoder-like
+    noise), QD true, TAU) of the built-in trajectory."""
+    from codegen import compile_observer
+    from codegen.verify.trajectory import demo_trajectory
+    robot = load_robot(robot_name)
+    spec = observers.build(family, robot, **({"limits": WILD[robot_name]} if robot_name in WILD else {}))
+    t, Q, QD, TAU = demo_trajectory(robot, T=T, dt=1e-3, seed=seed)
+    Q = Q + np.random.default_rng(seed).normal(0.0, noise, Q.shape)
+    return compile_observer(spec, dt=1e-3), t, Q, QD, TAU
+
+
+@pytest.mark.parametrize("robot_name", ["ur5", "seed000_2r"])
+def test_a_wild_sample_is_refused_with_the_state_unchanged(robot_name, tmp_path):
+    """Issue 34, R1: y = 1e200 at sample 5 returned OK, the estimate 2.6e201 and every later one
+    near -6.6e199 (the velocity bound kept it finite, so nothing reported it). A value outside the
+    declared ranges (ur5: its URDF's limits with margins; seed000_2r: declared, limits=) is
+    ERR_OUT_OF_RANGE, naming the slot and the range, with the state unchanged; so is a torque of
+    1e300 N m. The header declares the ranges."""
+    from codegen.pipeline.load import OutOfRange
+    obs, t, Q, QD, TAU = _wild_setup(robot_name)
+    obs.reset(Q[0])
+    est = obs.run(Q[1:5], TAU[1:5])
+    x = obs.state
+    nxt = obs.estimate(Q[5], TAU[5])
+    for y, u, slot in ((np.full(obs.ny, 1e200), TAU[5], obs.meta["names"]["y"][0]),
+                       (Q[5], np.full(obs.nu, 1e300), obs.meta["names"]["u"][0])):
+        with pytest.raises(OutOfRange, match=rf"ERR_OUT_OF_RANGE: {slot} = 1e\+[0-9]+ outside \[.*state unchanged"):
+            obs.step(y, u)
+        assert np.array_equal(obs.state, x) and np.array_equal(obs.estimate(Q[5], TAU[5]), nxt)
+    Y = Q[5:10].copy()
+    Y[2, 0] = 1e200
+    with pytest.raises(OutOfRange, match=r"stopped at sample 2 .*ERR_OUT_OF_RANGE: .* outside"):
+        obs.run(Y, TAU[5:10])
+    assert np.array_equal(obs.state, x) and np.isfinite(est).all()
+    with pytest.raises(OutOfRange, match="init"):
+        obs.reset(np.full(obs.ny, 1e200))
+    folder = emit(observers.build("reduced_order", load_robot(robot_name), **(
+        {"limits": WILD[robot_name]} if robot_name in WILD else {})).target(dt=1e-3), tmp_path)
+    header = (folder / f"{obs.prefix}.h").read_text()
+    P = obs.prefix.upper()
+    assert f"#define {P}_CHECK_RANGES 1" in header and f"{P}_ERR_OUT_OF_RANGE = 5" in header
+    assert f"#define {P}_Y_UPPER {{{obs.limits['y_upper'][0]!r}" in header
+
+
+def test_without_declared_limits_the_clip_counter_reports_the_wild_sample():
+    """A robot without declared limits (seed000_2r's closed form) has no range to check (the issue's
+    case returns OK), but the steps at the velocity bound are counted, in C, as the Python
+    measure counts them (codegen.verify.measure.saturated_samples)."""
+    from codegen import compile_observer
+    from codegen.verify.measure import saturated_samples
+    from codegen.verify.trajectory import demo_trajectory
+    robot = load_robot("seed000_2r")
+    obs = compile_observer(observers.build("reduced_order", robot), dt=1e-3)
+    assert obs.limits["y_upper"] == [None, None] and obs.limits["u_max"] == [None, None]
+    t, Q, QD, TAU = demo_trajectory(robot, T=1.0, dt=1e-3)
+    Y = Q.copy()
+    Y[5] = 1e200
+    obs.reset(Y[0])
+    est = obs.run(Y, TAU)
+    assert obs.clipped == saturated_samples(est, obs) > 100 and obs.skipped == 0
+    obs.reset(Q[0])
+    obs.run(Q, TAU)
+    assert obs.counters == {"clipped": 0, "skipped": 0}
+
+
+@pytest.mark.parametrize("robot_name, family", [("seed000_2r", "reduced_order"), ("ur5", "reduced_order"),
+                                                pytest.param("ur5", "kalman_model", marks=pytest.mark.slow),
+                                                ("seed000_2r", "extended_state")])
+def test_in_the_skip_mode_one_wild_sample_costs_one_sample(robot_name, family):
+    """Issue 34, R1, "one bad sample must not cost more than one sample": random wild samples (a
+    position or a torque far out of its declared range, at a random sample after convergence) in
+    3 s runs, the skip mode on: the wild sample is SKIPPED (predicted through, counted), every other
+    is OK, and one sample later the estimate is within the error of the run without it (its largest
+    error after 1 s against the true velocity) of that run's estimate; the numpy reference, in the
+    same mode, agrees with the C to 1e-9."""
+    from codegen.reference import reference_observer
+    obs, t, Q, QD, TAU = _wild_setup(robot_name, family)
+    slots = velocity_slots(obs.meta["names"]["est"])
+    obs.reset(Q[0])
+    clean = obs.run(Q, TAU)[:, slots]
+    late = t >= 1.0
+    error = np.max(np.abs(clean[late] - QD[late]))
+    rng = np.random.default_rng(7)
+    for _ in range(4):
+        k = int(rng.integers(1500, len(t) - 2))
+        Y, U = Q.copy(), TAU.copy()
+        j = int(rng.integers(0, obs.ny + obs.nu))
+        value = rng.choice([1e200, -1e6, 1e3]) if j < obs.ny else rng.choice([1e300, -1e5])
+        (Y[k] if j < obs.ny else U[k])[j % obs.ny] = value
+        obs.reset(Q[0])
+        obs.skip = True
+        wild = obs.run(Y, U)
+        assert obs.counters["skipped"] == 1, (k, j, value)
+        assert np.all(np.abs(wild[k + 1, slots] - clean[k + 1]) <= error), (k, j, value, error)
+        assert np.max(np.abs(wild[k + 50:, slots] - clean[k + 50:])) < error
+        ref = reference_observer(obs.meta)
+        for o in (ref, obs):
+            o.reset(Q[k - 6])
+            o.skip = True
+        assert np.max(np.abs(ref.run(Y[k - 5:k + 5], U[k - 5:k + 5]) - obs.run(Y[k - 5:k + 5], U[k - 5:k + 5]))) \
+            < 1e-9 * max(1.0, np.max(np.abs(wild)))
+        assert ref.skipped == obs.skipped == 1
+    obs.skip = False

@@ -6,6 +6,7 @@ a simulation's log are all such files.
 from __future__ import annotations
 
 import csv
+import os
 from pathlib import Path
 
 import numpy as np
@@ -52,24 +53,69 @@ def write_columns(path, columns):
     return path
 
 
-def read_columns(path, error=ColumnsError):
+CHUNK = 65536                   # rows parsed at once (a log is read in blocks of this many)
+MAX_BYTES_ENV = "CODEGEN_MAX_LOG_BYTES"
+MAX_BYTES = 2 ** 30             # the largest file read (1 GiB; the env variable above overrides it)
+
+
+def max_bytes(limit=None):
+    """The largest column file ``read_columns`` reads (bytes): ``limit``, else the environment's
+    ``CODEGEN_MAX_LOG_BYTES``, else MAX_BYTES (1 GiB: its numbers, as float64, take about its size
+    again in memory; a larger log is refused before it is read)."""
+    if limit is not None:
+        return int(limit)
+    text = os.environ.get(MAX_BYTES_ENV)
+    try:
+        return int(float(text)) if text else MAX_BYTES
+    except ValueError:
+        raise ValueError(f"{MAX_BYTES_ENV}: expected a number of bytes, got {text!r}") from None
+
+
+def read_columns(path, error=ColumnsError, limit=None):
     """(header, data): the names of the first row of the CSV file ``path`` and the numbers below
     it, (N, columns) float64 (N may be 0). Raises ``error`` (an exception class) naming the file
-    for a missing or empty file, a non-numeric value or a ragged row."""
+    for a missing or empty file, a file larger than ``max_bytes(limit)`` (its size and the limit,
+    before reading it), a non-numeric value (its row and column) or a ragged row. The rows are
+    parsed ``CHUNK`` at a time into float64 blocks: a long log never sits in memory as text."""
     path = Path(path)
     if not path.is_file():
         raise error(f"{path}: no such file")
+    size, top = path.stat().st_size, max_bytes(limit)
+    if size > top:
+        raise error(f"{path}: {size / 1e6:.1f} MB, more than the {top / 1e6:.1f} MB a log may have "
+                    f"(cut it, or raise the limit: {MAX_BYTES_ENV}=<bytes>)")
     with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    if not rows:
-        raise error(f"{path}: empty file")
-    header = [h.strip() for h in rows[0]]
-    body = [r for r in rows[1:] if r]
-    bad = next((i for i, r in enumerate(body) if len(r) != len(header)), None)
-    if bad is not None:
-        raise error(f"{path}: row {bad + 2} has {len(body[bad])} values, the header {len(header)}")
+        reader = csv.reader(f)
+        first = next(reader, None)
+        if first is None:
+            raise error(f"{path}: empty file")
+        header = [h.strip() for h in first]
+        blocks, chunk, lines = [], [], []
+        for r in reader:
+            if not r:
+                continue
+            if len(r) != len(header):
+                raise error(f"{path}: row {reader.line_num} has {len(r)} values, the header {len(header)}")
+            chunk.append(r)
+            lines.append(reader.line_num)
+            if len(chunk) == CHUNK:
+                blocks.append(_numbers(path, header, chunk, lines, error))
+                chunk, lines = [], []
+        if chunk or not blocks:
+            blocks.append(_numbers(path, header, chunk, lines, error))
+    return header, np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
+
+
+def _numbers(path, header, rows, lines, error):
+    """(len(rows), len(header)) float64 of the text ``rows`` (file lines ``lines``), or ``error``
+    naming the first value that is not a number: its row and column."""
     try:
-        data = np.array([[float(v) for v in r] for r in body], dtype=float).reshape(len(body), len(header))
-    except ValueError as e:
-        raise error(f"{path}: non-numeric value ({e})") from None
-    return header, data
+        return np.array(rows, dtype=float).reshape(len(rows), len(header))
+    except ValueError:
+        for r, line in zip(rows, lines):
+            for name, v in zip(header, r):
+                try:
+                    float(v)
+                except ValueError:
+                    raise error(f"{path}: row {line}, column {name!r}: {v.strip()!r} is not a number") from None
+        raise

@@ -145,6 +145,9 @@ class ObserverSpec:
       model_correction  the model part m corrects a flow complete without it (rhs_model at
                   m = 0: kalman_model's kinematic filter); "expmid1" then predicts the sub-step's
                   midpoint with that flow and keeps no memory (codegen.discrete.discretize)
+      limits      the ranges of y and u the user declared (None: the robot's declared limits with
+                  their margins; "none": no range; codegen.core.limits); ``input_limits`` are the
+                  ranges the C checks every sample against
     """
 
     family: str
@@ -175,6 +178,14 @@ class ObserverSpec:
     gains: dict = field(default_factory=dict)
     clocks: dict = field(default_factory=dict)
     model_correction: bool = False
+    limits: object = None
+
+    @property
+    def input_limits(self):
+        """The declared ranges of y and u (codegen.core.limits.input_ranges: ``y_lower``,
+        ``y_upper``, ``u_max``, None where a slot is not checked, and the ``rule``)."""
+        from .limits import input_ranges
+        return input_ranges(self.robot, self.y_names, self.u_names, self.limits)
 
     def __setattr__(self, name, value):
         """Every design report assigned (at construction or later) is a DesignReport."""
@@ -269,7 +280,8 @@ class ObserverSpec:
         """Plain data (JSON-able) the reference rebuilds this observer from: family, variant,
         robot source, slot names, default parameters, options, whether it is hybrid, its rate states
         whether it splits its flow's y (``rhs_split``), the size of its model part (``model``;
-        0: none) and, when it is a correction (``model_correction``), "model_correction": True."""
+        0: none), the declared ranges of its inputs (``input_limits``) and, when it is a
+        correction (``model_correction``), "model_correction": True."""
         return {"family": self.family, "variant": self.variant, "robot": self.robot_source,
                 "names": {"x": list(self.x_names), "y": list(self.y_names), "u": list(self.u_names),
                           "p": list(self.p_names), "est": list(self.est_names)},
@@ -277,6 +289,7 @@ class ObserverSpec:
                 "hybrid": self.jump is not None, "rate_states": list(self.rate_states),
                 "rhs_split": self.rhs_split is not None, "rhs_model": self.model_size,
                 "gains": {g: list(slots) for g, slots in self.gains.items()},
+                "limits": self.input_limits,
                 **({"model_correction": True} if self.model_correction else {})}
 
 

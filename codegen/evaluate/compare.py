@@ -44,6 +44,18 @@ from ..verify.measure import saturated_samples
 DEFAULT_FAMILIES = ("kalman_model", "reduced_order_switched", "reduced_order", "extended_state", "nicosia_tomei")
 SIGNAL = "robot's velocity signal"          # the row of the qdm_<joint> columns
 UNRANKED = "within the reference's uncertainty: cannot be ranked"
+# A method failed (shown FAILED with the reason, never ranked, recommended nor highlighted) when its
+# estimate is not finite, has left the scale of the motion (metrics.diverged), sits at the velocity
+# bound on more than FAIL_AT_BOUND of the samples (its model evaluated at the bound, not at its
+# estimate: the estimate has run away and only the clamp holds it, codegen.families.observers._bound),
+# or has an RMS error above FAIL_RATIO x the median of the others' and above the convergence level
+# (an error below the level is converged by the table's own measure): an estimate two orders of
+# magnitude off has lost the motion (a restart missed after a pause: 7.1 rad/s against 0.03); the
+# worst method that tracks, the untuned backward difference, is 43 x the median of the others on
+# seed000_2r's 4 s test log (a 2^16 encoder at 1 kHz: its noise, 0.064 rad/s against 1.5e-3).
+FAIL_AT_BOUND = 0.01
+FAIL_RATIO = 100.0
+PARAMS_SHOWN = 8           # a row with more parameters shows only those a user sets (``shown_params``)
 
 
 def measure(ref, t, est, t_ss, level):
@@ -95,18 +107,47 @@ class Comparison:
         """The reference's uncertainty over the steady-state window (rad/s); 0 for the truth."""
         return 0.0 if self.ref is None else self.ref.uncertainty(self.t, self.t_ss)
 
+    def failure(self, e):
+        """Why the entry ``e`` failed (the rule of ``FAIL_AT_BOUND`` and ``FAIL_RATIO``), or "" when
+        it did not: a non-finite estimate, diverged (metrics.diverged), at the velocity bound on
+        more than FAIL_AT_BOUND of the samples, or an RMS error above FAIL_RATIO x the median of
+        the others' (finite ones) and above the convergence level (an error below it is converged
+        by the table's own measure)."""
+        rms = e.metrics["rms"]
+        if not (np.isfinite(rms) and np.all(np.isfinite(e.est))):
+            return "non-finite estimate"
+        if e.metrics["diverged"]:
+            return "diverged: its error left the scale of the motion"
+        hits, N = int(e.metrics.get("at_bound", 0)), len(self.t)
+        if hits > FAIL_AT_BOUND * N:
+            return (f"at the velocity bound on {hits} of {N} samples ({100 * hits / N:.3g} % > "
+                    f"{100 * FAIL_AT_BOUND:g} %): its model saw the bound, not the estimate")
+        others = [o.metrics["rms"] for o in self.entries if o is not e and np.isfinite(o.metrics["rms"])]
+        if others and rms > max(FAIL_RATIO * np.median(others), self.level):
+            return (f"RMS {rms:.3g} rad/s > {FAIL_RATIO:g} x the median of the others' "
+                    f"({np.median(others):.3g}): it lost the motion")
+        return ""
+
+    def ok(self):
+        """The entries that did not fail (``failure``), in table order."""
+        return [e for e in self.entries if not self.failure(e)]
+
     def _best(self, kind):
-        ok = [e for e in self.entries if e.kind == kind and np.isfinite(e.metrics["rms"])
-              and not e.metrics["diverged"]]
+        ok = [e for e in self.ok() if e.kind == kind]
         return min(ok, key=lambda e: e.metrics["rms"]) if ok else None
 
     def best_baseline(self):
-        """The baseline entry with the lowest RMS after t_ss (NaN/diverged ones excluded)."""
+        """The baseline entry with the lowest RMS after t_ss (failed ones excluded: ``failure``)."""
         return self._best("baseline")
 
     def best_observer(self):
-        """The observer entry with the lowest RMS after t_ss (NaN/diverged ones excluded)."""
+        """The observer entry with the lowest RMS after t_ss (failed ones excluded: ``failure``)."""
         return self._best("observer")
+
+    def _failed(self, kind):
+        """'' or ' (N failed: names)' for the entries of ``kind`` that failed."""
+        bad = [e.name for e in self.entries if e.kind == kind and self.failure(e)]
+        return f" ({len(bad)} failed: {', '.join(bad)})" if bad else ""
 
     def verdict(self):
         """One line: ``use X: N x better than the best tuned filter (Y)`` or ``no observer beats
@@ -122,13 +163,13 @@ class Comparison:
     def _verdict(self):
         obs, bl, u = self.best_observer(), self.best_baseline(), self.uncertainty
         if bl is None:
-            return "no tuned filter ran: nothing to compare the observers with"
+            return f"no tuned filter ran{self._failed('baseline')}: nothing to compare the observers with"
         b = bl.metrics["rms"]
         if b == 0:
             return (f"no observer beats the best tuned filter here: {bl.name} has no error after t_ss "
                     f"(ratios to it are undefined)")
         if obs is None:
-            return f"no observer beats the best tuned filter here ({bl.name}): no observer ran"
+            return f"no observer beats the best tuned filter here ({bl.name}): no observer ran{self._failed('observer')}"
         a = obs.metrics["rms"]
         if not a < b:
             return (f"no observer beats the best tuned filter here ({bl.name}, RMS {b:.3g} rad/s; "
@@ -146,12 +187,15 @@ class Comparison:
                 f"({obs.name} {a:.3g}, {bl.name} {b:.3g}, uncertainty {u:.3g} rad/s)")
 
     def rows(self):
-        """Plain-data rows (JSON-able): name, kind, params, the metrics, the RMS ratio to the
-        best baseline and, against a reference, whether the RMS is within its uncertainty."""
+        """Plain-data rows (JSON-able): name, kind, params (every runtime parameter), the variant,
+        the metrics, the RMS ratio to the best baseline, against a reference whether the RMS is
+        within its uncertainty, and ``failed``: why the method failed ("" when it did not)."""
         best, u = self.best_baseline(), self.uncertainty
         out = []
         for e in self.entries:
-            r = {"name": e.name, "kind": e.kind, "params": e.params, **e.metrics}
+            r = {"name": e.name, "kind": e.kind, "params": e.params, **e.metrics, "failed": self.failure(e)}
+            if e.variant is not None:
+                r["variant"] = e.variant
             # undefined (NaN) when the best baseline has no error (the verdict says so)
             r["rms_over_best_baseline"] = (e.metrics["rms"] / best.metrics["rms"]
                                            if best and best.metrics["rms"] > 0 else float("nan"))
@@ -186,8 +230,9 @@ class Comparison:
         return lines
 
     def table(self):
-        """The metrics table as text: the header lines, one line per method (every parameter,
-        in full, last), then the verdict line."""
+        """The metrics table as text: the header lines, one line per method (the parameters a user
+        sets last, ``shown_params``; every one in ``rows``), a failed method marked FAILED with the
+        reason and without a ratio, then the verdict line."""
         rows = self.rows()
         w = max([16] + [len(r["name"]) for r in rows])
         head = (f"{'method':{w}s} {'RMS t>=' + format(self.t_ss, 'g') + 's':>12s} "
@@ -197,14 +242,16 @@ class Comparison:
             f"errors in rad/s; settle: the time after which the error's RMS over the last "
             f"{metrics.WINDOW:g} s stays below {self.level:g} rad/s (inf: its noise or bias stays above); "
             f"gain, lag: the fit est(t) = gain qd(t - lag) for t >= {self.t_ss:g} s", head]
-        for r in rows:
+        for e, r in zip(self.entries, rows):
             par = ", ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
-                            for k, v in r["params"].items())
-            notes = [n for n in (r.get("note"), UNRANKED if r["within_uncertainty"] else "") if n]
+                            for k, v in shown_params(e).items())
+            notes = [n for n in (r.get("note"), UNRANKED if r["within_uncertainty"] and not r["failed"] else "")
+                     if n]
+            ratio = f"{'FAILED':>8s}" if r["failed"] else f"{r['rms_over_best_baseline']:8.3f}"
             lines.append(
                 f"{r['name']:{w}s} {r['rms']:12.3e} {r['max']:9.2e} "
                 f"{r['t_settle']:9.3f} {r['gain']:8.4f} {1e3 * r['lag']:8.3f} "
-                f"{r['rms_over_best_baseline']:8.3f}  {par or '-'}" + ("  DIVERGED" if r["diverged"] else "")
+                f"{ratio}  {par or '-'}" + (f"  FAILED: {r['failed']}" if r["failed"] else "")
                 + "".join(f"  ({n})" for n in notes))
         lines.append(self.verdict())
         return "\n".join(lines)
@@ -213,11 +260,10 @@ class Comparison:
 
     def shown(self):
         """(highlighted, muted, left out) method names of the figures: the HIGHLIGHT lowest RMS
-        (finite, not diverged) and the best tuned filter, coloured; the others thin and gray,
+        (not failed: ``failure``) and the best tuned filter, coloured; the others thin and gray,
         but the worst baseline (the backward difference, as a rule), which would hide the rest
-        on a log axis, and the diverged ones, left out."""
-        ok = sorted((e for e in self.entries if np.isfinite(e.metrics["rms"]) and not e.metrics["diverged"]),
-                    key=lambda e: e.metrics["rms"])
+        on a log axis, and the failed ones, left out."""
+        ok = sorted(self.ok(), key=lambda e: e.metrics["rms"])
         best = [e.name for e in ok[:self.HIGHLIGHT]]
         bl = self.best_baseline()
         if bl is not None and bl.name not in best:
@@ -274,6 +320,25 @@ class Comparison:
                              title=f"{self.title}\njoint {joint}" + (f" ({name})" if name else "")
                              + note.replace("\n", ", "),
                              cell=(8, 3.4))]
+
+
+def shown_params(e):
+    """The parameters of the Entry ``e`` the table shows (every one is in ``Comparison.rows``): all
+    of them when they are at most PARAMS_SHOWN; otherwise those a user sets: the bandwidth a log
+    tunes (the family's ``TUNE``, codegen.logs.tune.bandwidth), the variant, the torque
+    uncertainty the design used (N m per joint) and how many more there are (a model-based
+    Kalman filter's fitted poles and partial-fraction coefficients)."""
+    if len(e.params) <= PARAMS_SHOWN:
+        return dict(e.params) if e.variant is None else {**e.params, "variant": e.variant}
+    family = parse_observer(e.name)[0]
+    out = {k: e.params[k] for k in tuning.bandwidth(family, list(e.params))}
+    if e.variant is not None:
+        out["variant"] = e.variant
+    used = (e.build or {}).get("torque_uncertainty")
+    if used is not None:
+        out["torque_uncertainty"] = "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(used)) + "]"
+    out["more"] = f"{len(e.params) - len(set(out) & set(e.params))} in compare.json"
+    return out
 
 
 def parse_observer(text):
@@ -511,7 +576,6 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
                     t_ss, level, progress):
     """The Entry of one family on the log: built (designed for the log's sensor), tuned on it
     when ``tune_on`` (the better variant kept), run."""
-    from ..discrete.stability import UnstableDiscretization
     from ..pipeline.load import ObserverError
     t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
     inputs = {**design_for(fam, design), **given}
@@ -521,16 +585,18 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
         if slots is None or spec.ny != robot.n:
             raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
                              f"est = {', '.join(spec.est_names)})")
-        try:
-            obs, notes = observer_block(spec, dt, reference, stamped=True, stepping=stepping)
-        except UnstableDiscretization:
-            raise
+        obs, notes = observer_block(spec, dt, reference, stamped=True, stepping=stepping)
         tuned, p = (None, np.array(spec.p_default, dtype=float))
         if tune_on and not given:
             tuned, p = tuning.tune_observer(obs, spec, fam, Y, U, t, val, obs.dt_limit, slots,
                                             progress=progress, t_from=t_ss)
         try:
-            full, resets = _run_checked(obs, p, Y, U, t)
+            try:
+                full, resets = _run_checked(obs, p, Y, U, t)
+            except ValueError as e:             # a tuned value the full stability check refuses
+                notes.append(f"tuned parameters refused ({e}); the designed ones")
+                tuned, p = None, np.array(spec.p_default, dtype=float)
+                full, resets = _run_checked(obs, p, Y, U, t)
             if resets:
                 notes.append(f"reset after {resets} interval(s) longer than {obs.dt_limit:.3g} s")
         except (ObserverError, FloatingPointError) as e:
@@ -549,13 +615,14 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
     note = "; ".join(filter(None, notes + [hits and f"{hits} samples at the velocity bound"]))
     params = {k: float(v) for k, v in zip(spec.p_names, p)}
     m = measure(ref, t, est, t_ss, level)
+    m["at_bound"] = hits
     m["validation_rms"] = val.rms(est, t_ss)
     return Entry(item, "observer", params, est, m, note, variant=spec.variant, tuned=tuned, build=used)
 
 
 def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level=1e-2,
             baseline_names=None, reference=False, title="", ref_cutoff=None, progress=False, stepping=None,
-            tune="log", clock=None, noise=None):
+            tune="log", clock=None, noise=None, jobs=None):
     """Observers, baselines and the robot's own velocity signal on one recorded run, every gain
     and every baseline's parameter chosen on the log without truth (``tune="log"``).
 
@@ -603,6 +670,9 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         The clock ``rec`` is on (its line opens the header).
     noise : codegen.logs.noise.Noise, optional
         The log's measured noise (default measured here).
+    jobs : int, optional
+        Families built, compiled, tuned and run in this many processes at once (default one per
+        core; 1: in this process).
 
     Returns
     -------
@@ -643,12 +713,10 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     bar = tqdm(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
                file=sys.stderr, disable=not progress, leave=False)
     with bar:
-        for item, fam, given in parsed:
-            bar.set_postfix_str(item)
-            entries.append(_observer_entry(item, fam, given, robot, rec, design, noise, val, tune == "log",
-                                           reference, stepping, ref, t_ss, level,
-                                           (lambda text: bar.set_postfix_str(text)) if progress else None))
-            bar.update()
+        work = [(item, fam, given, robot, rec, design, noise, val, tune == "log", reference, stepping, ref, t_ss,
+                 level) for item, fam, given in parsed]
+        for entry in _entries(work, jobs, bar, progress):
+            entries.append(entry)
         for name in names:
             bar.set_postfix_str(name)
             if tune == "log":
@@ -672,6 +740,43 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     if clock is not None:
         info["clock"] = clock.describe()
     return Comparison(t=t, truth=ref.qd, entries=entries, t_ss=t_ss, level=level, title=title, info=info, ref=ref)
+
+
+_WORK = None          # the families' arguments, inherited by the forked workers of ``_entries``
+
+
+def _entry_job(i):
+    return _observer_entry(*_WORK[i], None)
+
+
+def _entries(work, jobs, bar, progress):
+    """The observers' entries of ``work`` (``_observer_entry``'s arguments but the progress), in
+    order: in this process, or ``jobs`` forked processes at a time (the robot and the log are
+    inherited, not pickled; the entries come back), the bar advanced as each finishes."""
+    import multiprocessing as mp
+    import os
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    global _WORK
+    jobs = max(1, min(jobs or os.cpu_count() or 1, len(work)))
+    if jobs == 1:
+        for args in work:
+            bar.set_postfix_str(args[0])
+            yield _observer_entry(*args, (lambda text: bar.set_postfix_str(text)) if progress else None)
+            bar.update()
+        return
+    _WORK = work
+    try:
+        with ProcessPoolExecutor(jobs, mp_context=mp.get_context("fork")) as pool:
+            futures = {pool.submit(_entry_job, i): i for i in range(len(work))}
+            done = {}
+            for f in as_completed(futures):
+                done[futures[f]] = f.result()
+                bar.set_postfix_str(work[futures[f]][0])
+                bar.update()
+        for i in range(len(work)):
+            yield done[i]
+    finally:
+        _WORK = None
 
 
 def design_on_log(rec, robot, family, design=None, clock=None, noise=None, reference=False, stepping=None,

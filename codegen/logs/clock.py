@@ -52,6 +52,8 @@ CERTAIN = 0.99                  # a row's tick is certain when its posterior is 
 PASSES = 6                      # most passes of the tick re-estimation
 _WINDOW = 12                    # neighbours on each side of the leave-one-out cubic
 _MAX_CANDIDATES = 24            # ticks tried per row
+_ROWS = 4096                    # rows per block of the local fits and the transitions: memory stays
+                                # (rows x neighbours x joints), whatever the log's length
 
 
 @dataclass
@@ -261,26 +263,43 @@ def _robot_clock(tr, N):
 
 
 # ------------------------------------------------------------------------------ the tick fit
-def _loo_cubic(tau, Q, w=_WINDOW, span=None):
-    """Leave-one-out local cubics: for each row j, the least-squares cubic through rows j-w..j+w
-    without j (times ``tau``, within ``span`` s of tau_j), as (centre, scale, coefficients
-    (M, 4, n), ok (M,) bool: at least 6 neighbours)."""
-    M, n = Q.shape
-    idx = np.arange(M)[:, None] + np.concatenate([np.arange(-w, 0), np.arange(1, w + 1)])[None, :]
+def _by_rows(M, block):
+    """``block(a, b)`` (a tuple of arrays over rows a..b-1) over the rows 0..M-1 in blocks of
+    _ROWS, each array concatenated along its first axis."""
+    parts = [block(a, min(a + _ROWS, M)) for a in range(0, max(M, 1), _ROWS)]
+    return tuple(np.concatenate(p) for p in zip(*parts))
+
+
+def _local_cubics(tau, Q, rows, at, offs, span, scale):
+    """Least-squares cubics in time, one per row of ``rows``: through the rows ``rows + offs``
+    (those inside the log and within ``span`` s of ``at``), centred at the times ``at`` and
+    scaled by ``scale`` s. Returns (coefficients (len(rows), 4, n), ok: at least 6 rows)."""
+    M = len(tau)
+    idx = rows[:, None] + offs[None, :]
     inside = (idx >= 0) & (idx < M)
     idx = np.clip(idx, 0, M - 1)
-    dtau = tau[idx] - tau[:, None]
-    scale = w * np.median(np.diff(tau)) if M > 1 else 1.0
+    dtau = tau[idx] - at[:, None]
     if span is not None:
         inside &= np.abs(dtau) <= span
     u = dtau / scale
-    W = inside.astype(float)
-    V = np.stack([np.ones_like(u), u, u * u, u * u * u], axis=2) * W[:, :, None]     # (M, 2w, 4)
+    V = np.stack([np.ones_like(u), u, u * u, u * u * u], axis=2) * inside[:, :, None]   # (rows, k, 4)
     A = np.einsum("mki,mkj->mij", V, V) + 1e-12 * np.eye(4)
     B = np.einsum("mki,mkn->min", V, Q[idx])
     ok = inside.sum(axis=1) >= 6
     A[~ok] = np.eye(4)
-    return tau, scale, np.linalg.solve(A, B), ok
+    return np.linalg.solve(A, B), ok
+
+
+def _loo_cubic(tau, Q, w=_WINDOW, span=None):
+    """Leave-one-out local cubics: for each row j, the least-squares cubic through rows j-w..j+w
+    without j (times ``tau``, within ``span`` s of tau_j), as (centre, scale, coefficients
+    (M, 4, n), ok (M,) bool: at least 6 neighbours)."""
+    M = len(tau)
+    offs = np.concatenate([np.arange(-w, 0), np.arange(1, w + 1)])
+    scale = w * np.median(np.diff(tau)) if M > 1 else 1.0
+    rows = np.arange(M)
+    coef, ok = _by_rows(M, lambda a, b: _local_cubics(tau, Q, rows[a:b], tau[a:b], offs, span, scale))
+    return tau, scale, coef, ok
 
 
 def _predict(model, times):
@@ -313,11 +332,16 @@ def _loo_residual(tau, Q, span):
 
 
 def _coherence(x, grid):
-    """|mean_j exp(2 pi i x_j / T)| for each T of ``grid``."""
+    """|mean_j exp(2 pi i x_j / T)| for each T of ``grid`` (summed in blocks of x and the grid:
+    at most 2^20 terms at once)."""
     out = np.empty(len(grid))
+    rows = max(1, min(len(x), 2 ** 20 // 256))
     for k in range(0, len(grid), 256):
         g = grid[k:k + 256]
-        out[k:k + 256] = np.abs(np.exp(2j * np.pi * x[None, :] / g[:, None]).mean(axis=1))
+        total = np.zeros(len(g), complex)
+        for a in range(0, len(x), rows):
+            total += np.exp(2j * np.pi * x[None, a:a + rows] / g[:, None]).sum(axis=1)
+        out[k:k + 256] = np.abs(total / len(x))
     return out
 
 
@@ -384,23 +408,16 @@ def _pair_slopes(tau, Q, w=_WINDOW, span=None):
     """For each pair of consecutive rows (j-1, j): the velocity (M-1, n) at their midpoint of the
     least-squares cubic through rows j-1-w..j+w without the pair (times ``tau``, within ``span`` s
     of the midpoint), and ok (M-1,) (at least 6 neighbours)."""
-    M, n = Q.shape
+    M = len(tau)
     offs = np.concatenate([np.arange(-w - 1, -1), np.arange(1, w + 1)])
-    idx = np.arange(1, M)[:, None] + offs[None, :]
-    inside = (idx >= 0) & (idx < M)
-    idx = np.clip(idx, 0, M - 1)
     mid = 0.5 * (tau[1:] + tau[:-1])
-    dtau = tau[idx] - mid[:, None]
-    if span is not None:
-        inside &= np.abs(dtau) <= span
     scale = w * float(np.median(np.diff(tau)))
-    u = dtau / scale
-    V = np.stack([np.ones_like(u), u, u * u, u * u * u], axis=2) * inside[:, :, None]
-    A = np.einsum("mki,mkj->mij", V, V) + 1e-12 * np.eye(4)
-    B = np.einsum("mki,mkn->min", V, Q[idx])
-    ok = inside.sum(axis=1) >= 6
-    A[~ok] = np.eye(4)
-    return np.linalg.solve(A, B)[:, 1, :] / scale, ok
+    rows = np.arange(1, M)
+
+    def block(a, b):
+        coef, ok = _local_cubics(tau, Q, rows[a:b], mid[a:b], offs, span, scale)
+        return coef[:, 1, :] / scale, ok
+    return _by_rows(M - 1, block)
 
 
 def _fit_ticks(s, Q, period=None, skipped=None):
@@ -442,11 +459,15 @@ def _fit_ticks(s, Q, period=None, skipped=None):
         v, ok = _pair_slopes(tau, Q, span=span)
         r = dq - v * (np.diff(n) * T)[:, None]
         sig = _sigma(r[ok])
-        delta = cand[1:, None, :] - cand[:-1, :, None]                      # (M-1, K prev, K cur)
-        z2 = ((dq[:, None, None, :] - v[:, None, None, :] * (delta[..., None] * T)) / sig) ** 2
-        fit = _huber(z2).sum(axis=3)
-        fit[~ok] = 0.0
-        trans = _transitions(delta, np.diff(n), skipped) + fit
+        tables = _increment_tables(np.diff(n), skipped)
+
+        def trans(a, b, cand=cand, v=v, ok=ok, sig=sig, T=T, tables=tables):
+            """The transitions' costs (b-a, K prev, K cur) from rows a..b-1 to the next."""
+            delta = cand[a + 1:b + 1, None, :] - cand[a:b, :, None]
+            z2 = ((dq[a:b, None, None, :] - v[a:b, None, None, :] * (delta[..., None] * T)) / sig) ** 2
+            fit = _huber(z2).sum(axis=3)
+            fit[~ok[a:b]] = 0.0
+            return _transitions(delta, tables, None if skipped is None else skipped[a:b]) + fit
         path = _viterbi(emit, trans)
         new = cand[np.arange(M), path]
         changed = int(np.sum(new - new[0] != n - n[0]))
@@ -459,6 +480,8 @@ def _fit_ticks(s, Q, period=None, skipped=None):
             post = _posterior(emit, trans, path)
             break
     res_ticks = _loo_residual(tau, Q, span)[0]
+    if period is None:                  # the ticks settled: the stamps' least-squares slope on them
+        T, c = (float(v) for v in np.polyfit(n.astype(float), s, 1))
     c = c + float(np.min(s - c - n * T))
     d = s - c - n * T
     nc = n - n.mean()
@@ -497,14 +520,27 @@ def _increment_table(inc, D=64):
     return np.concatenate([[np.inf], -np.log(h / h.sum())])
 
 
-def _transitions(delta, inc, skipped=None):
-    """Transition costs (M-1, K, K) of the increments ``delta`` between consecutive rows'
-    candidates (prev, cur): -log P(increment) learned from the current increments ``inc`` (M-1,),
-    separately for the pairs with 0, 1 and 2 or more repeated rows ``skipped`` between them."""
-    cls = np.zeros(len(delta), np.int64) if skipped is None else np.minimum(np.asarray(skipped), 2)
+def _classes(skipped, count):
+    """The class of each pair of consecutive kept rows: 0, 1 or 2 (2 or more) repeated rows
+    ``skipped`` between them (all 0 without)."""
+    return np.zeros(count, np.int64) if skipped is None else np.minimum(np.asarray(skipped), 2)
+
+
+def _increment_tables(inc, skipped=None):
+    """{class: -log P(increment)} (``_increment_table``) learned from the current increments
+    ``inc`` (M-1,), separately for each class of pairs (``_classes``)."""
+    cls = _classes(skipped, len(inc))
+    return {int(k): _increment_table(inc[cls == k]) for k in np.unique(cls)}
+
+
+def _transitions(delta, tables, skipped=None):
+    """Transition costs (rows, K, K) of the increments ``delta`` between consecutive rows'
+    candidates (prev, cur) by the ``tables`` of their class (``_increment_tables``; ``skipped``:
+    the repeated rows between each pair)."""
+    cls = _classes(skipped, len(delta))
     out = np.empty(delta.shape)
     for k in np.unique(cls):
-        table = _increment_table(inc[cls == k])
+        table = tables[int(k)]
         D = len(table) - 1
         d = delta[cls == k]
         o = table[np.clip(d, 0, D)]
@@ -515,17 +551,28 @@ def _transitions(delta, inc, skipped=None):
     return out
 
 
+def _blocks(M, trans, reverse=False):
+    """(j, trans(j -> j+1)) for j over 0..M-2 (reversed with ``reverse``), the costs computed
+    by ``trans(a, b)`` in blocks of _ROWS transitions."""
+    starts = range(0, M - 1, _ROWS)
+    for a in (reversed(starts) if reverse else starts):
+        tr = trans(a, min(a + _ROWS, M - 1))
+        order = range(len(tr) - 1, -1, -1) if reverse else range(len(tr))
+        for i in order:
+            yield a + i, tr[i]
+
+
 def _viterbi(emit, trans):
     """Index (M,) of the most probable candidate of each row (min-sum over ``emit`` (M, K) and
-    ``trans`` (M-1, K, K))."""
+    the transitions ``trans(a, b)``: (b-a, K, K) from rows a..b-1 to the next)."""
     M, K = emit.shape
-    back = np.zeros((M, K), np.int64)
+    back = np.zeros((M, K), np.int8 if K <= 127 else np.int64)
     score = emit[0].copy()
     cols = np.arange(K)
-    for j in range(1, M):
-        tot = score[:, None] + trans[j - 1]
-        back[j] = np.argmin(tot, axis=0)
-        score = tot[back[j], cols] + emit[j]
+    for j, tr in _blocks(M, trans):
+        tot = score[:, None] + tr
+        back[j + 1] = np.argmin(tot, axis=0)
+        score = tot[back[j + 1], cols] + emit[j + 1]
     path = np.empty(M, np.int64)
     path[-1] = int(np.argmin(score))
     for j in range(M - 1, 0, -1):
@@ -539,11 +586,11 @@ def _posterior(emit, trans, path):
     M, K = emit.shape
     f = np.empty((M, K))
     f[0] = -emit[0]
-    for j in range(1, M):
-        f[j] = _lse(f[j - 1][:, None] - trans[j - 1], 0) - emit[j]
+    for j, tr in _blocks(M, trans):
+        f[j + 1] = _lse(f[j][:, None] - tr, 0) - emit[j + 1]
     b = np.zeros((M, K))
-    for j in range(M - 2, -1, -1):
-        b[j] = _lse(-trans[j] + (b[j + 1] - emit[j + 1])[None, :], 1)
+    for j, tr in _blocks(M, trans, reverse=True):
+        b[j] = _lse(-tr + (b[j + 1] - emit[j + 1])[None, :], 1)
     lp = f + b
     norm = _lse(lp, 1)
     with np.errstate(invalid="ignore"):

@@ -65,7 +65,7 @@ from .smoothing import derivatives
 
 DEFAULT_COULOMB_WIDTH = 0.05    # rad/s, for a robot model without coulomb_width (models' have one)
 WIDTHS = (0.2, 0.1, 0.05, 0.02, 0.01)   # rad/s: the Coulomb widths coulomb_width="auto" chooses from
-DEFAULT_CUTOFF = 5.0            # Hz: 10x the top harmonic of the default excitation (0.5 Hz)
+BAND_MARGIN = 4.0              # the cut-off over the motion's band (identification_cutoff)
 DEFAULT_TEST_FRACTION = 0.2
 DEFAULT_PRIOR = 1.0             # relative std of the URDF's values: a payload makes the last link's a
                                 # multiple of the URDF's (0.2 pulled the real ur5's wrist-3 link toward
@@ -668,7 +668,7 @@ def _jsonable(v):
     return v
 
 
-def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_TEST_FRACTION,
+def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTION,
              coulomb_width="auto", prior=DEFAULT_PRIOR, max_rel_std=DEFAULT_MAX_REL_STD,
              v_stick=DEFAULT_V_STICK, progress=False, out=None):
     """Identify the inertial parameters and the friction (1) of a URDF robot from a log.
@@ -682,9 +682,9 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
     robot : models.RobotModel
         A URDF robot (``load_robot(urdf=..., locked_joints=...)``, ``ur5``, ``panda``): the
         starting point and prior; its ``source`` says how pinocchio rebuilds it.
-    cutoff : float
-        Hz, of the zero-phase low-pass that gives qd, qdd and the filtered tau; above the
-        motion's band (the default excitation's top harmonic is 0.5 Hz), below the noise.
+    cutoff : float, optional
+        Hz, of the zero-phase low-pass that gives qd, qdd and the filtered tau; default chosen on
+        the log (``identification_cutoff``).
     test_fraction : float
         The last fraction of the log's duration, held out for the residual (0 < f < 1).
     coulomb_width : float or "auto" or None
@@ -723,6 +723,8 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
     arm = _Arm(robot, coulomb_width)
     n, p, s = arm.n, arm.p, arm.scale
     t, q, tau = _log_arrays(recording, arm.joint_names)
+    if cutoff is None:
+        cutoff = identification_cutoff(t, q)
     tf = float(test_fraction)
     if not 0.0 < tf < 1.0:
         raise ValueError(f"test_fraction: expected a number in (0, 1), got {test_fraction!r}")
@@ -913,6 +915,24 @@ def identify(recording, robot, *, cutoff=DEFAULT_CUTOFF, test_fraction=DEFAULT_T
     if out is not None:
         ident.write(out)
     return ident
+
+
+def identification_cutoff(t, q):
+    """The zero-phase cut-off (Hz) identification fits on, from the log's measured spectrum
+    (codegen.logs.noise): BAND_MARGIN x the highest joint's motion band, where the order-4
+    forward-backward filter leaves the band's motion untouched to (1 / BAND_MARGIN)^8 = 1.5e-5 (the
+    regression's nonlinear terms, g(q) and C(q, v) v, are filtered after they are formed: a filter
+    that bites into the motion biases them, where noise only adds variance), and at least the cut-off
+    of the least predicted acceleration error (``noise.reference_cutoff`` with ``derivative=2``),
+    over the joints that move (a range of more than ten noise levels), below 0.45 x the Nyquist
+    frequency. ``t`` (N,) s, ``q`` (N, n) rad."""
+    from .noise import measure, reference_cutoff
+    nz = measure(t, q)
+    moving = np.ptp(q, axis=0) > 10 * np.maximum(nz.sigma, nz.resolution)
+    if not moving.any():
+        moving[:] = True
+    cut = max(BAND_MARGIN * np.max(nz.band[moving]), np.median(reference_cutoff(nz, derivative=2)[moving]))
+    return float(min(cut, 0.45 * 0.5 / nz.dt))
 
 
 def lowpass(t, y, cutoff):

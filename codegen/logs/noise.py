@@ -213,16 +213,17 @@ def motion_band(t, q, sigma, spectrum=None):
     return out
 
 
-def reference_cutoff(noise, order=4):
-    """(n,) Hz: the cut-off of the zero-phase velocity reference (codegen.logs.smoothing: a
-    Butterworth low-pass of ``order`` forward and backward, H(f) = 1 / (1 + (f / fc)^(2 order)))
+def reference_cutoff(noise, order=4, derivative=1):
+    """(n,) Hz: the cut-off of the zero-phase ``derivative``-th derivative of q (1: the velocity
+    reference; 2: the acceleration identification regresses on) through codegen.logs.smoothing's
+    Butterworth low-pass of ``order`` forward and backward, H(f) = 1 / (1 + (f / fc)^(2 order)),
     that minimises its predicted mean-square error per joint on the log's spectrum: the motion it
-    loses, int |1 - H|^2 (2 pi f)^2 S_m df, plus the noise it passes, int H^2 (2 pi f)^2 2 sigma^2 h df
-    (S_m the motion's PSD, ``motion_psd``: q's less the white floor, within the band), over a
-    log-spaced grid of cut-offs."""
+    loses, int |1 - H|^2 (2 pi f)^(2 k) S_m df, plus the noise it passes,
+    int H^2 (2 pi f)^(2 k) 2 sigma^2 h df (k = ``derivative``; S_m the motion's PSD,
+    ``motion_psd``: q's less the white floor, within the band), over a log-spaced grid of cut-offs."""
     f, S = motion_psd(noise, noise.spectrum)
     floor = 2 * noise.sigma ** 2 * noise.dt
-    w2 = (2 * np.pi * f) ** 2
+    w2 = (2 * np.pi * f) ** (2 * derivative)
     nyq = 0.5 / noise.dt
     grid = np.exp(np.linspace(np.log(max(f[1], 1e-3)), np.log(0.45 * nyq), 200))
     H = 1.0 / (1.0 + (f[None, :] / grid[:, None]) ** (2 * order))            # (cut-offs, F)

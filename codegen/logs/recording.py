@@ -130,9 +130,10 @@ class Recording:
         return write_columns(path, {name: data[:, i] for i, name in enumerate(names)})
 
 
-def _columns(path, joint_names):
+def _columns(path, joint_names, robot=None):
     """(path, {column: (N,) values}) of a recording CSV, every column there and finite, at least
-    two rows (the stamps not yet checked): ``read_csv`` and ``read_log``."""
+    two rows, positions and torques within the ``robot``'s declared ranges when it is given
+    (``check_ranges``; the stamps not yet checked): ``read_csv`` and ``read_log``."""
     path = Path(path)
     header, data = read_columns(path, RecordingError)
     need = ["t"] + [f"{g}_{j}" for g in ("q", "tau") for j in joint_names]
@@ -151,7 +152,36 @@ def _columns(path, joint_names):
     if not np.all(np.isfinite(data)):
         r, c = np.argwhere(~np.isfinite(data))[0]
         raise RecordingError(f"{path}: NaN or Inf in column {header[c]!r}, row {r + 2}")
-    return path, {h: data[:, i] for i, h in enumerate(header)}
+    col = {h: data[:, i] for i, h in enumerate(header)}
+    if robot is not None:
+        check_ranges(path, col, joint_names, robot)
+    return path, col
+
+
+def check_ranges(path, col, joint_names, robot):
+    """RecordingError naming the file ``path``, the row, the column and the range at the first
+    position ``q_<joint>`` or torque ``tau_<joint>`` of the columns ``col`` ({name: (N,) values})
+    outside the ``robot``'s declared ranges (codegen.core.limits.joint_ranges: its URDF limits with
+    a tenth of the range beyond either end, ten times its effort limit; a joint without one is not
+    checked): a wild sample (1e200, 1e300 N m) would otherwise run, silently ruin every later
+    estimate, or put an observer at its velocity bound for the rest of the log. ``joint_names``
+    the log's joints, in the robot's order."""
+    from ..core.limits import POSITION_MARGIN, TORQUE_MARGIN, joint_ranges
+    lower, upper, tau = joint_ranges(robot)
+    bad = []
+    for j, name in enumerate(joint_names):
+        for column, lo, hi, what in ((f"q_{name}", lower[j], upper[j],
+                                      f"joint {name!r}'s limits and {POSITION_MARGIN:g} x its range beyond either end"),
+                                     (f"tau_{name}", -tau[j], tau[j], f"{TORQUE_MARGIN:g} x joint {name!r}'s effort limit")):
+            v = col[column]
+            out = np.flatnonzero((v < lo) | (v > hi))
+            if len(out):
+                bad.append((int(out[0]), column, float(v[out[0]]), lo, hi, what, len(out)))
+    if bad:
+        k, column, value, lo, hi, what, count = min(bad)
+        raise RecordingError(f"{path}: row {k + 2}, column {column!r}: {value:.6g} outside [{lo:.6g}, {hi:.6g}] "
+                             f"({what}; {count} such row{'s' * (count > 1)} in this column): a wild sample; "
+                             f"remove it, or give the robot the range it has")
 
 
 def _recording(col, joint_names, rows=slice(None), t=None):
@@ -163,25 +193,28 @@ def _recording(col, joint_names, rows=slice(None), t=None):
                      qdm=stack("qdm") if has["qdm"] else None)
 
 
-def read_csv(path, joint_names):
+def read_csv(path, joint_names, robot=None):
     """A Recording from a CSV with the header of the module docstring, its stamps taken as the
     sample times (``read_log`` finds out what they are).
 
     Parameters
     ----------
     path : path-like
-        The file.
+        The file (refused above codegen.core.columns.max_bytes(), 1 GiB by default).
     joint_names : list of str
         The robot's joints, in model order (q_<joint> and tau_<joint> must exist for each;
         qd_<joint> and qdm_<joint> for all joints or none).
+    robot : models.RobotModel, optional
+        Its declared ranges are checked (``check_ranges``); None: not checked.
 
     Raises
     ------
     RecordingError
-        Missing file or columns, non-numeric or non-finite values, fewer than 2 rows, time
-        stamps that repeat or go back (the message names the file's rows).
+        Missing file or columns, a file too large, non-numeric or non-finite values, fewer than
+        2 rows, time stamps that repeat or go back, a position or torque outside the robot's
+        declared ranges (the message names the file's rows).
     """
-    path, col = _columns(path, joint_names)
+    path, col = _columns(path, joint_names, robot)
     t = col["t"]
     steps = np.diff(t)
     bad = np.nonzero(steps <= 0)[0]
@@ -195,7 +228,7 @@ def read_csv(path, joint_names):
     return _recording(col, joint_names)
 
 
-def read_log(path, joint_names, clock="auto"):
+def read_log(path, joint_names, clock="auto", robot=None):
     """(Recording on the log's sample clock, Clock): a recording CSV read as a measurement
     (codegen.logs.clock): a logger's receive-time stamps rebuilt on the robot's fixed tick and its
     repeated rows dropped, a robot-time column ``t_robot`` used when the log has one, the stamps
@@ -208,6 +241,8 @@ def read_log(path, joint_names, clock="auto"):
         As ``read_csv``.
     clock : str
         "auto" (default), "stamps", "ticks" or "ticks=PERIOD" (s) (``codegen.logs.clock.parse_mode``).
+    robot : models.RobotModel, optional
+        As ``read_csv``.
 
     Raises
     ------
@@ -216,7 +251,7 @@ def read_log(path, joint_names, clock="auto"):
     """
     from . import clock as clocks
     mode, period = clocks.parse_mode(clock)
-    path, col = _columns(path, joint_names)
+    path, col = _columns(path, joint_names, robot)
     t = col["t"]
     others = [col[h] for h in col if h not in ("t", clocks.ROBOT_TIME) and not h.startswith("q_")]
     Q = np.column_stack([col[f"q_{j}"] for j in joint_names])

@@ -161,7 +161,7 @@ class Search:
 def search(score, s0, lo=None, hi=None, grid=GRID, golden=GOLDEN, extend=None):
     """Minimise ``score(s)`` over s > 0 in log(s): ``grid`` log-spaced candidates over [lo, hi]
     (default s0 / RANGE .. s0 * RANGE); while the best is at an end of the range, the range is
-    extended past it by the grid's step (at most ``extend`` times, default ``grid``, and never
+    extended past it by the grid's step (at most ``extend`` times, default 4 ``grid``, and never
     past a given ``lo``/``hi``); then ``golden`` golden-section steps in the bracket around the
     best (a score that is not finite counts as worse than any finite one).
 
@@ -184,7 +184,7 @@ def search(score, s0, lo=None, hi=None, grid=GRID, golden=GOLDEN, extend=None):
     xs = list(np.exp(np.linspace(math.log(lo), math.log(hi), grid)))
     step = (math.log(hi) - math.log(lo)) / (grid - 1)
     vals = [f(x) for x in xs]
-    for _ in range(grid if extend is None else extend):
+    for _ in range(4 * grid if extend is None else extend):
         k = int(np.argmin(vals))
         if not math.isfinite(vals[k]):
             break
@@ -320,13 +320,16 @@ def check_candidate(obs, spec, tune, p):
     recorded = ((getattr(obs, "meta", None) or {}).get("stability") or {}).get("gains") or {}
     if len(tune) == 1:
         (name,) = tune
-        for gain, g in recorded.items():
-            if list(g.get("slots", [])) == [name] and (g.get("max_stable") is not None or not g.get("limit_found")):
+        for g in recorded.values():
+            if list(g.get("slots", [])) == [name] and g.get("max_stable") is not None:
                 value = float(p[list(spec.p_names).index(name)])
-                if value < 0 or (g.get("limit_found") and value > g["max_stable"]):
-                    raise ValueError(f"{name} = {value:.6g} is outside its recorded stable range "
-                                     f"[0, {g['max_stable']:.6g}]")
-                return
+                if value < 0:
+                    raise ValueError(f"{name} = {value:.6g} is negative")
+                if value <= g["max_stable"]:
+                    return                  # within the checked range (beyond it: the full check)
+                if g.get("limit_found"):
+                    raise ValueError(f"{name} = {value:.6g} is above its recorded stable bound "
+                                     f"{g['max_stable']:.6g}")
     obs.check_params(p)
 
 

@@ -70,8 +70,12 @@ DT_TEXT = {
              "stamp is not known yet).")),
 }
 
+# the status codes of every generated function; SKIPPED is no error (the skip mode predicted
+# through a sample out of range or not finite: the state advanced, observer.h.in)
 STATUS = {"OK": 0, "ERR_BAD_ARG": 1, "ERR_NONFINITE_INPUT": 2, "ERR_NONFINITE_RESULT": 3,
-          "ERR_KERNEL": 4}
+          "ERR_KERNEL": 4, "ERR_OUT_OF_RANGE": 5, "SKIPPED": 6}
+# the largest finite value of each real type, as a C literal (an unchecked range's end)
+REAL_MAX = {"double": "1.7976931348623157e308", "float": "3.40282347e38f"}
 
 
 def _num(x, precision="double"):
@@ -167,6 +171,7 @@ def metadata(spec, target, kernels, stability=None):
         "rhs_model": spec.model_size,
         **({"model_correction": True} if spec.model_correction else {}),
         "gains": {g: list(slots) for g, slots in spec.gains.items()},
+        "limits": spec.input_limits,
         "stability": stability,
         "kernels": kernels,
         "status": STATUS,
@@ -463,8 +468,37 @@ def template_values(meta):
         **{key: max(1, max(v[key] for v in k.values())) for key in ("sz_iw", "sz_w")},
         "slot_macros": "\n".join(_slot_macros(P, meta["names"])), "status_enum": status,
         "stability_macros": "\n".join(_stability_macros(P, meta["stability"])),
+        **_range_values(P, meta, precision),
         "p_default": ", ".join(_num(v, precision) for v in meta["p_default"]) or "0",
     }
+
+
+def _range_values(P, meta, precision):
+    """The placeholders of the declared input ranges (metadata "limits", codegen.core.limits) and
+    of the velocity bound the counters compare the estimate with (the spec's options' ``v_bound``
+    on the ``qd_hat_<joint>`` slots; codegen.verify.measure.saturation_mask)."""
+    from ..core.estimator import velocity_slots
+    limits = meta.get("limits") or {}
+    s = meta["sizes"]
+
+    top = float(np.finfo(np.float32).max) if precision == "float" else math.inf
+
+    def init(values, n, sign):          # an end beyond the real type's range: not checked
+        text = [f"{sign}{P}_REAL_MAX" if v is None or abs(v) > top else _num(v, precision)
+                for v in (values or [None] * n)]
+        return "{" + ", ".join(text or [f"{P}_REAL_MAX"]) + "}"
+    checked = any(v is not None for key in ("y_lower", "y_upper", "u_max") for v in limits.get(key) or [])
+    options = meta.get("options") or {}
+    bound = options.get("v_bound") if isinstance(options, dict) else None
+    slots = velocity_slots(meta["names"]["est"]) if bound else []
+    if len(slots) != len(bound or []):
+        slots, bound = [], []
+    return {"real_max": REAL_MAX[precision], "check_ranges": int(checked),
+            "y_lower": init(limits.get("y_lower"), s["ny"], "-"), "y_upper": init(limits.get("y_upper"), s["ny"], ""),
+            "u_max": init(limits.get("u_max"), s["nu"], ""),
+            "limits_rule": _comment(limits.get("rule", "none declared")),
+            "nv": len(slots), "v_slots": "{" + (", ".join(map(str, slots)) or "0") + "}",
+            "v_bound": "{" + (", ".join(_num(b, precision) for b in bound or []) or "0") + "}"}
 
 
 def _version_parts(P, version):

@@ -30,6 +30,11 @@ class ObserverError(RuntimeError):
     (a failing run() is rolled back to its start)."""
 
 
+class OutOfRange(ObserverError, ValueError):
+    """A sample outside the declared ranges of the target's inputs (status ERR_OUT_OF_RANGE; the
+    message names the slot, its value and the range); the state is as it was."""
+
+
 class LibraryMismatch(ValueError):
     """The metadata does not describe the library (its sizes or prefix differ from the library's
     own): no buffer is passed to it."""
@@ -129,6 +134,11 @@ class CompiledObserver:
         self._default_params = f("default_params")
         self._default_params.argtypes = [R]
         self._default_params.restype = None
+        self._set_skip, self._counters = f("set_skip"), f("counters")
+        self._set_skip.argtypes = [ct.c_void_p, ct.c_int]
+        self._counters.argtypes = [ct.c_void_p, ct.POINTER(ct.c_ulong)]
+        self.limits = self.meta.get("limits") or {}
+        self._ok = {0, self.meta["status"].get("SKIPPED", 0)}    # SKIPPED: predicted through, no error
         # preallocated buffers
         self._s = ct.create_string_buffer(self._state_size())
         self._buf = {k: np.zeros(max(1, m), self.dtype) for k, m in
@@ -137,13 +147,60 @@ class CompiledObserver:
         self._ptr = {k: v.ctypes.data_as(R) for k, v in self._buf.items()}
         self._default_params(self._ptr["p"])
         self.p_default = self._out("p", self.np)
-        self.reset(np.zeros(self.ny))
+        lo, hi = (self.limits.get(k) or [None] * self.ny for k in ("y_lower", "y_upper"))
+        self.reset([min(max(0.0, -np.inf if a is None else a), np.inf if b is None else b)
+                    for a, b in zip(lo, hi)])     # 0 clamped into the declared ranges
 
     # -------------------------------------------------------------- helpers
-    def _check(self, status, what):
-        if status != 0:
-            raise ObserverError(f"{self.prefix}_{what} returned {status} "
-                                f"({self.status_names.get(status, 'unknown')}); state unchanged")
+    def _check(self, status, what, y=None, u=None):
+        if status in self._ok:
+            return
+        name = self.status_names.get(status, "unknown")
+        if name == "ERR_OUT_OF_RANGE":
+            raise OutOfRange(f"{self.prefix}_{what} returned {status} ({name}: "
+                             f"{self.range_error(y, u)}); state unchanged")
+        raise ObserverError(f"{self.prefix}_{what} returned {status} ({name}); state unchanged")
+
+    def range_error(self, y=None, u=None):
+        """Which slot of the sample ``y`` (ny,), ``u`` (nu,) lies outside the declared ranges
+        (``obs.limits``, codegen.core.limits): "<slot> = <value> outside [low, high]", or ""."""
+        from ..core.limits import out_of_range
+        bad = out_of_range(self.limits, y, u)
+        if bad is None:
+            return ""
+        kind, i, value, (lo, hi) = bad
+        name = self.meta["names"][kind][i]
+        return f"{name} = {value:.6g} outside [{lo:.6g}, {hi:.6g}], its declared range"
+
+    @property
+    def skip(self):
+        """The skip mode (bool): a sample out of the declared ranges (or not finite) is predicted
+        through with the last accepted one held, not refused (the C's set_skip; off after reset)."""
+        return bool(self._skip)
+
+    @skip.setter
+    def skip(self, on):
+        """Turn the skip mode on or off (``on`` a bool)."""
+        self._check(self._set_skip(self._s, int(bool(on))), "set_skip")
+        self._skip = bool(on)
+
+    @property
+    def counters(self):
+        """{"clipped": steps whose velocity estimate ended beyond the model's velocity bound,
+        "skipped": samples skipped} since the last reset (the C's counters)."""
+        c = (ct.c_ulong * 2)()
+        self._check(self._counters(self._s, c), "counters")
+        return {"clipped": int(c[0]), "skipped": int(c[1])}
+
+    @property
+    def clipped(self):
+        """Steps since reset whose velocity estimate ended beyond the model's velocity bound."""
+        return self.counters["clipped"]
+
+    @property
+    def skipped(self):
+        """Samples skipped since reset (skip mode)."""
+        return self.counters["skipped"]
 
     def _load(self, key, name, value, size):
         self._buf[key][:size] = as_vector(name, value, size, self.dtype)
@@ -162,8 +219,8 @@ class CompiledObserver:
         est0 = as_vector("est0", np.zeros(self.nest) if est0 is None else est0, self.nest, self.dtype)
         p = as_vector("p", self.p_default if p is None else self.check_params(p), self.np, self.dtype)
         arr = [np.ascontiguousarray(a) for a in (p, y0, est0)]
-        self._check(self._init(self._s, *(a.ctypes.data_as(self._R) for a in arr)), "init")
-        self._primed, self._stamp = False, None     # as the C state's primed, stamped/t_last
+        self._check(self._init(self._s, *(a.ctypes.data_as(self._R) for a in arr)), "init", y=y0)
+        self._primed, self._stamp, self._skip = False, None, False   # as the C state's primed, stamped/t_last, skip
 
     def _elapsed(self, dt):
         """dt (s) as the C's real: positive, finite and at most ``dt_limit``, or ValueError."""
@@ -191,9 +248,9 @@ class CompiledObserver:
         yp = self._load("y", "y", y, self.ny)
         up = self._load("u", "u", u, self.nu)
         if h is None:
-            self._check(self._step(self._s, yp, up, self._ptr["est"]), "step")
+            self._check(self._step(self._s, yp, up, self._ptr["est"]), "step", y, u)
         else:
-            self._check(self._step_dt(self._s, h, yp, up, self._ptr["est"]), "step_dt")
+            self._check(self._step_dt(self._s, h, yp, up, self._ptr["est"]), "step_dt", y, u)
         self._stepped(self.dt if h is None else h)
         return self._out("est", self.nest)
 
@@ -203,9 +260,9 @@ class CompiledObserver:
         yp = self._load("y", "y", y, self.ny)
         up = self._load("u", "u", u, self.nu)
         if h is None:
-            self._check(self._estimate(self._s, yp, up, self._ptr["est"]), "estimate")
+            self._check(self._estimate(self._s, yp, up, self._ptr["est"]), "estimate", y, u)
         else:
-            self._check(self._estimate_dt(self._s, h, yp, up, self._ptr["est"]), "estimate_dt")
+            self._check(self._estimate_dt(self._s, h, yp, up, self._ptr["est"]), "estimate_dt", y, u)
         return self._out("est", self.nest)
 
     def bind(self, y, u, est):
@@ -226,12 +283,12 @@ class CompiledObserver:
         def step():
             st = c_step(*args)
             if st:
-                check(st, "step")
+                check(st, "step", y[:self.ny], u[:self.nu])
 
         def estimate():
             st = c_est(*args)
             if st:
-                check(st, "estimate")
+                check(st, "estimate", y[:self.ny], u[:self.nu])
         return step, estimate
 
     def c_step(self, y, u, dt=None):
@@ -246,7 +303,7 @@ class CompiledObserver:
             with np.errstate(over="ignore"):
                 h = self.dtype(dt)
             st = self._step_dt(self._s, h, self._ptr["y"], self._ptr["u"], self._ptr["est"])
-        if st == 0:
+        if st in self._ok:
             self._stepped(self.dt if dt is None else dt)
         return st, self._out("est", self.nest)
 
@@ -265,8 +322,10 @@ class CompiledObserver:
         the last, dt). An interval equal to dt up to its stamps' rounding is dt, so uniform
         stamps give ``run(Y, U)``'s estimates bit for bit. Default: the samples dt apart.
 
-        On a non-zero status at sample k, ObserverError names k, and the C has rolled the
-        state back to what it was before the call."""
+        On a non-zero status at sample k, ObserverError names k (OutOfRange also the slot and
+        the range), and the C has rolled the state back to what it was before the call. In the
+        skip mode (``obs.skip = True``) a sample out of range is predicted through instead
+        (``obs.skipped`` counts them)."""
         Y = as_matrix("Y", Y, self.ny, dtype=self.dtype)
         U = as_matrix("U", U, self.nu, rows=len(Y), dtype=self.dtype)
         if t is not None:
@@ -276,10 +335,14 @@ class CompiledObserver:
         arrays = (Y, U, EST) if t is None else (t, Y, U, EST)
         st = (self._run if t is None else self._run_t)(self._s, len(Y), *(a.ctypes.data_as(self._R) for a in arrays),
                                                       ct.byref(done))
-        if st != 0:
-            raise ObserverError(f"{self.prefix}_{'run' if t is None else 'run_t'} stopped at sample "
-                                f"{done.value} with status {st} ({self.status_names.get(st, 'unknown')}); "
-                                f"state rolled back to before the run")
+        if st not in self._ok:
+            name = self.status_names.get(st, "unknown")
+            k = done.value
+            where = (f": {self.range_error(Y[k], U[k] if self.nu else None)}"
+                     if name == "ERR_OUT_OF_RANGE" and k < len(Y) else "")
+            raise (OutOfRange if where else ObserverError)(
+                f"{self.prefix}_{'run' if t is None else 'run_t'} stopped at sample {k} with status {st} "
+                f"({name}{where}); state rolled back to before the run")
         if len(Y):
             if t is not None:
                 self._stamp = float(t[-1])

@@ -85,7 +85,15 @@ def family_info(family, where=""):
     default = sig["variant"].default if variants and "variant" in sig else None
     keyword = any(p.kind is p.VAR_KEYWORD for p in sig.values())
     names = None if keyword else [k for k in list(sig)[1:] if k != "variant"]
+    if names is not None and family in observers_families():
+        names.append("limits")          # every observer's: its inputs' declared ranges (codegen.core.limits)
     return variants, default, names, elastic
+
+
+def observers_families():
+    """The observer families (``codegen.families.observers.FAMILIES``)."""
+    from ..families import observers
+    return observers.FAMILIES
 
 
 # ------------------------------------------------------------------------------------ robots

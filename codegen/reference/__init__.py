@@ -167,6 +167,13 @@ class ReferenceObserver:
         self.nm = int(desc["rhs_model"]) if self.method == "expmid1" and self.model_split and not self.correction else 0
         self._m = np.zeros(self.nm)
         self._y_last = None   # the last measurement (set by reset and step), for retuning
+        # the declared ranges of y and u (codegen.core.limits), the skip mode and the counters of the C
+        self.limits = desc.get("limits") or {}
+        self.skip, self.skipped, self.clipped = False, 0, 0
+        self._pending = 0.0     # first-order hold: the time skipped since the last accepted sample
+        bound = getattr(self.options, "v_bound", ()) or ()
+        slots = [i for i, s in enumerate(self.est_names) if s.startswith("qd_hat_")]
+        self._v = (slots, np.asarray(bound, dtype=float)) if len(bound) == len(slots) and slots else None
 
     # ------------------------------------------------------------ parameters
     @property
@@ -310,9 +317,70 @@ class ReferenceObserver:
         x0 = np.asarray(self.family.init(self.robot, y0, est0, p), dtype=float).reshape(self.nx)
         if not np.all(np.isfinite(x0)):
             raise FloatingPointError(f"non-finite initial state {x0}")
+        self._refuse(y0, None, "y0")
         self._p, self._x, self._prev, self._y_last, self._stamp = p, x0, None, y0, None
         self._m = np.zeros(self.nm)
+        self.skip, self.skipped, self.clipped, self._pending = False, 0, 0, 0.0
         return self.state
+
+    def _outside(self, y, u):
+        """(slot name, value, low, high) of the first slot of ``y`` (ny,) or ``u`` (nu,; None: not
+        checked) outside the declared ranges ``limits`` (y_lower <= y <= y_upper, |u| <= u_max;
+        None: a slot not checked), or None."""
+        lim = self.limits
+        rows = [(self.y_names, y, lim.get("y_lower"), lim.get("y_upper"), False)]
+        if u is not None:
+            rows.append((self.u_names, u, None, lim.get("u_max"), True))
+        for names, v, lows, highs, symmetric in rows:
+            for i, value in enumerate(v):
+                high = np.inf if not highs or highs[i] is None else highs[i]
+                low = -high if symmetric else (-np.inf if not lows or lows[i] is None else lows[i])
+                if not low <= value <= high:
+                    return names[i], float(value), low, high
+        return None
+
+    def _refuse(self, y, u, what="sample"):
+        """ValueError naming the slot of ``y`` (ny,) or ``u`` (nu,; None: not checked) outside the
+        declared ranges (the C's ERR_OUT_OF_RANGE), nothing when both are inside."""
+        bad = self._outside(y, u)
+        if bad is not None:
+            name, value, lo, hi = bad
+            raise ValueError(f"{what}: {name} = {value:.6g} outside [{lo:.6g}, {hi:.6g}], the declared range "
+                             f"(ERR_OUT_OF_RANGE)")
+
+    def _accepted(self, y, u, prev, what="sample"):
+        """(y, u, skipped): the sample as stepped: itself when inside the declared ranges; else, in
+        the skip mode after the first sample (``prev`` the last accepted (y, u)), that one held
+        (the C's SKIPPED); else ValueError (``_refuse``)."""
+        if self._outside(y, u) is None:
+            return y, u, False
+        if self.skip and prev is not None:
+            return prev[0], prev[1], True
+        self._refuse(y, u, what)
+
+    def _at_bound(self, est):
+        """1 when a velocity estimate of ``est`` lies beyond the model's velocity bound (the C's
+        clip counter), else 0."""
+        if self._v is None:
+            return 0
+        slots, bound = self._v
+        return int(np.any(np.abs(est[slots]) > bound))
+
+    def _sample(self, x, prev, mem, pending, y, u, h, what="sample"):
+        """(est, x_next, memory_next, pending_next, skipped) of one sample as the C's step_dt takes it
+        (``_accepted``): a skipped sample under the first-order hold leaves x and the memory at the
+        last accepted sample, its estimate integrates the time since (``pending`` + h, y held), and
+        the next accepted one integrates all of it; otherwise (zero-order hold: the held sample
+        stepped) the step of the elapsed time ``h`` (+ ``pending``, first-order)."""
+        y, u, skipped = self._accepted(y, u, prev, what)
+        total = h + pending if self.hold == "foh" else h
+        if not total <= self.dt_limit:
+            raise ValueError(f"{what}: {total:g} s since the last accepted sample, more than {self.dt_limit:g} s "
+                             f"(split_max x dt_max)")
+        if skipped and self.hold == "foh":
+            return self._advance(x, prev, y, u, total, mem)[0], x, mem, pending + h, True
+        est, x, mem = self._advance(x, prev, y, u, total, mem)
+        return est, x, mem, 0.0, skipped
 
     def _flow(self, x, y_of_t, u, dt, m, midpoint=False):
         """(x, m) advanced over dt with y = y_of_t(t) and u held; ``midpoint`` (first-order hold
@@ -410,10 +478,14 @@ class ReferenceObserver:
         h = self._elapsed(dt)
         y = as_vector("y", y, self.ny)
         u = as_vector("u", u, self.nu)
-        est, self._x, self._m = self._advance(self._x, self._prev, y, u, h)
+        est, self._x, self._m, self._pending, skipped = self._sample(self._x, self._prev, self._m, self._pending,
+                                                                     y, u, h)
         if self._prev is not None and self._stamp is not None:
             self._stamp += h
-        self._prev, self._y_last = (y, u), y
+        if not skipped:
+            self._prev, self._y_last = (y, u), y
+        self.skipped += skipped
+        self.clipped += self._at_bound(est)
         return est
 
     def estimate(self, y, u, dt=None):
@@ -421,7 +493,7 @@ class ReferenceObserver:
         self._require_reset()
         h = self._elapsed(dt)
         y, u = as_vector("y", y, self.ny), as_vector("u", u, self.nu)
-        return self._advance(self._x, self._prev, y, u, h)[0]
+        return self._sample(self._x, self._prev, self._m, self._pending, y, u, h)[0]
 
     def run(self, Y, U, t=None):
         """Repeated ``step``, all-or-nothing: on an error the state is left unchanged.
@@ -465,16 +537,20 @@ class ReferenceObserver:
             if len(bad):
                 raise ValueError(f"t: the interval of sample {int(bad[0])} is {H[bad[0]]:g} s, expected "
                                  f"0 < interval <= {self.dt_limit:g} s (split_max x dt_max)")
-        x, prev, stamp, mem = self._x, self._prev, self._stamp, self._m
+        x, prev, stamp, mem, pending = self._x, self._prev, self._stamp, self._m, self._pending
         EST = np.empty((N, self.nest))
+        skipped = clipped = 0
         for k in range(N):
-            EST[k], x, mem = self._advance(x, prev, Y[k], U[k], float(H[k]), mem)
+            EST[k], x, mem, pending, skip = self._sample(x, prev, mem, pending, Y[k], U[k], float(H[k]), f"sample {k}")
             if prev is not None and stamp is not None:
                 stamp += H[k]
-            prev = (Y[k], U[k])
+            if not skip:
+                prev = (Y[k], U[k])
             if t is not None:
                 stamp = float(t[k])
-        self._x, self._prev, self._stamp, self._m = x, prev, stamp, mem
+            skipped, clipped = skipped + skip, clipped + self._at_bound(EST[k])
+        self._x, self._prev, self._stamp, self._m, self._pending = x, prev, stamp, mem, pending
+        self.skipped, self.clipped = self.skipped + skipped, self.clipped + clipped
         if len(Y):
-            self._y_last = Y[-1]
+            self._y_last = prev[0]
         return EST

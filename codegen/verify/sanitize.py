@@ -9,7 +9,9 @@ repeat, go back, are NaN or Inf, a dropped sample and a gap beyond the target's 
 elapsed time of step_dt), each with the exit code and message run_csv documents; then a libFuzzer campaign (clang, ``$FUZZ_CC``) of
 c_harness/fuzz_step.c, which asserts the documented status and an unchanged state on every
 failure of step, step_dt (dt 0, negative, NaN, Inf, huge), run, run_t, estimate, estimate_dt,
-rhs, set_state and set_params. A sanitizer report, an
+rhs, set_state and set_params, a sample outside the declared ranges (ERR_OUT_OF_RANGE, or SKIPPED
+in the skip mode: the held sample's step, bit for bit) and a wild sample in a long run (one sample
+later, within the clean run's error of it). A sanitizer report, an
 unexpected exit code or a fuzzer finding fails the run. Prints its figures (targets, inputs,
 fuzz runs) and ends with the line ``sanitize: N passed, M failed``.
 """
@@ -54,10 +56,12 @@ class Case:
     est0: str | None = None
 
 
-def edge_cases(ny, nu, nest, dt, precision="double"):
+def edge_cases(ny, nu, nest, dt, precision="double", limits=None):
     """The edge-case CSVs of a target with ``ny`` measurements, ``nu`` inputs and ``nest``
     estimates (for the est0 case), rows ``dt`` (s) apart: a list of :class:`Case`. run_csv
-    parses doubles and hands the target its own real type, ``precision``."""
+    parses doubles and hands the target its own real type, ``precision``. ``limits``: the declared
+    ranges of its metadata (codegen.core.limits): a value just outside the first declared one
+    must give ERR_OUT_OF_RANGE."""
     header = ",".join(["t"] + [f"y{i}" for i in range(ny)] + [f"u{i}" for i in range(nu)])
 
     def rows(n=8, y="0.1", u="0.5", at=None, where="y", t=None):
@@ -74,7 +78,7 @@ def edge_cases(ny, nu, nest, dt, precision="double"):
 
     def csv(lines, end="\n"):
         return end.join([header] + lines) + end
-    ok, res = (0,), r"ERR_NONFINITE_RESULT"
+    ok, res = (0,), r"ERR_NONFINITE_RESULT|ERR_OUT_OF_RANGE"
     bad_in = r"ERR_NONFINITE_INPUT"
     bad_dt = r"step_dt returned 1: ERR_BAD_ARG"
     big = HUGE[precision]
@@ -113,6 +117,11 @@ def edge_cases(ny, nu, nest, dt, precision="double"):
     ]
     if precision == "float":
         cases.append(Case("1e300 (Inf as a float)", csv(rows(at=(4, "1e300"))), (3,), bad_in))
+    upper = (limits or {}).get("y_upper") or []
+    if upper and upper[0] is not None:          # y0's declared range, 0.1 y beyond its upper end
+        beyond = repr(upper[0] + 0.1 + abs(upper[0]) * 1e-3)
+        cases.append(Case(f"y0 = {beyond}, beyond its declared range", csv(rows(at=(4, beyond))), (3,),
+                          r"ERR_OUT_OF_RANGE"))
     return cases
 
 
@@ -238,7 +247,7 @@ def run(runs=100000, seconds=60):
             meta = json.loads(read_target(folder)[f"{folder.name}.json"])
             s = meta["sizes"]
             cases = edge_cases(s["ny"], s["nu"], s["nest"], meta["discretization"]["dt"],
-                               meta.get("precision", "double"))
+                               meta.get("precision", "double"), meta.get("limits"))
             run_csv = sanitized(folder, "run_csv", cc, SAN_FLAGS, cache)
             bad = [(c.name, why) for c in cases if (why := run_case(run_csv, c, work))]
             exe = sanitized(folder, "fuzz_step", fuzz_cc, ["-fsanitize=fuzzer", *SAN_FLAGS], cache)

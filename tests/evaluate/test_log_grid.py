@@ -195,10 +195,11 @@ def _robots():
 
 
 def test_bursts_task_within_limits_and_fast():
-    """20 s on a 0.5 ms grid: within fill x range of the middle and 0.8 x the velocity limit, at
-    rest at the middle at t = 0, the derivatives derivatives; the bursts reach >= 0.5 x the
-    velocity limit, each fast stretch (|qd| > 0.2 v) shorter than 0.5 s, and they are brief (a few
-    % of the time); every joint drifts."""
+    """20 s on a 0.5 ms grid: within fill x range of the middle, 0.8 x the velocity limit and an
+    acceleration of 5 v / s (the bursts') + the drifts' 0.1 v x 2 pi 0.1 Hz, at rest at the
+    middle at t = 0, the derivatives derivatives; the bursts reach >= 0.5 x the velocity limit,
+    each fast stretch (|qd| > 0.2 v) shorter than 0.5 s, and they are brief (a few % of the
+    time); every joint drifts."""
     for name, robot in _robots().items():
         lo, hi = robot.q_lower, robot.q_upper
         v = urdf_joint_limits(robot.source["path"], robot.joint_names)["velocity"]
@@ -208,6 +209,7 @@ def test_bursts_task_within_limits_and_fast():
         Q = np.array([ref(t) for t in tt])
         assert np.all(np.abs(Q[:, 0] - c) <= A + 1e-12), name
         assert np.all(np.abs(Q[:, 1]) <= 0.8 * v + 1e-12), name
+        assert np.all(np.abs(Q[:, 2]) <= (5.0 + 0.1 * 2 * np.pi * 0.1) * v + 1e-12), name
         assert np.array_equal(Q[0, 0], c) and np.array_equal(Q[0, 1], np.zeros(robot.n))
         assert np.max(np.abs(Q[:, 1]) / v) >= 0.5, name
         fast = np.any(np.abs(Q[:, 1]) > 0.2 * v, axis=1)
@@ -220,6 +222,17 @@ def test_bursts_task_within_limits_and_fast():
         for t in (0.3, 5.0, 11.7, 17.2):
             assert np.allclose((ref(t + h)[0] - ref(t - h)[0]) / (2 * h), ref(t)[1], atol=1e-6)
             assert np.allclose((ref(t + h)[1] - ref(t - h)[1]) / (2 * h), ref(t)[2], atol=1e-4)
+
+
+@pytest.mark.slow
+def test_bursts_run_within_the_effort_limits(ur5):
+    """ur5's 20 s bursts task on the real plant (1 kg payload): the applied torque stays within
+    the URDF's effort limits (the shoulder needed 159 N m of 150 before bursts were limited to
+    5 v / s) and the controller tracks to 1 mrad."""
+    plant = RealPlant(ur5, seed=0, log_clock="receive")
+    run = plant.run(drifts_and_bursts(ur5, seed=0), 20.0, seed=(0, 5))
+    assert np.all(np.abs(run.tau).max(0) < run.effort), np.abs(run.tau).max(0)
+    assert np.max(run.tracking_error) < 1e-3
 
 
 def test_bursts_task_refuses_what_does_not_fit(ur5):

@@ -26,7 +26,8 @@ FAKE_H = """\
 #define FAKEOBS_HOLD_FOH 0
 #define FAKEOBS_STAMP_ULPS 4
 enum { FAKEOBS_OK = 0, FAKEOBS_ERR_BAD_ARG = 1, FAKEOBS_ERR_NONFINITE_INPUT = 2,
-       FAKEOBS_ERR_NONFINITE_RESULT = 3, FAKEOBS_ERR_KERNEL = 4 };
+       FAKEOBS_ERR_NONFINITE_RESULT = 3, FAKEOBS_ERR_KERNEL = 4, FAKEOBS_ERR_OUT_OF_RANGE = 5,
+       FAKEOBS_SKIPPED = 6 };
 typedef double fakeobs_real;
 typedef struct { double x[FAKEOBS_NX]; double p[FAKEOBS_NP]; double w[4]; } fakeobs_state;
 void fakeobs_default_params(double *p);

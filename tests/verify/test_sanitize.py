@@ -46,9 +46,9 @@ def float_target(spec_of, tmp_path):
 # the roll-back on error of run() (followed by run_t's interval helper) and of run_t() (the last function
 # before rhs()): group 1 the end of the loop, group 2 the restore
 RUN_ROLLBACK = (r"(    if \(n_done\) \*n_done = k \+ 1;\n  \}\n)  if \(status != \w+_OK\) "
-                r"(\w+_restore\(s, &entry\);\n  return status;\n\}\n\n/\* b - a)")
+                r"(\w+_restore\(s, &entry\);\n  return status[^\n]*;\n\}\n\n/\* b - a)")
 RUN_T_ROLLBACK = (r"(    if \(n_done\) \*n_done = k \+ 1;\n  \}\n)  if \(status != \w+_OK\) "
-                  r"(\w+_restore\(s, &entry\);\n  return status;\n\}\n\nint \w+_rhs)")
+                  r"(\w+_restore\(s, &entry\);\n  return status[^\n]*;\n\}\n\nint \w+_rhs)")
 
 
 def _put_back(folder, pattern, replacement):
@@ -66,7 +66,7 @@ def _put_back(folder, pattern, replacement):
     ("rhs() on NaN input (item 6)",
      r"  if \(!\w+_finite\(x, \w+_NX\).*\n +return \w+_ERR_NONFINITE_INPUT;\n", ""),
     ("step() writes the state before checking the result",
-     r"(  status = \w+_sample\(s, dt, y, u, s->x_next, s->m_next, s->est, s->w, s->iw, \w+\);)",
+     r"(  status = \w+_sample\(s, [^;]*s->x_next, s->m_next, s->est, s->w,\s+s->iw, \w+\);)",
      r"  s->x[0] = s->x_next[0];\n\1"),
 ], ids=["run-not-rolled-back", "run-t-not-rolled-back", "step-dt-zero", "rhs-nan", "step-writes-early"])
 def test_fuzzer_finds_a_fault_put_back(target, tmp_path, fault, pattern, replacement):

@@ -1071,7 +1071,7 @@ def point_to_point(robot, moves=4, move=3.0, dwell=2.0, fill=0.3, max_amplitude=
 
 
 def drifts_and_bursts(robot, T=20.0, bursts=None, burst_duration=(0.2, 0.5), burst_speed=(0.5, 0.7),
-                      drift=0.25, drift_speed=0.1, drift_frequency=(0.02, 0.1), fill=0.3, max_amplitude=1.0,
+                      burst_acceleration=5.0, drift=0.25, drift_speed=0.1, drift_frequency=(0.02, 0.1), fill=0.3, max_amplitude=1.0,
                       seed=0):
     """A task of slow drifts with fast bursts: every joint drifts slowly, and a few times a few
     joints make a short, fast minimum-jerk move to a new level,
@@ -1083,15 +1083,20 @@ def drifts_and_bursts(robot, T=20.0, bursts=None, burst_duration=(0.2, 0.5), bur
     2 pi f_il <= drift_speed x v_i (A_i = min(fill x range, max_amplitude), v_i the URDF's
     velocity limit, 1 rad/s where it gives none). b_i is piecewise constant but for ``bursts``
     moves: burst j starts at a seeded instant in its slot (the slots split [t_a, T - t_b], t_a =
-    min(1, T / 10), t_b = min(0.5, T / 20), in ``bursts`` equal parts), lasts D_j ~
-    U(burst_duration) s and moves m_j ~ U{1, .., ceil(n / 2)} seeded joints by
+    min(1, T / 10), t_b = min(0.5, T / 20), in ``bursts`` equal parts) and moves m_j ~ U{1, ..,
+    ceil(n / 2)} seeded joints by
 
         b_i(t) = b_i,j + Delta_ij s((t - t_j) / D_j),   s(x) = 10 x^3 - 15 x^4 + 6 x^5,
 
     |Delta_ij| = u_ij v_i D_j / 1.875 (peak speed u_ij x v_i, u_ij ~ U(burst_speed)), its sign
     drawn among those that keep |b_i| <= (1 - drift) A_i (the step shortened to reach that bound
-    when neither does). So |q_d - c| <= A and |qd_d| <= (drift_speed + burst_speed high) x v;
-    at t = 0 the task is at rest (qd_d = 0) at c. Seeded (stream ``bursts``).
+    when neither does). Its duration D_j ~ U(burst_duration) is lengthened (up to the slot) until
+    the peak acceleration (10 / sqrt 3) |Delta_ij| / D_j^2 = 3.08 u_ij v_i / D_j is at most
+    ``burst_acceleration`` x v_i for every joint it moves (u_ij lowered where the slot is too
+    short): a real arm's joints have an acceleration, not only a speed, limit (ur5's shoulder at
+    22 rad/s^2 with the 1 kg payload needed 159 N m of its 150). So |q_d - c| <= A, |qd_d| <=
+    (drift_speed + burst_speed high) x v, and at t = 0 the task is at rest (qd_d = 0) at c.
+    Seeded (stream ``bursts``).
 
     Parameters
     ----------
@@ -1105,6 +1110,8 @@ def drifts_and_bursts(robot, T=20.0, bursts=None, burst_duration=(0.2, 0.5), bur
         Range of a burst's duration (s), 0 < low <= high.
     burst_speed : (float, float)
         Range of a burst's peak speed, fractions of the velocity limit, 0 < low <= high.
+    burst_acceleration : float
+        Largest peak acceleration of a burst, a multiple of the velocity limit (1/s), > 0.
     drift : float
         The drifts' share of the excursion A, in (0, 1).
     drift_speed : float
@@ -1132,6 +1139,8 @@ def drifts_and_bursts(robot, T=20.0, bursts=None, burst_duration=(0.2, 0.5), bur
     if not (d_lo > 0 and u_lo > 0 and f_lo > 0):
         raise ValueError(f"burst_duration, burst_speed and drift_frequency must be positive ranges, got "
                          f"{burst_duration!r}, {burst_speed!r}, {drift_frequency!r}")
+    if not (np.isfinite(burst_acceleration) and burst_acceleration > 0):
+        raise ValueError(f"burst_acceleration must be a positive number (1/s), got {burst_acceleration!r}")
     if not (np.isfinite(drift) and 0 < drift < 1):
         raise ValueError(f"drift must be in (0, 1), got {drift!r}")
     if not (np.isfinite(drift_speed) and drift_speed > 0 and drift_speed + u_hi <= 1):
@@ -1159,10 +1168,13 @@ def drifts_and_bursts(robot, T=20.0, bursts=None, burst_duration=(0.2, 0.5), bur
     B = (1 - drift) * A
     starts, durations, steps, levels = [], [], [], [np.zeros(n)]
     for j in range(bursts):
-        D = rng.uniform(d_lo, d_hi)
-        start = t_a + j * slot + rng.uniform(0, slot - D)
+        D, place = rng.uniform(d_lo, d_hi), rng.random()
         joints = rng.permutation(n)[:rng.integers(1, (n + 1) // 2 + 1)]
         u, coin = rng.uniform(u_lo, u_hi, n), rng.random(n)
+        peak = 10 / np.sqrt(3) / 1.875                   # peak acceleration / (u v / D) of s(x)
+        D = min(max(D, peak * u[joints].max() / burst_acceleration), slot)
+        u = np.minimum(u, burst_acceleration * D / peak)
+        start = t_a + j * slot + place * (slot - D)
         b, step = levels[-1], np.zeros(n)
         for i in joints:
             size = u[i] * v[i] * D / 1.875

@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
+from ...core.limits import check_given
 from ...core.spec import checked_args, plain
 
 FAMILIES = sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
@@ -24,7 +25,10 @@ def build(family, robot, **gains):
         The robot the observer is built for.
     **gains
         Keyword arguments of the family's ``build`` (gains, design inputs, options); recorded
-        as plain data in ``spec.build_args`` so that a ``Target`` can rebuild the spec.
+        as plain data in ``spec.build_args`` so that a ``Target`` can rebuild the spec. One
+        keyword every family takes: ``limits``, the declared ranges of the inputs the C checks
+        each sample against (None, the default: the robot's declared limits with margins;
+        "none"; or a dict of ``q_lower``, ``q_upper``, ``tau_max``: codegen.core.limits).
 
     Returns
     -------
@@ -32,7 +36,10 @@ def build(family, robot, **gains):
     """
     if family not in FAMILIES:
         raise KeyError(f"unknown observer family {family!r}; known: {', '.join(FAMILIES)}")
-    spec = importlib.import_module(f"{__name__}.{family}").build(robot, **checked_args(gains))
+    own = {k: v for k, v in gains.items() if k != "limits"}
+    limits = check_given(gains.get("limits"), robot.n)
+    spec = importlib.import_module(f"{__name__}.{family}").build(robot, **checked_args(own))
+    spec.limits = limits
     spec.build_args = {k: plain(v) for k, v in gains.items()}
     return spec
 
