@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..pipeline.compile import compile_library, work_dir
-from ..core.target import Discretization
+from ..core.target import Discretization, Target
 
 BENCH_GATES_NS = {"seed004_3r": 5000.0, "ur5": 50000.0}   # CG O1 rhs, ns per call
 
@@ -442,7 +442,7 @@ def friction_step(robot="ur5", families=("reduced_order", "kalman_model")):
     return rows
 
 
-def kalman_model_step(robot="ur5", cortex_m=True, targets=None):
+def kalman_model_step(robot="ur5", cortex_m=True, targets=None, design=None):
     """The observer a real arm's user runs, ``kalman_model`` with the model, as the targets file
     has it for ``robot`` (ur5: the torque uncertainty of the real ur5's identification), at the
     default discretisation: its design from an empty design cache (wall and CPU s, in this
@@ -460,6 +460,8 @@ def kalman_model_step(robot="ur5", cortex_m=True, targets=None):
         Also the Cortex-M4F float row (skipped, None, when the toolchain is missing).
     targets : path, optional
         The targets file (default ./targets.toml).
+    design : dict, optional
+        The build's keyword arguments in place of the targets file's entry (a robot without one).
 
     Returns
     -------
@@ -474,9 +476,13 @@ def kalman_model_step(robot="ur5", cortex_m=True, targets=None):
 
     from ..pipeline.targets_file import build_spec, load_targets
     from ..verify import c_programs, cortex_m as arm
-    target = next(t for t, _ in load_targets(Path(targets or "targets.toml"))
-                  if t.family == "kalman_model" and t.robot.get("name") == robot)
-    target = replace(target, discretization=Discretization(dt=1e-3))
+    if design is None:
+        target = next(t for t, _ in load_targets(Path(targets or "targets.toml"))
+                      if t.family == "kalman_model" and t.robot.get("name") == robot)
+        target = replace(target, discretization=Discretization(dt=1e-3))
+    else:
+        target = Target(robot=load_robot(robot).source, family="kalman_model", build=design,
+                        discretization=Discretization(dt=1e-3))
     with tempfile.TemporaryDirectory() as tmp:
         old = os.environ.get("CODEGEN_CACHE")
         os.environ["CODEGEN_CACHE"] = str(Path(tmp) / "cache")
@@ -494,15 +500,19 @@ def kalman_model_step(robot="ur5", cortex_m=True, targets=None):
     rb, src = load_robot(robot), load_robot(robot).source
     locked = list(src.get("locked_joints", {}))
     step = _instructions_per_step(folder, rb, 1e-3)
-    aba = c_programs.pin_aba_instructions(src["path"], locked)
-    timing, pin = c_programs.time_target(folder), c_programs.time_pin(src["path"], locked)
+    timing = c_programs.time_target(folder)
+    if "path" in src:
+        aba = c_programs.pin_aba_instructions(src["path"], locked)
+        pin = c_programs.time_pin(src["path"], locked)["ns_aba"]
+    else:       # a closed-form robot (no URDF): no pinocchio
+        aba = pin = None
     row = {"robot": robot, "family": "kalman_model", "variant": spec.variant,
            "design_wall_s": round(wall, 2),
            "design_cpu_s": round(cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime, 2),
            "c_bytes": c_bytes, "instructions_step": step, "instructions_pin_aba": aba,
            "ratio_instructions_step_over_aba": step and aba and step / aba,
-           "ns_step": timing["ns_per_step"], "ns_pin_aba": pin["ns_aba"],
-           "ratio_ns_step_over_aba": timing["ns_per_step"] / pin["ns_aba"],
+           "ns_step": timing["ns_per_step"], "ns_pin_aba": pin,
+           "ratio_ns_step_over_aba": pin and timing["ns_per_step"] / pin,
            "m4f_instructions_step": None, "m4f_share_of_1ms_at_168MHz": None}
     if cortex_m and not arm.missing_packages():
         with tempfile.TemporaryDirectory() as tmp:
@@ -676,11 +686,26 @@ SCENARIOS = {"kalman_model": kalman_model_step,
 
 
 # ---------------------------------------------------------------------------- report
-def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, generate=True):
+def smoke_scenarios():
+    """The cheap rows every path of the bench goes through (``bench --smoke``, CI's `make
+    test-long`, about a minute): kalman_model's step on seed000_2r with the model (no Cortex-M, no
+    pinocchio: a closed-form robot),
+    and Ciccarella-Germani O1 on elastic ur5, the row the stability check once refused."""
+    from functools import partial
+    return {"kalman_model": partial(kalman_model_step, "seed000_2r", cortex_m=False,
+                                    design={"torque_uncertainty": [0.5, 0.2]}),
+            "seed004": partial(seed004_cg, robots=("ur5",), checks=2)}
+
+
+def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, generate=True,
+         smoke=False):
     """Print the observer-RHS table, (``scenarios``) every scenario bench and (``generate``) the
     time of `make generate` from scratch; with ``json_path`` also write the figures there.
-    ``robots``: catalog names of the table; ``native``: compile with -march=native.
+    ``robots``: catalog names of the table; ``native``: compile with -march=native; ``smoke``:
+    the table on ur5 and the scenarios of ``smoke_scenarios`` only, nothing generated.
     Returns 0 (the CLI's exit status)."""
+    if smoke:
+        robots, generate = ("ur5",), False
     rows = observer_rhs(robots, native)
     print(f"{'robot':8s} {'RHS ns':>9s} {'step ns':>9s} {'rk4/zoh ns':>11s} {'pin aba ns':>11s} {'RHS/aba':>8s} "
           f"{'step/aba':>9s} {'step/rk4zoh':>12s} {'step instr':>11s} {'RHS instr':>10s} {'aba instr':>10s} "
@@ -694,7 +719,8 @@ def main(robots=("ur5", "panda"), native=False, json_path=None, scenarios=True, 
               f"{r['ratio_instructions_step_over_aba'] or 0:9.3f} {r['ratio_instructions_rhs_over_aba'] or 0:8.3f}")
     print("(the last four columns: instructions per call, valgrind; the others: ns, this run's clock)")
     extra = {}
-    benches = dict(SCENARIOS if scenarios else {}, **({"generate": generate_from_scratch} if generate else {}))
+    benches = dict((smoke_scenarios() if smoke else SCENARIOS) if scenarios else {},
+                   **({"generate": generate_from_scratch} if generate else {}))
     for name, fn in benches.items():
         print(f"\n{name}:", flush=True)
         extra[name] = fn()
