@@ -552,7 +552,9 @@ def generic_chain_urdf(n, seed=0):
         ET.SubElement(joint, "origin", xyz=txt(rng.uniform(-0.2, 0.2, 3)), rpy=txt(rng.uniform(-np.pi, np.pi, 3)))
         axis = rng.normal(size=3)
         ET.SubElement(joint, "axis", xyz=txt(axis / np.linalg.norm(axis)))
-        ET.SubElement(joint, "limit", lower="-2", upper="2", effort="10", velocity="2")
+        # effort 100 N m: the declared torque range (10 x) holds the demo trajectory's torques
+        # (409 N m at n = 50; 10 N m refused chain24's at 189 N m with ERR_OUT_OF_RANGE)
+        ET.SubElement(joint, "limit", lower="-2", upper="2", effort="100", velocity="2")
         inertial = ET.SubElement(ET.SubElement(root, "link", name=f"l{i}"), "inertial")
         ET.SubElement(inertial, "origin", xyz=txt(rng.uniform(-0.1, 0.1, 3)))
         ET.SubElement(inertial, "mass", value=repr(float(rng.uniform(0.5, 2.0))))
