@@ -4,8 +4,10 @@
  * Usage: time_step [--blocks=N] [--block-ms=MS]        (defaults: 51 blocks of ~15 ms)
  *
  * Inputs are fixed and finite: a table of K samples of smooth periodic signals
- * y_i(k) = a_i sin(2 pi k / K + phi_i) (likewise u), with amplitudes in [0.25, 1] and
- * phases drawn from a fixed-seed generator.  The step loop cycles through the table;
+ * y_i(k) = c_i + a_i sin(2 pi k / K + phi_i) (likewise u, c_i = 0), with amplitudes in
+ * [0.25, 1] and phases drawn from a fixed-seed generator, inside the target's declared ranges
+ * (the header's Y_LOWER, Y_UPPER, U_MAX): c_i the middle of a bounded range of y_i, a_i at
+ * most 0.45 of its width (U_MAX for u), so no sample is refused with ERR_OUT_OF_RANGE.  The step loop cycles through the table;
  * every block starts from the same state (a copy taken after init and a warm-up run), so
  * all blocks do the same work.  The rhs loop evaluates the right-hand side at the state
  * reached after the warm-up, cycling through the same table of y, u.
@@ -63,14 +65,29 @@ static double uniform01(void)
     return (double)((rng_state * 2685821657736338717ULL) >> 11) * (1.0 / 9007199254740992.0);
 }
 
-static void fill_table(OBS_REAL *tab, int width, int n)
+/* The declared ranges (-+REAL_MAX: unchecked; a header without CHECK_RANGES checks none);
+   lower == NULL: u's, symmetric, |u| <= upper. */
+#if OBS_SIZE(CHECK_RANGES)
+static const OBS_REAL y_lower[OBS_LEN(OBS_NY)] = OBS_SIZE(Y_LOWER), y_upper[OBS_LEN(OBS_NY)] = OBS_SIZE(Y_UPPER);
+static const OBS_REAL u_max[OBS_LEN(OBS_NU)] = OBS_SIZE(U_MAX);
+#define Y_RANGE y_lower, y_upper
+#define U_RANGE NULL, u_max
+#else
+#define Y_RANGE NULL, NULL
+#define U_RANGE NULL, NULL
+#endif
+
+static void fill_table(OBS_REAL *tab, int width, int n, const OBS_REAL *lower, const OBS_REAL *upper)
 {
     const double two_pi = 6.283185307179586;
     int i, k;
     for (i = 0; i < n; ++i) {
         double a = 0.25 + 0.75 * uniform01();
         double phi = two_pi * uniform01();
-        for (k = 0; k < K_TABLE; ++k) tab[k * width + i] = (OBS_REAL)(a * sin(two_pi * k / K_TABLE + phi));
+        double hi = upper ? (double)upper[i] : 1e300, lo = lower ? (double)lower[i] : -hi;
+        double c = 0.5 * lo + 0.5 * hi; /* the halves: no overflow at -+REAL_MAX */
+        if (a > 0.45 * (hi - lo)) a = 0.45 * (hi - lo);
+        for (k = 0; k < K_TABLE; ++k) tab[k * width + i] = (OBS_REAL)(c + a * sin(two_pi * k / K_TABLE + phi));
     }
 }
 
@@ -179,8 +196,8 @@ int main(int argc, char **argv)
         return 2;
     }
 
-    fill_table(&Y_tab[0][0], OBS_LEN(OBS_NY), OBS_NY);
-    fill_table(&U_tab[0][0], OBS_LEN(OBS_NU), OBS_NU);
+    fill_table(&Y_tab[0][0], OBS_LEN(OBS_NY), OBS_NY, Y_RANGE);
+    fill_table(&U_tab[0][0], OBS_LEN(OBS_NU), OBS_NU, U_RANGE);
 
     st = OBS_FN(init)(&state, NULL, Y_tab[0], NULL);
     if (st != 0) {

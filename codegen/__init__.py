@@ -7,7 +7,15 @@
 
 Imports are lazy so that ``codegen.reference`` (numpy + pin only) never loads CasADi.
 """
-from .core.version import __version__  # noqa: F401
+import os
+
+# One BLAS thread per process, unless the caller chose: our matrices are small (a few joints), and
+# on a shared machine OpenBLAS's threads wait on each other (an 8x8 solve 1 ms -> 31 ms, a 200x200
+# product 0.5 -> 35 ms under load: docs/guide/speed.md). Read when numpy first loads, so set here,
+# before any module imports it; parallel work is by processes (pytest -n, generate -j, Dask).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from .core.version import __version__  # noqa: E402,F401
 
 # name -> (module, attribute or None for the module itself): imported on first use
 _LAZY = {"observers": ("codegen.families.observers", None),

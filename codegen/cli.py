@@ -277,7 +277,7 @@ def cmd_bench(args):
     ``args``: the parsed argparse namespace; returns the exit status."""
     from .evaluate.bench import main
     return main(args.bench_robots, native=args.native, json_path=args.json, scenarios=not args.no_scenarios,
-                generate=not args.no_generate)
+                generate=not args.no_generate, smoke=args.smoke)
 
 
 def _vs_newlib(rec):
@@ -726,6 +726,8 @@ def parser():
     be.add_argument("--json", metavar="FILE", help="also write the figures to this file")
     be.add_argument("--no-scenarios", action="store_true", help="skip the scenario benchmarks")
     be.add_argument("--no-generate", action="store_true", help="skip timing `make generate` from scratch")
+    be.add_argument("--smoke", action="store_true", help="the cheap rows only (about a minute; CI's "
+                    "`make test-long`): the table on ur5, kalman_model's step on seed000_2r, elastic ur5's CG")
     e = sub.add_parser("embedded", parents=[debug], help="run the targets on emulated Cortex-M4F (float) "
                        "and M7 (double)")
     _target_options(e, "parent folder of the targets (default ./generated, or the file's out)")

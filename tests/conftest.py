@@ -24,6 +24,8 @@ def pytest_configure(config):
         tag = hashlib.sha256(str(ROOT).encode()).hexdigest()[:8]
         os.environ["CODEGEN_BUILD"] = str(Path(tempfile.gettempdir()) / f"codegen-tests-{os.getuid()}-{tag}")
     os.environ.setdefault("CODEGEN_CACHE", str(Path(os.environ["CODEGEN_BUILD"]) / "cache"))
+    # one BLAS thread per worker, as importing codegen sets (a test module may import numpy first)
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 CLOSED_FORM = ["seed000_2r", "seed002_2r", "seed003_2r_abs"]

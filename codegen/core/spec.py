@@ -110,7 +110,10 @@ class ObserverSpec:
                                             injection terms): rhs_split(x, y_cfg, y, u, p) =
                                             rhs_model(x, y, u, p, model(x, y_cfg, y, u, p)); the
                                             methods "expmid1" (once) and "expmid" (twice)
-                                            evaluate model at one configuration per sub-step
+                                            evaluate model at one configuration per sub-step.
+                                            ``model_correction``: the flow stands without it
+                                            (rhs_model at m = 0), which then predicts the
+                                            midpoint state under "expmid1" (no memory)
       output(x, y, u, p) -> est             the estimate at the current sample
       init(y0, est0, p)  -> x0              state from a first measurement and an initial estimate
       jump(x, y, p)      -> x+   (or None)  hybrid jump map, applied before each step
@@ -139,6 +142,9 @@ class ObserverSpec:
                   discrete stability check bisects on, codegen.discrete.stability)
       clocks      clock state name -> the parameter (a time, s) it counts up to, s' = 1: the
                   stability check refuses a time the clock cannot reach in the precision
+      model_correction  the model part m corrects a flow complete without it (rhs_model at
+                  m = 0: kalman_model's kinematic filter); "expmid1" then predicts the sub-step's
+                  midpoint with that flow and keeps no memory (codegen.discrete.discretize)
       limits      the ranges of y and u the user declared (None: the robot's declared limits with
                   their margins; "none": no range; codegen.core.limits); ``input_limits`` are the
                   ranges the C checks every sample against
@@ -171,6 +177,7 @@ class ObserverSpec:
     rate_states: tuple = ()
     gains: dict = field(default_factory=dict)
     clocks: dict = field(default_factory=dict)
+    model_correction: bool = False
     limits: object = None
 
     @property
@@ -228,6 +235,8 @@ class ObserverSpec:
         if (self.model is None) != (self.rhs_model is None) or (self.model is not None and self.rhs_split is None):
             raise ValueError(f"{self.family}: model and rhs_model come together, with rhs_split")
         if self.model is None:
+            if self.model_correction:
+                raise ValueError(f"{self.family}: model_correction needs a model part (model, rhs_model)")
             return
         nm = self.model.size1_out(0) * self.model.size2_out(0)
         for f, ins in ((self.model, (self.nx, self.ny, self.ny, self.nu, self.np)),
@@ -271,7 +280,8 @@ class ObserverSpec:
         """Plain data (JSON-able) the reference rebuilds this observer from: family, variant,
         robot source, slot names, default parameters, options, whether it is hybrid, its rate states
         whether it splits its flow's y (``rhs_split``), the size of its model part (``model``;
-        0: none) and the declared ranges of its inputs (``input_limits``)."""
+        0: none), the declared ranges of its inputs (``input_limits``) and, when it is a
+        correction (``model_correction``), "model_correction": True."""
         return {"family": self.family, "variant": self.variant, "robot": self.robot_source,
                 "names": {"x": list(self.x_names), "y": list(self.y_names), "u": list(self.u_names),
                           "p": list(self.p_names), "est": list(self.est_names)},
@@ -279,7 +289,8 @@ class ObserverSpec:
                 "hybrid": self.jump is not None, "rate_states": list(self.rate_states),
                 "rhs_split": self.rhs_split is not None, "rhs_model": self.model_size,
                 "gains": {g: list(slots) for g, slots in self.gains.items()},
-                "limits": self.input_limits}
+                "limits": self.input_limits,
+                **({"model_correction": True} if self.model_correction else {})}
 
 
 def split_flow(x, y_cfg, y, u, p, xdot):

@@ -178,6 +178,91 @@ def chol_lower(A):
     return ca.vertcat(*[ca.horzcat(*L[i]) for i in range(n)])
 
 
+def householder_tridiagonal(B):
+    """Tridiagonal T = Q^T B Q of a symmetric SX ``B`` (n, n) by n - 2 Householder reflections
+    (Golub & Van Loan, Matrix Computations, 4th ed., Algorithm 8.3.1), entry by entry on the lower
+    triangle: Q = H_0 H_1 ... H_(n-3), H_k = I - beta_k v_k v_k^T acting on rows k+1..n-1, with
+    v_k = x + sign(x_0) ||x|| e_1 of the column below the diagonal x = B_(k+1:, k) (so
+    beta_k = 1 / (||x|| (||x|| + |x_0|)), no cancellation). A column already zero (a joint
+    decoupled from the rest) gets H_k = I: beta_k = 0, its square root taken of 1, so the
+    expression and its derivatives stay finite there.
+
+    Returns
+    -------
+    (diag (n,) list, sub (n - 1,) list, reflections): T's diagonal and sub-diagonal as SX scalars
+    and [(k + 1, v_k list, beta_k)] for ``apply_reflections``."""
+    n = B.shape[0]
+    A = [[B[i, j] for j in range(i + 1)] for i in range(n)]        # lower triangle, A[i][j], j <= i
+
+    def at(i, j):
+        return A[i][j] if j <= i else A[j][i]
+    sub, reflections = [], []
+    for k in range(n - 2):
+        x = [at(i, k) for i in range(k + 1, n)]
+        s2 = sum(xi * xi for xi in x[1:]) + x[0] * x[0]
+        some = s2 > 0
+        norm = ca.sqrt(ca.if_else(some, s2, 1))
+        sign = ca.if_else(x[0] >= 0, 1, -1)
+        v = [x[0] + sign * norm] + x[1:]
+        beta = ca.if_else(some, 1 / (norm * (norm + ca.fabs(x[0]))), 0)
+        rows = range(k + 1, n)
+        # B22 <- H B22 H = B22 - v w^T - w v^T, w = p - (beta/2) (v^T p) v, p = beta B22 v
+        pv = [beta * sum(at(i, j) * v[j - k - 1] for j in rows) for i in rows]
+        half = 0.5 * beta * sum(a * b for a, b in zip(v, pv))
+        w = [pi - half * vi for pi, vi in zip(pv, v)]
+        for i in rows:
+            for j in range(k + 1, i + 1):
+                A[i][j] = A[i][j] - v[i - k - 1] * w[j - k - 1] - w[i - k - 1] * v[j - k - 1]
+        sub.append(ca.if_else(some, -sign * norm, 0))
+        reflections.append((k + 1, v, beta))
+    if n >= 2:
+        sub.append(A[n - 1][n - 2])
+    return [A[i][i] for i in range(n)], sub, reflections
+
+
+def apply_reflections(reflections, u, transpose=False):
+    """Q u (or Q^T u with ``transpose``) of ``householder_tridiagonal``'s reflections, u an (n,)
+    list of SX scalars: each H_k u = u - beta_k v_k (v_k^T u) on rows k+1.., in turn (Q^T:
+    H_0 first)."""
+    u = list(u)
+    for start, v, beta in (reflections if transpose else reversed(reflections)):
+        c = beta * sum(vi * ui for vi, ui in zip(v, u[start:]))
+        u[start:] = [ui - c * vi for ui, vi in zip(u[start:], v)]
+    return u
+
+
+def tridiagonal_factors(diag, sub, p):
+    """The LDL^T factors of I + p T, T symmetric tridiagonal (``diag`` (n,), ``sub`` (n - 1,)
+    lists of SX), I + p T positive definite (T positive semi-definite, p > 0), without pivoting:
+    d_0 = 1 + p T_00, l_i = p T_i,i-1 / d_i-1, d_i = 1 + p T_ii - l_i p T_i,i-1 (n divisions).
+    Returns (1/d (n,), l (n,) with l[0] None) for ``tridiagonal_solve``."""
+    n = len(diag)
+    inv, low = [None] * n, [None] * n
+    inv[0] = 1 / (1 + p * diag[0])
+    for i in range(1, n):
+        off = p * sub[i - 1]
+        low[i] = off * inv[i - 1]
+        inv[i] = 1 / (1 + p * diag[i] - low[i] * off)
+    return inv, low
+
+
+def tridiagonal_solve(inv, low, columns):
+    """W = (L D L^T)^-1 U from ``tridiagonal_factors``' (1/d, l) for each of ``columns`` (the
+    columns of U, each an (n,) list of SX): forward, diagonal and backward substitution, 5n
+    operations a column, no division."""
+    n = len(inv)
+    out = []
+    for u in columns:
+        z = list(u)
+        for i in range(1, n):
+            z[i] = z[i] - low[i] * z[i - 1]
+        w = [zi * di for zi, di in zip(z, inv)]
+        for i in range(n - 2, -1, -1):
+            w[i] = w[i] - low[i + 1] * w[i + 1]
+        out.append(w)
+    return out
+
+
 # ============================================================================ Lie derivatives and
 # observability coordinates (Ciccarella-Germani, Spong; docs/papers/seed004.md §8.1, §9) -- seed-004 section
 def lie_derivative(h, x, f, k=1):

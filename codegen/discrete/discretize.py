@@ -95,6 +95,15 @@ midpoint rule: 2), and a stiff damping or friction mode asks for more sub-steps.
 "etdrk4" (docs/architecture.md §4.1): the reduced-order and switched observers move by at most
 0.05 % of their own RMS error on the built-in trajectory and 2.8 % on MuJoCo's ur5 and panda; the
 model held from the start state, without the memory, moved them by 10-11.5 %.
+
+A model part that corrects a flow complete without it (``spec.model_correction``: kalman_model,
+whose m is the a-measurement's gain structure at the midpoint configuration and velocity, and
+m = 0 the kinematic filter) is predicted under "expmid1" with m = 0 in place of the memory:
+x_mid from the flow without the correction, then m = model(x_mid, y_m, y_m) once, held while
+ETD-RK4 evaluates rhs_model, and with it the correction's terms linear in the state, at each of
+its four stages; no memory. Holding the correction itself over the step (the gains applied to
+the midpoint state's innovation) moved kalman_model's RMS error on MuJoCo's ur5 by 6.7 % against
+ETD-RK4 (its injection is far stiffer than its poles: a-gains omega^2 g_a4 ~ 5e3 / s^2).
 """
 from __future__ import annotations
 
@@ -209,8 +218,9 @@ def _etdrk4_step(f, x, t, h, a, mask, c):
 def memory_size(spec, method):
     """Entries of the step's memory under the integrator ``method`` for ``spec``: the model's last
     value (``spec.model_size``) under "expmid1", 0 otherwise (a family without a model part gets
-    ETD-RK4, which keeps none)."""
-    return spec.model_size if method == "expmid1" else 0
+    ETD-RK4, which keeps none; one whose model part is a correction, ``spec.model_correction``,
+    predicts without it)."""
+    return spec.model_size if method == "expmid1" and not spec.model_correction else 0
 
 
 def _symbols(spec, sym, nm=0):
@@ -311,7 +321,8 @@ def _advance(spec, x, y_of, u, p, dt, method, substeps, midpoint=False, memory=N
     y((i + 1/2)/substeps) of each sub-step i, its output injection at y(s). ``"expmid"``:
     ``_expmid_step`` per sub-step (ETD-RK4 for a family without a model part); ``"expmid1"``:
     the same with the model's last value ``memory`` in its predictor, the memory then the
-    sub-step's model (other methods return ``memory`` as it came)."""
+    sub-step's model, or, for a model part that is a correction (``spec.model_correction``),
+    with m = 0 in the predictor and no memory (other methods return ``memory`` as it came)."""
     if method in MODEL_METHODS and spec.model is None:
         method = "etdrk4"
     h = dt / substeps
@@ -320,11 +331,14 @@ def _advance(spec, x, y_of, u, p, dt, method, substeps, midpoint=False, memory=N
     split = midpoint and spec.rhs_split is not None
     parts = model_parts(spec.model) if method == "expmid" and isinstance(x, ca.MX) else None
     affine = method in MODEL_METHODS and _remainder_is_stateless(spec)
+    keep = method == "expmid1" and not spec.model_correction
     for i in range(substeps):
         if method in MODEL_METHODS:
-            x, m = _expmid_step(spec, x, y_of, u, p, i / substeps, h, 1 / substeps, rate, mask, parts,
-                                memory if method == "expmid1" else None, affine)
-            memory = m if method == "expmid1" else memory
+            last = memory if keep else None
+            if method == "expmid1" and spec.model_correction:
+                last = ca.DM.zeros(spec.model_size)          # the flow without its correction predicts
+            x, m = _expmid_step(spec, x, y_of, u, p, i / substeps, h, 1 / substeps, rate, mask, parts, last, affine)
+            memory = m if keep else memory
             continue
         y_cfg = y_of((i + 0.5) / substeps)
         flow = ((lambda s, xs: spec.rhs_split(xs, y_cfg, y_of(s), u, p)) if split else

@@ -169,6 +169,7 @@ def metadata(spec, target, kernels, stability=None):
         "rate_states": list(spec.rate_states),
         "rhs_split": spec.rhs_split is not None,
         "rhs_model": spec.model_size,
+        **({"model_correction": True} if spec.model_correction else {}),
         "gains": {g: list(slots) for g, slots in spec.gains.items()},
         "limits": spec.input_limits,
         "stability": stability,

@@ -162,7 +162,9 @@ class ReferenceObserver:
         self._p = self.p_default.copy()
         self._x = None
         # the step's memory under expmid1: the model's last value (zeros after reset and a set state)
-        self.nm = int(desc["rhs_model"]) if self.method == "expmid1" and self.model_split else 0
+        # a model part that corrects a flow complete without it: expmid1 predicts without it, no memory
+        self.correction = bool(desc.get("model_correction")) and self.method == "expmid1"
+        self.nm = int(desc["rhs_model"]) if self.method == "expmid1" and self.model_split and not self.correction else 0
         self._m = np.zeros(self.nm)
         self._y_last = None   # the last measurement (set by reset and step), for retuning
         # the declared ranges of y and u (codegen.core.limits), the skip mode and the counters of the C
@@ -392,7 +394,8 @@ class ReferenceObserver:
             x, mem = discretize.integrate_expmid(
                 lambda t, xi, mi: family.rhs_model(robot, xi, y_of_t(t), u, p, mi),
                 lambda tm, t, xi: family.model(robot, xi, y_of_t(tm), y_of_t(t), u, p),
-                x, dt, self.substeps, rate, self._mask, memory=m if self.nm else None)
+                x, dt, self.substeps, rate, self._mask, memory=m if self.nm else None,
+                correction=self.correction)
             return x, (m if mem is None else mem)
         method = "etdrk4" if self.method in ("expmid", "expmid1") else self.method   # without a model part
         if midpoint and self.split:

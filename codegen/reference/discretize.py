@@ -92,7 +92,7 @@ def etdrk4_step(f, t, x, h, a, mask):
     return np.where(D > 0, etd, x + (h / 6.0) * (n1 + 2.0 * n2 + 2.0 * n3 + n4))
 
 
-def expmid_step(f, model, t, x, h, a, mask, m_last=None):
+def expmid_step(f, model, t, x, h, a, mask, m_last=None, correction=False):
     """One step of length h (s) of the method expmid from t (s) and x (m,): the model at the
     step's midpoint configuration and its start, m0 = model(t + h/2, t, x); the state at the
     step's midpoint predicted over h/2 with m0 held (exponential Euler with the flow at
@@ -102,9 +102,10 @@ def expmid_step(f, model, t, x, h, a, mask, m_last=None):
     held by ``etdrk4_step`` (``rk4_step`` when a is None). f: (s, x, m) -> x'; model:
     (t_cfg, t, x) -> the model at the configuration y(t_cfg) and the velocity x and y(t) give
     it; a, mask as in ``etdrk4_step``; ``m_last`` (the method expmid1): the model's last value,
-    used by the prediction in place of m0 (the model then evaluated once). Returns
-    (x(t + h), m)."""
-    m0 = model(t + 0.5 * h, t, x) if m_last is None else m_last
+    used by the prediction in place of m0 (the model then evaluated once); ``correction`` (a
+    model part that corrects a flow complete without it, under expmid1): the prediction with
+    f(s, x, None), the flow without it. Returns (x(t + h), m)."""
+    m0 = None if correction else (model(t + 0.5 * h, t, x) if m_last is None else m_last)
     if a is None:
         x_mid = x + 0.5 * h * f(t + 0.25 * h, x, m0)
     else:
@@ -118,14 +119,14 @@ def expmid_step(f, model, t, x, h, a, mask, m_last=None):
     return (etdrk4_step(held, t, x, h, a, mask) if a is not None else rk4_step(held, t, x, h)), m
 
 
-def integrate_expmid(f, model, x, dt, substeps, rate=None, mask=None, memory=None):
+def integrate_expmid(f, model, x, dt, substeps, rate=None, mask=None, memory=None, correction=False):
     """(x(dt), memory): ``substeps`` steps h = dt / substeps of ``expmid_step`` from x (m,); f,
-    model, rate, mask as there (t in [0, dt], s). ``memory`` (expmid1): the model's last value,
-    each step's prediction then uses the one before it and the memory returned is the last
-    step's model (None: expmid, returned as None)."""
+    model, rate, mask, correction as there (t in [0, dt], s). ``memory`` (expmid1): the model's
+    last value, each step's prediction then uses the one before it and the memory returned is the
+    last step's model (None: expmid, or a correction under expmid1, returned as None)."""
     h = dt / substeps
     for i in range(substeps):
-        x, m = expmid_step(f, model, i * h, x, h, rate, mask, memory)
+        x, m = expmid_step(f, model, i * h, x, h, rate, mask, memory, correction)
         memory = None if memory is None else m
     return x, memory
 

@@ -261,6 +261,29 @@ def test_time_step_json(fake, exe):
     assert res["ns_per_step"] > 0 and res["ns_per_rhs"] > 0 and res["blocks"] == 3
 
 
+def test_time_step_keeps_its_inputs_in_the_declared_ranges(tmp_path):
+    """A target whose declared range excludes 0 (panda's joint 4: [-3.07, -0.07] rad) and bounds
+    |u| below the table's amplitudes: the timing program's inputs stay inside, so init and every
+    step succeed (they were sinusoids about 0: init refused with ERR_OUT_OF_RANGE, the bench
+    stopped)."""
+    ranges = ("#define FAKEOBS_CHECK_RANGES 1\n#define FAKEOBS_Y_LOWER {0.5, -3.0}\n"
+              "#define FAKEOBS_Y_UPPER {2.0, -1.0}\n#define FAKEOBS_U_MAX {0.1}\n#endif\n")
+    check = ("  for (i = 0; i < FAKEOBS_NY; ++i) if (!(y{0}[i] >= y_lo[i] && y{0}[i] <= y_hi[i])) "
+             "return FAKEOBS_ERR_OUT_OF_RANGE;\n")
+    c = FAKE_C.replace('#include "fakeobs.h"\n', '#include "fakeobs.h"\nstatic const double '
+                       'y_lo[] = FAKEOBS_Y_LOWER, y_hi[] = FAKEOBS_Y_UPPER, u_max[] = FAKEOBS_U_MAX;\n')
+    c = c.replace("  if (p) s->p[0]", check.format("0") + "  if (p) s->p[0]")
+    c = c.replace("  st = fakeobs_rhs(", check.format("") + "  if (fabs(u[0]) > u_max[0]) return "
+                  "FAKEOBS_ERR_OUT_OF_RANGE;\n  st = fakeobs_rhs(")
+    d = tmp_path / "fakeobs"
+    d.mkdir()
+    (d / "fakeobs.h").write_text(FAKE_H.replace("#endif\n", ranges))
+    (d / "fakeobs.c").write_text(c)
+    (d / "fakeobs_kernels.c").write_text(FAKE_KERNELS_C)
+    res = c_programs.time_target(d, blocks=3, block_ms=1, work_dir=tmp_path / "build")
+    assert res["errors"] == 0 and res["ns_per_step"] > 0
+
+
 def test_compile_error_is_reported(tmp_path):
     d = tmp_path / "broken"
     d.mkdir()

@@ -47,7 +47,8 @@ import numpy as np
 from ..design.kalman_model import (POLES, check_per_joint, check_torque_uncertainty, design_kalman_model,
                                    normalised_gains)
 from ...core.options import InputRanges, VariantOptions
-from ...core.spec import ObserverSpec, split_flow
+from ...core.spec import ObserverSpec, split_flow, split_model
+from ...core.symbolic import apply_reflections, householder_tridiagonal, tridiagonal_factors, tridiagonal_solve
 from ._design import design_discretization, stable_report
 
 TUNE = {"omega": 1}       # the steady bandwidth a log tunes (codegen.logs.tune)
@@ -149,34 +150,25 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
     x = ca.vertcat(qh, vh, ah, jh, clock)
     e = y - qh
     blocks = [vh + w * g[0] * e, ah + w ** 2 * g[1] * e, jh + w ** 3 * g[2] * e, w ** 4 * g[3] * e]
-    if K is not None:
-        sig_q, wid = p[3], p[4]
-        st, fc, off = p[5:5 + n], p[5 + n:5 + 2 * n], p[5 + 2 * n:5 + 3 * n]
-        base = 5 + 3 * n
-        pk = p[base:base + K]
-        cq = ca.reshape(p[base + K:base + 5 * K], K, 4).T          # (4, K): row b-1, column k
-        ca_ = ca.reshape(p[base + 5 * K:base + 9 * K], K, 4).T
-        M = robot.mass_matrix(y_cfg)
-        s = ca.erf(vh / (math.sqrt(2.0) * wid))
-        z = tau - robot.nle(y_cfg, vh) - ca.mtimes(ca.DM(robot.F), vh) - off - fc * s
-        wm, on = p[0], ca.if_else(clock < p[2], 0, 1)        # the model: steady phase only
-        Sigma = (st ** 2 + fc ** 2 * (1 - s ** 2)) / (sig_q ** 2 * wm ** 4)
-        M2 = ca.mtimes(M, M)
-        rhs2 = ca.horzcat(ca.mtimes(M, e), z - ca.mtimes(M, ah))
-        for k in range(K):
-            r = ca.mtimes(M, ca.solve(ca.diag(Sigma) + pk[k] * M2, rhs2))
-            for b in range(4):
-                blocks[b] = blocks[b] + on * pk[k] * (wm ** (b + 1) * cq[b, k] * r[:, 0]
-                                                      + wm ** (b - 1) * ca_[b, k] * r[:, 1])
-    xdot = ca.vertcat(*blocks, 1)
-    rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, xdot)
+    if K is None:
+        rhs, rhs_split = split_flow(x, y_cfg, y, tau, p, ca.vertcat(*blocks, 1))
+        model = rhs_model = None
+    else:
+        # the model's part: the gain structure of the a-measurement at the configuration y_cfg and
+        # the velocity v_hat (``gain_structure``), held over a step; the injection it makes, linear
+        # in e and a_hat (``model_injection``), at every stage
+        m = ca.SX.sym("m", structure_size(n, K))
+        injection = model_injection(m, x, p, y, n, K, ca.DM(robot.F))
+        xdot = ca.vertcat(*[blocks[b] + injection[b * n:(b + 1) * n] for b in range(4)], 1)
+        rhs, rhs_split, model, rhs_model = split_model(x, y_cfg, y, tau, p, m,
+                                                       gain_structure(robot, x, y_cfg, tau, p, K), xdot)
     y0, est0 = ca.SX.sym("y0", n), ca.SX.sym("est0", n)
     names = [f"{s}_{j}" for s in ("q_hat", "qd_hat", "qdd_hat", "jerk_hat") for j in joints] + ["t_clock"]
     spec = ObserverSpec(
         family="kalman_model", robot=robot, variant=variant, options=VariantOptions(variant),
         x_names=names, y_names=[f"q_{j}" for j in joints], u_names=[f"tau_{j}" for j in joints],
         p_names=p_names, est_names=[f"qd_hat_{j}" for j in joints], p_default=p_default,
-        rhs=rhs, rhs_split=rhs_split,
+        rhs=rhs, rhs_split=rhs_split, model=model, rhs_model=rhs_model, model_correction=K is not None,
         output=ca.Function("output", [x, y, tau, p], [vh]),
         init=ca.Function("init", [y0, est0, p], [ca.vertcat(y0, est0, ca.DM.zeros(2 * n + 1))]),
         # q_hat' = [v_hat + omega_s g1 y + ...] - omega_s g1 q_hat: the rate omega_s g1 on q_hat
@@ -192,3 +184,92 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
                            x_uniform=(("t_clock", 0.0, 2 * design.t_switch),)),
     )
     return stable_report(spec, disc)
+
+
+def structure_size(n, K):
+    """Entries of ``gain_structure``: W (n x n), per pole the LDL^T factors of I + p_k T (n inverse
+    pivots, n - 1 multipliers), zeta (n), V (n x n), the friction's sign s and v_hat there (n each)."""
+    return 2 * n * n + K * (2 * n - 1) + 3 * n
+
+
+def _unpack(m, n, K):
+    """(W, [(1/d, l)] per pole, zeta, V, s, v_hat) of a ``gain_structure`` vector ``m``."""
+    W = ca.reshape(m[:n * n], n, n)
+    factors, i = [], n * n
+    for _ in range(K):
+        factors.append((ca.vertsplit(m[i:i + n]), [None] + ca.vertsplit(m[i + n:i + 2 * n - 1])))
+        i += 2 * n - 1
+    return W, factors, m[i:i + n], ca.reshape(m[i + n:i + n + n * n], n, n), m[i + n + n * n:i + 2 * n + n * n], \
+        m[i + 2 * n + n * n:i + 3 * n + n * n]
+
+
+def _sign(vh, p):
+    """s = erf(v_hat / (sqrt 2 width)): the mean of sign(v) for v ~ N(v_hat, width^2)."""
+    return ca.erf(vh / (math.sqrt(2.0) * p[4]))
+
+
+def _friction(vh, p, n, F):
+    """The friction the model subtracts from the torque at v_hat: F v_hat + Fc s (N m)."""
+    return ca.mtimes(F, vh) + p[5 + n:5 + 2 * n] * _sign(vh, p)
+
+
+def gain_structure(robot, x, y_cfg, tau, p, K):
+    """The model's part of the flow (module docstring), what the gains are made of at the
+    configuration ``y_cfg`` and the state's velocity v_hat, (``structure_size``,) SX:
+
+        D = Sigma / (sigma_q^2 omega^4),  B = D^-1/2 M^2 D^-1/2 = Q T Q^T   (T tridiagonal,
+                                                                            Householder)
+        V = Q^T D^-1/2,  W = V M,  zeta = V z = W a_m   (a_m = M^-1 z, the model's acceleration)
+
+    with on (1 from t_switch on, else 0) times W, zeta, V and per pole the LDL^T factors of
+    I + p_k T, then s and v_hat (for the friction's change over a step, ``model_injection``).
+    (C_hat + p_k I)^-1 = W^T (I + p_k T)^-1 W (C_hat = W^-1 T^-1 W^-T, T = W W^T): the gains act
+    through one tridiagonal solve per pole and W; zeros are the kinematic filter. x, tau, p: the
+    flow's state, torque and parameters."""
+    n = robot.n
+    vh, clock = x[n:2 * n], x[4 * n]
+    sig_q, st, fc, off = p[3], p[5:5 + n], p[5 + n:5 + 2 * n], p[5 + 2 * n:5 + 3 * n]
+    pk = p[5 + 3 * n:5 + 3 * n + K]
+    M = robot.mass_matrix(y_cfg)
+    s = _sign(vh, p)
+    z = tau - robot.nle(y_cfg, vh) - _friction(vh, p, n, ca.DM(robot.F)) - off
+    on = ca.if_else(clock < p[2], 0, 1)        # the model: steady phase only
+    scale = 1 / ca.sqrt((st ** 2 + fc ** 2 * (1 - s ** 2)) / (sig_q ** 2 * p[0] ** 4))      # D^-1/2
+    B = ca.mtimes(ca.diag(scale), ca.mtimes(ca.mtimes(M, M), ca.diag(scale)))
+    diag, sub, reflections = householder_tridiagonal(B)
+    V = ca.horzcat(*[ca.vertcat(*apply_reflections(reflections, [scale[j] if i == j else 0 for i in range(n)],
+                                                   transpose=True)) for j in range(n)])
+    W = ca.mtimes(V, M)
+    out = [on * ca.reshape(W, n * n, 1)]
+    for k in range(K):
+        inv, low = tridiagonal_factors(diag, sub, pk[k])
+        out += [on * ca.vertcat(*inv), on * ca.vertcat(*low[1:])]
+    out += [on * ca.mtimes(V, z), on * ca.reshape(V, n * n, 1), s, vh]
+    return ca.densify(ca.vertcat(*out))
+
+
+def model_injection(m, x, p, y, n, K, F):
+    """The injection (4n,) SX of the gain structure ``m`` (``gain_structure``) into the blocks
+    b = 1..4 of the state x at the measurement y: with e = y - q_hat, the a-measurement at this
+    v_hat, zeta + V (F (v_m - v_hat) + Fc (s_m - s)) (its friction terms follow the velocity over
+    the step, the rest of the model held at the structure's v_m), e~ = W e, e~_a = zeta - W a_hat
+    and w_k = (I + p_k T)^-1 [e~, e~_a] (tridiagonal solves with m's factors), block b of
+    sum_k p_k (omega^b cq_bk r_k,e + omega^(b-2) ca_bk r_k,a), r_k = W^T w_k (module docstring);
+    zero for m = 0. F: the robot's viscous friction (n, n)."""
+    W, factors, zeta, V, s_m, v_m = _unpack(m, n, K)
+    qh, vh, ah = x[:n], x[n:2 * n], x[2 * n:3 * n]
+    base = 5 + 3 * n
+    pk = p[base:base + K]
+    cq = ca.reshape(p[base + K:base + 5 * K], K, 4).T          # (4, K): row b-1, column k
+    ca_ = ca.reshape(p[base + 5 * K:base + 9 * K], K, 4).T
+    wm = p[0]
+    fc = p[5 + n:5 + 2 * n]
+    zeta = zeta + ca.mtimes(V, ca.mtimes(F, v_m - vh) + fc * (s_m - _sign(vh, p)))
+    u = [ca.vertsplit(ca.mtimes(W, y - qh)), ca.vertsplit(zeta - ca.mtimes(W, ah))]
+    acc = [[0] * n for _ in range(4)]
+    for k, (inv, low) in enumerate(factors):
+        w_e, w_a = tridiagonal_solve(inv, low, u)
+        for b in range(4):
+            ce, ck = pk[k] * wm ** (b + 1) * cq[b, k], pk[k] * wm ** (b - 1) * ca_[b, k]
+            acc[b] = [a + ce * we + ck * wa for a, we, wa in zip(acc[b], w_e, w_a)]
+    return ca.vertcat(*[ca.mtimes(W.T, ca.vertcat(*acc[b])) for b in range(4)])

@@ -69,7 +69,8 @@ def _poles(p, n):
 
 
 def rhs_split(robot, x, y_cfg, y, u, p, variant):
-    """x' (4n + 1,) of the module docstring.
+    """x' (4n + 1,) of the module docstring: ``rhs_model`` with the model's gain structure
+    ``model`` at the configuration y_cfg (none in the kinematic variant).
 
     Parameters
     ----------
@@ -87,6 +88,24 @@ def rhs_split(robot, x, y_cfg, y, u, p, variant):
     variant : {"kinematic", "model"}
         As bound by ``configure``.
     """
+    m = model(robot, x, y_cfg, y, u, p) if variant == "model" else None
+    return rhs_model(robot, x, y, u, p, m)
+
+
+def rhs_model(robot, x, y, u, p, m):
+    """x' (4n + 1,): the kinematic blocks x'_b = x_(b+1) + omega^b g_b e plus, with the gain
+    structure ``m`` (``model``; None: none), the model's injection G_e[b] e + G_a[b] (a - a_hat)
+    into block b, a = a_m + M^-1 (F (v_m - v_hat) + Fc (s(v_m) - s(v_hat))): the model's
+    acceleration at m's velocity v_m with its friction terms at this v_hat; the clock c' = 1.
+
+    Parameters
+    ----------
+    robot : reference robot (n joints)
+    x, y, u, p
+        As in ``rhs_split``.
+    m : tuple or None
+        ``model``'s gain matrices and acceleration, or None (the kinematic flow).
+    """
     n = robot.n
     qh, vh, ah, jh, _ = _blocks(x, n)
     p = np.asarray(p, dtype=float)
@@ -94,26 +113,54 @@ def rhs_split(robot, x, y_cfg, y, u, p, variant):
     g = butterworth4()
     e = np.asarray(y, float) - qh
     out = [vh + w * g[0] * e, ah + w ** 2 * g[1] * e, jh + w ** 3 * g[2] * e, w ** 4 * g[3] * e]
-    if variant == "model" and float(x[4 * n]) >= float(p[2]):
-        w = float(p[0])
-        K = _poles(p, n)
-        sig_q, wid = p[3], p[4]
-        st, fc, off = p[5:5 + n], p[5 + n:5 + 2 * n], p[5 + 2 * n:5 + 3 * n]
-        base = 5 + 3 * n
-        pk = p[base:base + K]
-        cq = p[base + K:base + 5 * K].reshape(4, K)
-        ca = p[base + 5 * K:base + 9 * K].reshape(4, K)
-        M = robot.M(y_cfg)
-        s = np.array([math.erf(v / (math.sqrt(2.0) * wid)) for v in vh])
-        z = np.asarray(u, float) - robot.nle(y_cfg, vh) - robot.F @ vh - off - fc * s
-        D = np.diag((st ** 2 + fc ** 2 * (1 - s ** 2)) / (sig_q ** 2 * w ** 4))
-        M2 = M @ M
-        B = np.stack([M @ e, z - M @ ah], axis=1)
-        for k in range(K):
-            r = M @ np.linalg.solve(D + pk[k] * M2, B)
-            for b in range(4):
-                out[b] = out[b] + pk[k] * (w ** (b + 1) * cq[b, k] * r[:, 0] + w ** (b - 1) * ca[b, k] * r[:, 1])
+    if m is not None:
+        G_e, G_a, a_m, M, v_m = m
+        fc = p[5 + n:5 + 2 * n]
+        a = a_m + np.linalg.solve(M, robot.F @ (v_m - vh) + fc * (_sign(v_m, p) - _sign(vh, p)))
+        out = [o + G_e[b] @ e + G_a[b] @ (a - ah) for b, o in enumerate(out)]
     return np.concatenate(out + [[1.0]])
+
+
+def _sign(v, p):
+    """erf(v / (sqrt 2 width)) per joint, the mean of sign(v) for v ~ N(v, width^2); p[4] = width."""
+    return np.array([math.erf(x / (math.sqrt(2.0) * float(p[4]))) for x in v])
+
+
+def model(robot, x, y_cfg, y, u, p):
+    """The model's gain structure at the configuration ``y_cfg`` and the velocity v_hat of x,
+    once the clock x[4n] >= t_switch (None before: the kinematic flow): (G_e (4, n, n),
+    G_a (4, n, n), a_m (n,), M (n, n), v_hat (n,)) with
+
+        G_e[b] = sum_k p_k omega^b cq_bk (C_hat + p_k I)^-1,   G_a[b] = sum_k p_k omega^(b-2) ca_bk (C_hat + p_k I)^-1,
+        (C_hat + p_k I)^-1 = M (D + p_k M M)^-1 M   (a dense solve per pole),   a_m = M^-1 z
+
+    (module docstring); robot, x, y, u, p as in ``rhs_split`` (y unused: the injection takes
+    the position error in ``rhs_model``)."""
+    n = robot.n
+    _, vh, _, _, clock = _blocks(x, n)
+    p = np.asarray(p, dtype=float)
+    if clock < float(p[2]):
+        return None
+    w = float(p[0])
+    K = _poles(p, n)
+    sig_q = p[3]
+    st, fc, off = p[5:5 + n], p[5 + n:5 + 2 * n], p[5 + 2 * n:5 + 3 * n]
+    base = 5 + 3 * n
+    pk = p[base:base + K]
+    cq = p[base + K:base + 5 * K].reshape(4, K)
+    ca = p[base + 5 * K:base + 9 * K].reshape(4, K)
+    M = robot.M(y_cfg)
+    s = _sign(vh, p)
+    z = np.asarray(u, float) - robot.nle(y_cfg, vh) - robot.F @ vh - off - fc * s
+    D = np.diag((st ** 2 + fc ** 2 * (1 - s ** 2)) / (sig_q ** 2 * w ** 4))
+    M2 = M @ M
+    G_e, G_a = np.zeros((4, n, n)), np.zeros((4, n, n))
+    for k in range(K):
+        R = M @ np.linalg.solve(D + pk[k] * M2, M)
+        for b in range(4):
+            G_e[b] += pk[k] * w ** (b + 1) * cq[b, k] * R
+            G_a[b] += pk[k] * w ** (b - 1) * ca[b, k] * R
+    return G_e, G_a, np.linalg.solve(M, z), M, vh.copy()
 
 
 def _omega(x, p, n):
