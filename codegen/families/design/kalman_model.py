@@ -37,9 +37,10 @@ converges in that time):
     omega  = omega_floor(v_max, t_settle)   from t_switch = 1.5 t_conv on: t_settle = 0.5 s gives
                                              32 rad/s
 
-Measured on the MuJoCo real-arm task logs (ur5, panda, kinova; docs/guide/compare.md), the steady error is
-flat within 10 % for omega in 30-45 rad/s and grows fast below 25 (the filter lags the moves'
-jerk steps), hence t_settle = 0.5 s. The switch waits 1.5 t_conv [ASSUMPTION, measured]: at
+t_conv and t_settle are requirements (how fast an error must go), the default when no log is
+given; the best steady omega depends on the log's noise and motion (tuned on the log's own
+samples, without truth, by ``codegen.logs.tune``: 67-211 rad/s on the log-grid's cells, docs/guide/
+reading-a-log.md), so no measured optimum is built in. The switch waits 1.5 t_conv [ASSUMPTION, measured]: at
 t_conv the start-up filter's estimates of a and j still carry its larger noise, and switching
 then put the ur5's error back above 1e-2 until 0.27 s; at 1.5 t_conv it stays below 7e-3.
 """
