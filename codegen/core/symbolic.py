@@ -247,9 +247,9 @@ def tridiagonal_factors(diag, sub, p):
 
 
 def tridiagonal_solve(inv, low, columns):
-    """W = (L D L^T)^-1 U from ``tridiagonal_factors``' (1/d, l) for each of ``columns`` (the
-    columns of U, each an (n,) list of SX): forward, diagonal and backward substitution, 5n
-    operations a column, no division."""
+    """W = (L D L^T)^-1 U from ``tridiagonal_factors``' inverse pivots ``inv`` (1/d) and multipliers
+    ``low`` (l) for each of ``columns`` (the columns of U, each an (n,) list of SX): forward, diagonal
+    and backward substitution, 5n operations a column, no division."""
     n = len(inv)
     out = []
     for u in columns:

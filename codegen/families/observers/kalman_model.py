@@ -187,8 +187,9 @@ def build(robot, variant=None, omega=None, noise=None, quantization=None, torque
 
 
 def structure_size(n, K):
-    """Entries of ``gain_structure``: W (n x n), per pole the LDL^T factors of I + p_k T (n inverse
-    pivots, n - 1 multipliers), zeta (n), V (n x n), the friction's sign s and v_hat there (n each)."""
+    """Entries of ``gain_structure`` for ``n`` joints and ``K`` poles: W (n x n), per pole the LDL^T
+    factors of I + p_k T (n inverse pivots, n - 1 multipliers), zeta (n), V (n x n), the friction's
+    sign s and v_hat there (n each)."""
     return 2 * n * n + K * (2 * n - 1) + 3 * n
 
 
@@ -224,8 +225,8 @@ def gain_structure(robot, x, y_cfg, tau, p, K):
     with on (1 from t_switch on, else 0) times W, zeta, V and per pole the LDL^T factors of
     I + p_k T, then s and v_hat (for the friction's change over a step, ``model_injection``).
     (C_hat + p_k I)^-1 = W^T (I + p_k T)^-1 W (C_hat = W^-1 T^-1 W^-T, T = W W^T): the gains act
-    through one tridiagonal solve per pole and W; zeros are the kinematic filter. x, tau, p: the
-    flow's state, torque and parameters."""
+    through one tridiagonal solve per pole and W; zeros are the kinematic filter. ``robot``: the
+    model (M, nle, F); x, tau, p: the flow's state, torque and parameters; ``K`` the poles."""
     n = robot.n
     vh, clock = x[n:2 * n], x[4 * n]
     sig_q, st, fc, off = p[3], p[5:5 + n], p[5 + n:5 + 2 * n], p[5 + 2 * n:5 + 3 * n]
@@ -255,7 +256,8 @@ def model_injection(m, x, p, y, n, K, F):
     the step, the rest of the model held at the structure's v_m), e~ = W e, e~_a = zeta - W a_hat
     and w_k = (I + p_k T)^-1 [e~, e~_a] (tridiagonal solves with m's factors), block b of
     sum_k p_k (omega^b cq_bk r_k,e + omega^(b-2) ca_bk r_k,a), r_k = W^T w_k (module docstring);
-    zero for m = 0. F: the robot's viscous friction (n, n)."""
+    zero for m = 0. ``p``: the parameters (omega, the poles p_k and coefficients); n joints, ``K``
+    poles; F: the robot's viscous friction (n, n)."""
     W, factors, zeta, V, s_m, v_m = _unpack(m, n, K)
     qh, vh, ah = x[:n], x[n:2 * n], x[2 * n:3 * n]
     base = 5 + 3 * n
