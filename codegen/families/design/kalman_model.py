@@ -39,7 +39,7 @@ converges in that time):
 
 t_conv and t_settle are requirements (how fast an error must go), the default when no log is
 given; the best steady omega depends on the log's noise and motion (tuned on the log's own
-samples, without truth, by ``codegen.logs.tune``: 67-211 rad/s on the log-grid's cells, docs/guide/
+samples, without truth, by ``codegen.logs.tune``: 66-224 rad/s on the log-grid's cells, docs/guide/
 reading-a-log.md), so no measured optimum is built in. The switch waits 1.5 t_conv [ASSUMPTION, measured]: at
 t_conv the start-up filter's estimates of a and j still carry its larger noise, and switching
 then put the ur5's error back above 1e-2 until 0.27 s; at 1.5 t_conv it stays below 7e-3.
