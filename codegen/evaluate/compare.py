@@ -688,7 +688,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         families = ELASTIC_FAMILIES                   # an elastic robot's log
     if list(rec.joint_names) != list(robot.joint_names):
         raise ValueError(f"rec: joints {rec.joint_names} differ from the robot's {robot.joint_names}")
-    t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
+    t, Y, U = rec.t, rec.q, rec.tau
     if not np.any(np.ptp(Y, axis=0) > 0):   # before the (slow) runs: nothing to estimate
         raise ValueError(f"rec: the robot does not move (q constant on every joint over the {len(t)} samples): "
                          "its velocity is 0, which any difference filter gives exactly, so the methods cannot "
