@@ -336,7 +336,7 @@ def test_bad_clock_options_are_refused(ur5):
         RealPlant(ur5, stamp_resolution=2e-3)
 
 
-@pytest.mark.slow
+@pytest.mark.long  # experiment-scale: `make test-long`
 def test_cell_files_and_rerun(tmp_path):
     """A 1.5 s cell of the grid (receive clock, bursts): the files, cell.json's record, the
     yardstick, and a rerun (through ``grid``) that writes the same bytes."""

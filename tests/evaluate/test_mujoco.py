@@ -242,7 +242,7 @@ def test_baselines_tuned_and_ordered(ur5_quantised):
     assert min(r["rms_over_best_baseline"] for r in rows if r["kind"] == "baseline") == 1.0
 
 
-@pytest.mark.slow
+@pytest.mark.long  # experiment-scale: `make test-long`
 def test_simulate_mujoco_scenario_with_options(tmp_path, capsys):
     """`simulate mujoco-ur5 --T 1 --quantization 1e-4` writes the run as a compare CSV that
     `compare --robot ur5` reads back to the same table; seed scenarios refuse the options."""

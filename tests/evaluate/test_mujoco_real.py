@@ -350,7 +350,7 @@ def _check_runs(s, T_task):
         assert max(st["tracking_error_max"]) < 1e-2
 
 
-@pytest.mark.slow
+@pytest.mark.long  # experiment-scale: `make test-long`
 @pytest.mark.parametrize("name", ["panda", "kinova"])
 def test_full_scenario(name, tmp_path):
     """The 10 s excitation and 20 s task runs (ur5's: test_observe_ur5)."""

@@ -120,7 +120,7 @@ def test_a_receive_time_csv_is_read_on_its_clock(tmp_path):
         read_log(path, JOINTS, "stamps")
 
 
-@pytest.mark.slow
+@pytest.mark.long            # experiment-scale: `make test-long`
 def test_memory_does_not_grow_with_the_neighbours():
     """Issue 34, R4: a 200 MB log (1.4 M rows, 7 joints) took 16 GB to rebuild its clock (the local
     fits held rows x 97 neighbours x joints at once, the tick fit rows x 24^2 candidates); the fits

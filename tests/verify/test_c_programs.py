@@ -312,7 +312,7 @@ def test_csv_helpers_round_trip(tmp_path):
 PIN_MISSING = c_programs.pin_bench_missing()
 
 
-@pytest.mark.slow
+@pytest.mark.long  # experiment-scale: `make test-long`
 @pytest.mark.skipif(PIN_MISSING is not None, reason=f"pin_aba cannot be built: {PIN_MISSING}")
 def test_pin_bench():
     exe = c_programs.compile_pin_bench()
@@ -334,7 +334,7 @@ def test_pin_bench():
                          block_ms=1)
 
 
-@pytest.mark.slow
+@pytest.mark.long  # experiment-scale: `make test-long`
 @pytest.mark.skipif(PIN_MISSING is not None or shutil.which("valgrind") is None,
                     reason="pin_aba cannot be built or no valgrind")
 def test_pin_aba_instructions_per_call():
