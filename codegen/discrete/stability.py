@@ -40,6 +40,20 @@ Reported with it: the largest value of each gain stable over the whole range and
 precision (bisection, the other parameters fixed), the largest stable sample time and the substeps that would make the
 range stable, and the accuracy of the step at dt, max_i ||dPhi/dx - expm(dt (J(x_i) + J(x_i+)) / 2)||_2.
 
+The search for a gain's largest stable value (``_max_stable``): stable at 0 (every point and sample
+time), then x4 from its value until unstable, then ``BISECTIONS`` halvings of the bracket. The growth
+and the halvings test a probe: the sample times and working points that have failed in this search
+(at first the sample time that failed last, at every point); the value found is confirmed at every
+point and sample time, and when that fails, its halving is taken the other way and the probe has
+learnt the point (``_bisect``: the same bracket as the full check at every halving when their
+verdicts agree). A verdict tries the point and sample time that failed last first, and stops at the
+first that fails (an unstable value usually costs one point's linearisation); the radii at p
+themselves are not computed twice. The linearisation (the step's SX Jacobian, ``linearisation``)
+is kept for the last few specs in the process (``tune`` and ``compare`` check many parameter
+vectors of one spec), and ``require_stable(..., bounds=False)`` (``obs.params = p``) gives the
+verdict without the search. kalman_model on ur5 (the targets file's): 304 point-evaluations of the
+Jacobian (16 points at 1-5 sample times), 992 before the probe (the same report).
+
     report = check(spec, disc)               # StabilityReport; cached on disk
     require_stable(spec, disc)               # the report, or UnstableDiscretization (a ValueError)
     auto_substeps(spec, disc)                # the smallest stable substeps (and, by default, dt_max)
