@@ -40,6 +40,20 @@ Reported with it: the largest value of each gain stable over the whole range and
 precision (bisection, the other parameters fixed), the largest stable sample time and the substeps that would make the
 range stable, and the accuracy of the step at dt, max_i ||dPhi/dx - expm(dt (J(x_i) + J(x_i+)) / 2)||_2.
 
+The search for a gain's largest stable value (``_max_stable``): stable at 0 (every point and sample
+time), then x4 from its value until unstable, then ``BISECTIONS`` halvings of the bracket. The growth
+and the halvings test a probe: the sample times and working points that have failed in this search
+(at first the sample time that failed last, at every point); the value found is confirmed at every
+point and sample time, and when that fails, its halving is taken the other way and the probe has
+learnt the point (``_bisect``: the same bracket as the full check at every halving when their
+verdicts agree). A verdict tries the point and sample time that failed last first, and stops at the
+first that fails (an unstable value usually costs one point's linearisation); the radii at p
+themselves are not computed twice. The linearisation (the step's SX Jacobian, ``linearisation``)
+is kept for the last few specs in the process (``tune`` and ``compare`` check many parameter
+vectors of one spec), and ``require_stable(..., bounds=False)`` (``obs.params = p``) gives the
+verdict without the search. kalman_model on ur5 (the targets file's): 304 point-evaluations of the
+Jacobian (16 points at 1-5 sample times), 992 before the probe (the same report).
+
     report = check(spec, disc)               # StabilityReport; cached on disk
     require_stable(spec, disc)               # the report, or UnstableDiscretization (a ValueError)
     auto_substeps(spec, disc)                # the smallest stable substeps (and, by default, dt_max)
@@ -300,6 +314,8 @@ class _Linearisation:
         self.S = len(self.Y)
         # SX (a step that calls its model is expanded there before its Jacobian is taken)
         self._jac, self._maps, self._output = step_jacobians(spec, disc), {}, None
+        self.failed = (None, None)      # (sample time, point) that failed last (``stable``)
+        self.known = (None, {})         # (p, {sample time: excess (S,)}) of the last ``radii``
         self.init = spec.init.map(len(Y))
         self.phases = None if spec.phases is None else spec.phases.map(len(Y))
 
@@ -320,19 +336,22 @@ class _Linearisation:
             X = np.asarray(self.phases(X, Y.T, P)).reshape(nx, self.S)
         return X
 
-    def at(self, p, dts):
+    def at(self, p, dts, points=None):
         """(Phi, J) (G, S, nx, nx) at parameters p and the G sample times ``dts``: the step's
         Jacobian and (J(x) + J(x_next)) / 2, whose exponential expm(dt J) is the exact linearised
-        flow over the step to O(dt^3); None for J when anything is not finite."""
-        S, G = self.S, len(dts)
+        flow over the step to O(dt^3); None for J when anything is not finite. ``points``: the
+        indices of the working points to take (default all S; then S is their number)."""
+        X, Y, U = self.states(p), self.Y.T, self.U.T
+        if points is not None:
+            X, Y, U = X[:, points], Y[:, points], U[:, points]
+        S, G = X.shape[1], len(dts)
         P = np.tile(np.asarray(p, float)[:, None], S)
-        X = self.states(p)
         # a mapped matrix output is [A_1 A_2 ...] side by side; the points repeat per sample time
         # (Phi is larger than J by the step's memory, "expmid1")
         T = np.repeat(np.asarray(dts, float), S)[None, :]
         with np.errstate(all="ignore"):
             Phi, J0, J1 = (np.asarray(m).reshape(m.size1(), G, S, m.size1()).transpose(1, 2, 0, 3)
-                           for m in self._map(G * S)(np.tile(X, G), np.tile(self.Y.T, G), np.tile(self.U.T, G),
+                           for m in self._map(G * S)(np.tile(X, G), np.tile(Y, G), np.tile(U, G),
                                                     np.tile(P, G), T))
             J = 0.5 * (J0 + J1)
         return Phi, (J if np.all(np.isfinite(Phi)) and np.all(np.isfinite(J)) else None)
@@ -357,22 +376,33 @@ class _Linearisation:
             m = float(max(np.max(np.abs(E)), np.max(np.abs(self.EST)))) if E.size else 0.0
         return (e if math.isfinite(e) and math.isfinite(m) else math.inf), m
 
+    def _radii(self, p, dts, points=None):
+        """(Phi, J, rho, rho_c): ``at`` and, at each sample time and point (G, S), rho(Phi) and
+        max(1, rho_c), rho_c = exp(dt max Re eig J) (= rho(expm(dt J))); both infinite (J None)
+        when anything is not finite."""
+        Phi, J = self.at(p, dts, points)
+        if J is None:
+            inf = np.full(Phi.shape[:2], math.inf)
+            return Phi, J, inf, inf
+        d = np.asarray(dts, float)[:, None]
+        rho = np.max(np.abs(np.linalg.eigvals(Phi)), axis=2)
+        rho_c = np.maximum(1.0, np.exp(np.minimum(d * np.max(np.linalg.eigvals(J).real, axis=2), 700.0)))
+        return Phi, J, rho, rho_c
+
     def radii(self, p, dts, accuracy=None):
         """At each sample time of ``dts``: (max rho(Phi), max(1, rho_c) at the worst point,
         max_i rho(Phi_i) / max(1, rho_c,i)) as three (G,) arrays, rho_c = exp(dt max Re eig J)
         (= rho(expm(dt J))); and max_i ||Phi_i - expm(dt J_i)||_2 at the sample time
         ``accuracy`` (one of dts) if given, else None. Infinite when anything is not finite."""
-        G = len(dts)
-        Phi, J = self.at(p, dts)
+        Phi, J, rho, rho_c = self._radii(p, dts)
         if J is None:
-            inf = np.full(G, math.inf)
+            self.known = (np.asarray(p, float).tobytes(), {d: None for d in dts})
+            inf = np.full(len(dts), math.inf)
             return inf, inf, inf, math.inf if accuracy is not None else None
-        d = np.asarray(dts, float)[:, None]
-        rho = np.max(np.abs(np.linalg.eigvals(Phi)), axis=2)
-        rho_c = np.maximum(1.0, np.exp(np.minimum(d * np.max(np.linalg.eigvals(J).real, axis=2), 700.0)))
         excess = rho / rho_c
+        self.known = (np.asarray(p, float).tobytes(), dict(zip(dts, excess)))
         worst = np.argmax(excess, axis=1)
-        rows = np.arange(G)
+        rows = np.arange(len(dts))
         error = None
         if accuracy is not None:
             g = list(dts).index(accuracy)
@@ -381,9 +411,51 @@ class _Linearisation:
             error = float(max(_distance(a[:n, :n], expm(accuracy * b)) for a, b in zip(Phi[g], J[g])))
         return rho.max(axis=1), rho_c[rows, worst], excess[rows, worst], error
 
-    def stable(self, p, dts):
-        """True when the step is stable (module docstring) at every sample time of ``dts``."""
-        return bool(np.all(self.radii(p, dts)[2] <= 1 + TOL))
+    def stable(self, p, dts, points=None):
+        """True when the step is stable (module docstring) at every sample time of ``dts`` and
+        working point of ``points`` (indices; default all). The verdict is that of all of them,
+        its cost not: the point and sample time that failed last (``failed``; else the largest
+        of ``dts``, where an explicit step leaves its region first) are tried first, then that
+        sample time's other points, then the other sample times, stopping at the first that
+        fails, whose (sample time, point) becomes ``failed`` (point None when the step is not
+        finite there). An unstable value usually costs one point's linearisation."""
+        dts, h, k = list(dts), *self.failed
+        rows = list(range(self.S)) if points is None else list(points)
+        key, known = self.known
+        if key == np.asarray(p, float).tobytes() and all(d in known for d in dts):
+            return self._known_stable(dts, rows)
+        if h not in dts:
+            h = dts[-1]
+        first = [k] if k in rows and len(rows) > 1 else []
+        rest = [d for d in dts if d != h]
+        for group, at in (([h], first), ([h], [i for i in rows if i not in first]), (rest, rows)):
+            if not group or not at:
+                continue
+            _, J, rho, rho_c = self._radii(p, group, at)
+            if J is None:
+                self.failed = (group[-1], None)
+                return False
+            excess = rho / rho_c
+            if not np.all(excess <= 1 + TOL):
+                g, i = np.unravel_index(np.argmax(excess), excess.shape)
+                self.failed = (group[g], at[i])
+                return False
+        return True
+
+    def _known_stable(self, dts, rows):
+        """``stable`` from the excess ``radii`` found at the same p (``known``), ``failed`` set
+        as there."""
+        known = self.known[1]
+        for d in dts:
+            excess = known[d]
+            if excess is None:
+                self.failed = (d, None)
+                return False
+            bad = [i for i in rows if not excess[i] <= 1 + TOL]
+            if bad:
+                self.failed = (d, max(bad, key=lambda i: excess[i]))
+                return False
+        return True
 
     def precision(self, p, precision="double"):
         """(u e, sqrt(u) m) of ``rounding`` in ``precision`` (unit roundoff u): the estimate's
@@ -396,6 +468,24 @@ class _Linearisation:
         """True when the estimate keeps at least half its significand (``precision``)."""
         error, limit = self.precision(p, precision)
         return error <= limit
+
+
+LINEARISATIONS = 4     # the last linearisations kept in the process (``linearisation``)
+_linearisations = {}
+
+
+def linearisation(spec, disc, digest=None):
+    """The ``_Linearisation`` of ``spec`` under ``disc``, kept for the last ``LINEARISATIONS``
+    (spec, method, hold, substeps): it does not depend on p nor on the sample times, and building
+    it (the step's SX Jacobian, 0.9 s for kalman_model on ur5) costs as much as a whole search,
+    every time ``tune`` or ``compare`` checks a parameter vector of the same spec. ``digest``:
+    ``_digest(spec)`` if known."""
+    key = (digest or _digest(spec), disc.method, disc.hold, disc.substeps, POINTS)
+    lin = _linearisations.pop(key, None) or _Linearisation(spec, disc)
+    _linearisations[key] = lin                       # the most recent last
+    while len(_linearisations) > LINEARISATIONS:
+        del _linearisations[next(iter(_linearisations))]
+    return lin
 
 
 def _joint_of(spec, state):
@@ -488,8 +578,9 @@ def _largest(ok, lo, hi, grow, probe=None):
     bisection finds nothing above 0 (hi far beyond the limit: a gain of 1e300), hi / 4 at a
     time (at most ``SHRINK`` times) until ok, then bisect again.
 
-    ``probe`` (default ok): what the growth tests, a cheaper part of ok (not probe(v) implies
-    not ok(v)); the value returned then passes ok itself, or the search is redone with ok alone."""
+    ``probe`` (default ok): what the growth and the bisection test, a cheaper part of ok (not
+    probe(v) implies not ok(v)); the value returned then passes ok itself (``_bisect``), or the
+    search is redone with ok alone."""
     test = probe or ok
     passed = set()
 
@@ -508,11 +599,11 @@ def _largest(ok, lo, hi, grow, probe=None):
             if probe is None or good(hi):
                 return hi, False
             return _largest(ok, start, first, grow)
-    lo, hi = _bisect(good, lo, hi)
+    lo, hi = _bisect(good, lo, hi, probe)
     if lo == 0 == start:
         for _ in range(SHRINK):
             if good(hi / 4):
-                lo, hi = _bisect(good, hi / 4, hi)
+                lo, hi = _bisect(good, hi / 4, hi, probe)
                 break
             hi /= 4
     if probe is not None and lo != start and lo not in passed and not good(lo):
@@ -520,34 +611,58 @@ def _largest(ok, lo, hi, grow, probe=None):
     return lo, True
 
 
-def _bisect(ok, lo, hi):
-    """(lo, hi) after ``BISECTIONS`` halvings of [lo, hi] keeping ok(lo) and not ok(hi)."""
-    for _ in range(BISECTIONS):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+def _bisect(ok, lo, hi, probe=None):
+    """(lo, hi) after ``BISECTIONS`` halvings of [lo, hi] keeping ok(lo) and not ok(hi).
+
+    ``probe`` (a cheaper part of ok: not probe(v) implies not ok(v)) decides each halving instead,
+    and the lo it leaves is confirmed by ok; where ok refuses it, the halving that raised lo
+    there is taken the other way, and so each earlier one whose mid the probe refuses now, and
+    the halvings go on from there (after ``BISECTIONS`` refusals, on ok alone). The same bracket as ok alone when their verdicts agree; the lo given is
+    returned unconfirmed when no halving raises it."""
+    test, raised, n = probe or ok, [], 0
+    for refusals in range(BISECTIONS + 1):
+        if refusals == BISECTIONS:
+            test = ok
+        while n < BISECTIONS:
+            mid = 0.5 * (lo + hi)
+            if test(mid):
+                raised.append((lo, hi, n))
+                lo = mid
+            else:
+                hi = mid
+            n += 1
+        if test is ok or not raised or ok(lo):
+            break
+        while True:       # ok refuses the last mid the probe passed: its halving the other way,
+            lo, hi, n = raised.pop()         # and so the earlier ones the probe (which has
+            hi, n = 0.5 * (lo + hi), n + 1   # learnt from ok's refusal) refuses now
+            if not raised or test(lo):
+                break
     return lo, hi
 
 
 def _max_stable(lin, p, idx, dts, precision="double"):
     """(largest value of the gain at slots ``idx`` (all scaled together, others fixed) stable at
     every sample time of ``dts`` and within ``precision`` (``_Linearisation.precise``), whether an
-    unstable value was found); (None, True) when unstable even at 0."""
+    unstable value was found); (None, True) when unstable even at 0.
+
+    The growth and the bisection test a probe: the sample times and working points that have
+    failed in this search (at first the one that failed last, all points); ``_largest`` confirms
+    the value it returns on all of them, and a failure there adds its sample time and point to
+    the probe."""
     v0 = _gain_value(p, idx)
     base = p[idx] / v0 if v0 > 0 else np.ones(len(idx))
-    order = list(range(len(dts)))[::-1]       # the sample time that failed last is tried first
+    h = lin.failed[0]
+    times, points = [h if h in dts else dts[-1]], set()     # the probe's
 
     def ok(v, every=True):
         q = p.copy()
-        q[idx] = base * v
-        # lin.stable(q, dts) (an unstable value costs one sample time's linearisation, not all);
-        # the growth (every=False) tries only the sample time that failed last
-        for group in ((order[:1], order[1:]) if every else (order[:1],)):
-            excess = lin.radii(q, [dts[i] for i in group])[2] if group else []
-            bad = [i for i, e in zip(group, excess) if not e <= 1 + TOL]
-            if bad:
-                order.remove(bad[0])
-                order.insert(0, bad[0])
-                return False
+        q[idx] = base * v if v != v0 else p[idx]
+        if not lin.stable(q, dts if every else times, None if every or not points else sorted(points)):
+            h, k = lin.failed
+            times.extend([h] if h not in times else [])
+            points.update([k] if k is not None else [])
+            return False
         return lin.precise(q, precision)
     if not ok(0.0):
         return None, True
@@ -566,8 +681,8 @@ def clock_limit(dt, dt_min, precision="double"):
     return min(math.ldexp(budget, m - e), float(np.nextafter(math.ldexp(1.0, e + 1), 0)))
 
 
-def _compute(spec, disc, p, gains, bounds=True, precision="double"):
-    lin = _Linearisation(spec, disc)
+def _compute(spec, disc, p, gains, bounds=True, precision="double", digest=None):
+    lin = linearisation(spec, disc, digest)
     dts = sample_times(disc)
     rho, flow, excess, step_error = lin.radii(p, dts, accuracy=disc.dt)
     worst = int(np.argmax(excess))                 # the sample time of the range closest to growing
@@ -671,18 +786,20 @@ def check(spec, disc, p=None, cache=True, bounds=True, precision="double"):
            "gains": {g: list(s) for g, s in spec.gains.items()}, "points": POINTS, "bounds": bounds}
 
     def compute():
-        return _compute(spec, disc, p, spec.gains, bounds, precision)
+        return _compute(spec, disc, p, spec.gains, bounds, precision, key["spec"])
     value = cached_json("stability", key, compute) if cache else compute()
     return StabilityReport(dt=disc.dt, method=disc.method, hold=disc.hold, substeps=disc.substeps,
                            **value)
 
 
-def require_stable(spec, disc, p=None, precision="double"):
-    """``check(spec, disc, p, precision=precision)`` (p: parameters (np,) or None for the spec's
-    defaults), raising UnstableDiscretization (its message) when unstable."""
-    report = check(spec, disc, p, precision=precision)
+def require_stable(spec, disc, p=None, precision="double", bounds=True):
+    """``check(spec, disc, p, precision=precision, bounds=bounds)`` (p: parameters (np,) or None
+    for the spec's defaults), raising UnstableDiscretization (its message) when unstable.
+    ``bounds`` False: the verdict alone (no search for the largest stable gains, a third of the
+    cost for kalman_model); when unstable, the refusal is that of the report with them (its fixes)."""
+    report = check(spec, disc, p, precision=precision, bounds=bounds)
     if not report.stable:
-        raise _refusal(spec, report)
+        raise _refusal(spec, report if bounds else check(spec, disc, p, precision=precision))
     return report
 
 
@@ -770,7 +887,7 @@ def widest_range(spec, disc, p=None):
     p = np.asarray(spec.p_default if p is None else p, dtype=float).reshape(spec.np)
 
     def bisect():
-        lin = _Linearisation(spec, disc)
+        lin = linearisation(spec, disc, key["spec"])
 
         def ok(h):
             return lin.stable(p, sample_times(replace(disc, dt_max=h)))
