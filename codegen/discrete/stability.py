@@ -792,14 +792,15 @@ def check(spec, disc, p=None, cache=True, bounds=True, precision="double"):
                            **value)
 
 
-def require_stable(spec, disc, p=None, precision="double", bounds=True):
+def require_stable(spec, disc, p=None, precision="double", bounds=True, explain=True):
     """``check(spec, disc, p, precision=precision, bounds=bounds)`` (p: parameters (np,) or None
     for the spec's defaults), raising UnstableDiscretization (its message) when unstable.
     ``bounds`` False: the verdict alone (no search for the largest stable gains, a third of the
-    cost for kalman_model); when unstable, the refusal is that of the report with them (its fixes)."""
+    cost for kalman_model); when unstable, the refusal is that of the report with them (its fixes),
+    unless ``explain`` is False (a search that only needs the verdict: the refusal without them)."""
     report = check(spec, disc, p, precision=precision, bounds=bounds)
     if not report.stable:
-        raise _refusal(spec, report if bounds else check(spec, disc, p, precision=precision))
+        raise _refusal(spec, report if bounds or not explain else check(spec, disc, p, precision=precision))
     return report
 
 

@@ -338,7 +338,7 @@ def check_candidate(obs, spec, tune, p):
                 if g.get("limit_found"):
                     raise ValueError(f"{name} = {value:.6g} is above its recorded stable bound "
                                      f"{g['max_stable']:.6g}")
-    obs.check_params(p)
+    obs.check_params(p, explain=False)      # a refused candidate needs no stable ranges
 
 
 def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None, t_from=None):

@@ -401,9 +401,11 @@ class CompiledObserver:
         p = self.check_params(p)
         self._check(self._set_params(self._s, self._load("p", "p", p, self.np)), "set_params")
 
-    def check_params(self, p):
+    def check_params(self, p, explain=True):
         """p as a finite vector, refused (codegen.discrete.stability.UnstableDiscretization, a ValueError)
-        when the discrete observer would be unstable with it (see the class docstring).
+        when the discrete observer would be unstable with it (see the class docstring); ``explain``
+        False: a full check's refusal without the stable ranges of the gains (their search is most
+        of a refusal's cost: a tuning that only needs the verdict).
 
         The full check (all gains jointly, every phase, the target's precision) runs on
         ``obs.spec``, or on the spec rebuilt from the metadata's target when p moves more than
@@ -423,7 +425,7 @@ class CompiledObserver:
         if spec is None and (len(moved) > 1 or not np.array_equal(p[others], defaults[others])):
             spec = self._checked_spec(p)
         if spec is not None:
-            require_stable(spec, disc, p, precision=self.precision, bounds=False)   # the verdict
+            require_stable(spec, disc, p, precision=self.precision, bounds=False, explain=explain)
             return p
         for gain, g in recorded.items():
             idx = groups[gain]

@@ -199,8 +199,9 @@ class ReferenceObserver:
             return self._x
         return np.asarray(retune(self.robot, self._x, self._y_last, self._p, p), dtype=float).reshape(self.nx)
 
-    def check_params(self, p, x=None):
-        """The reference's own stability check of parameters p: each declared gain >= 0, and, at
+    def check_params(self, p, x=None, explain=True):
+        """The reference's own stability check of parameters p (``explain``: as the compiled
+        observer's, its refusal costs nothing more either way): each declared gain >= 0, and, at
         the state x (default: the current one, retuned to p; and each of its phases, when the
         family gives ``phases``: every gain it can switch to) and the last measurement held, at
         the sample times dt_min, dt and dt_max of the declared range, the spectral radius of the

@@ -103,10 +103,12 @@ def test_the_tuned_gains_reach_the_stability_bound():
         def run(self, Y, U, t=None):
             return np.full((len(Y), 1), self.p[0])
 
-        def check_params(self, p):
+        def check_params(self, p, explain=True):
+            asked.append(explain)
             if p[0] > 100.0:
                 raise ValueError(f"kd = {p[0]:.6g} is unstable")
 
+    asked = []      # a refused candidate's message is cut short: its stable ranges are not searched
     val = SimpleNamespace(score=lambda est, t_from: 1.0 / est[0, 0], rms=lambda est, t_from: 1.0 / est[0, 0])
     spec = SimpleNamespace(p_names=["kd", "kp"], p_default=[10.0, 100.0])
     t = np.arange(100) * 1e-3
@@ -115,3 +117,4 @@ def test_the_tuned_gains_reach_the_stability_bound():
     assert 98.0 <= tuned.params["kd"] <= 100.0 and p[0] == tuned.params["kd"], tuned
     assert p[1] == pytest.approx(100.0 * (p[0] / 10.0) ** 2)            # kp ~ s^2
     assert "at the stability bound" in tuned.note
+    assert asked and not any(asked)

@@ -212,7 +212,8 @@ def test_params_check_all_gains_jointly_and_every_phase(tmp_path):
 def test_parameters_accepted_by_the_verdict_alone(tmp_path, monkeypatch):
     """obs.params = p, checked in full (two gains moved), asks the check for its verdict only: no
     search for the largest stable gains (a third of the check for kalman_model; tune and compare
-    check many candidates), which a refusal still names (the test above)."""
+    check many candidates), which a refusal still names (the test above), unless asked not to
+    explain itself (``check_params(p, explain=False)``: a tuning's refused candidate)."""
     import codegen.discrete.stability as stability
     from codegen import compile_observer
     from codegen.families import observers
@@ -226,6 +227,9 @@ def test_parameters_accepted_by_the_verdict_alone(tmp_path, monkeypatch):
     p = spec.p_default * [0.5, 0.5, 1.0]
     obs.params = p
     assert np.array_equal(obs.params, p)
+    # a tuning's candidate, refused without the ranges (explain=False): the verdict alone still
+    with pytest.raises(stability.UnstableDiscretization, match="k0_final = 5000"):
+        obs.check_params(spec.p_default * [1.0, 0.0, 1.0] + [0.0, 5000.0, 0.0], explain=False)
 
 
 @pytest.mark.parametrize("size", ["ny", "nest"])
