@@ -464,8 +464,12 @@ def _fit_ticks(s, Q, period=None, skipped=None):
         def trans(a, b, cand=cand, v=v, ok=ok, sig=sig, T=T, tables=tables):
             """The transitions' costs (b-a, K prev, K cur) from rows a..b-1 to the next."""
             delta = cand[a + 1:b + 1, None, :] - cand[a:b, :, None]
-            z2 = ((dq[a:b, None, None, :] - v[a:b, None, None, :] * (delta[..., None] * T)) / sig) ** 2
-            fit = _huber(z2).sum(axis=3)
+            # a row's candidates are consecutive ticks: delta[r, i, j] = delta[r, 0, 0] + j - i takes
+            # 2K - 1 values, so the fit is computed on those and spread (the same numbers, K/2 x fewer)
+            k = cand.shape[1]
+            d = delta[:, :1, :1] + np.arange(1 - k, k)                            # (b-a, 1, 2k-1)
+            z2 = ((dq[a:b, None, None, :] - v[a:b, None, None, :] * (d[..., None] * T)) / sig) ** 2
+            fit = _huber(z2).sum(axis=3)[:, 0, np.arange(k)[None, :] - np.arange(k)[:, None] + k - 1]
             fit[~ok[a:b]] = 0.0
             return _transitions(delta, tables, None if skipped is None else skipped[a:b]) + fit
         path = _viterbi(emit, trans)
