@@ -193,10 +193,9 @@ def _fit(floor, poles, high):
     start = np.logspace(math.log10(floor), math.log10(high), poles)
     # variable projection: the poles (in log) by Gauss-Newton, the coefficients by least squares
     moved = np.sort(np.exp(least_squares(lambda x: coefficients(np.exp(x))[1], np.log(start)).x))
-    best = min((start, moved), key=lambda p: np.max(np.abs(coefficients(p)[1])))
-    if np.min(best[1:] / best[:-1]) < 1.05:        # poles that merge: ill-conditioned, keep the start
-        best = start
-    c, r = coefficients(best)
+    # poles that merge (within 5 %) are ill-conditioned: then, or when it fits no better, the start
+    fits = [(p, *coefficients(p)) for p in (start, moved) if p is start or np.min(p[1:] / p[:-1]) >= 1.05]
+    best, c, r = min(fits, key=lambda f: np.max(np.abs(f[2])))
     return best, c.reshape(2, ORDER, poles), float(np.max(np.abs(r)))
 
 
