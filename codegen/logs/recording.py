@@ -253,10 +253,11 @@ def read_log(path, joint_names, clock="auto", robot=None):
     mode, period = clocks.parse_mode(clock)
     path, col = _columns(path, joint_names, robot)
     t = col["t"]
-    others = [col[h] for h in col if h not in ("t", clocks.ROBOT_TIME) and not h.startswith("q_")]
+    qdm = (np.column_stack([col[f"qdm_{j}"] for j in joint_names])
+           if all(f"qdm_{j}" in col for j in joint_names) else None)
     Q = np.column_stack([col[f"q_{j}"] for j in joint_names])
     try:
-        c = clocks.rebuild(t, Q, np.column_stack(others) if others else None, mode=mode, period=period,
+        c = clocks.rebuild(t, Q, qdm, mode=mode, period=period,
                            t_robot=col.get(clocks.ROBOT_TIME))
     except ValueError as e:
         raise RecordingError(f"{path}: {e}") from None
