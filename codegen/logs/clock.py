@@ -109,6 +109,8 @@ class Clock:
     rows: int = 0
     reason: str = ""
     stamps: np.ndarray | None = None        # the log's time column, every row
+    glitches: list = field(default_factory=list)    # rows dropped as bad samples (``glitches``)
+    unwrapped: list = field(default_factory=list)   # joints whose turns were unwrapped (recording)
 
     def row_of(self):
         """(rows,) int: for every row of the log, the kept row (index into ``kept``) whose sample
@@ -122,6 +124,13 @@ class Clock:
 
     def describe(self):
         """One line: what the time column is and what was done with it."""
+        wrap = f"; joint{'s' * (len(self.unwrapped) > 1)} {', '.join(self.unwrapped)} unwrapped (jumps of whole turns)"
+        return self._describe() + wrap * bool(self.unwrapped) + (f"; {len(self.glitches)} row{'s' * (len(self.glitches) != 1)} dropped as "
+                                   f"glitches (a jump off the neighbours and back: row "
+                                   f"{', '.join(str(j + 1) for j in self.glitches[:5])}"
+                                   f"{' ...' * (len(self.glitches) > 5)} of the data)" if self.glitches else "")
+
+    def _describe(self):
         rep = (f"{self.repeated} repeated row{'s' * (self.repeated != 1)} "
                f"({100 * self.repeated / max(self.rows, 1):.1f} %) dropped, " if self.repeated else "")
         if self.kind == "ticks":
@@ -146,7 +155,8 @@ class Clock:
         """JSON-ready summary (no per-row arrays)."""
         return {"kind": self.kind, "period": self.period, "certain": self.certain, "delay": self.delay,
                 "residual": self.residual, "repeated": self.repeated, "rows": self.rows,
-                "kept": len(self.kept), "reason": self.reason, "text": self.describe()}
+                "kept": len(self.kept), "reason": self.reason, "glitches": self.glitches, "unwrapped": self.unwrapped,
+                "text": self.describe()}
 
 
 def parse_mode(text):
@@ -231,11 +241,37 @@ def rebuild(t, Q, qdm=None, mode="auto", period=None, t_robot=None):
 def _rebuild(t, Q, qdm, mode, period, t_robot, N):
     if t_robot is not None:
         return _robot_clock(np.asarray(t_robot, dtype=float).ravel(), N)
-    rep = repeated_rows(Q)
+    bad = glitches(Q)
+    clock = _clock(t, Q, qdm, mode, period, N, repeated_rows(Q), bad)
+    clock.glitches = [int(j) for j in np.flatnonzero(bad)]
+    return clock
+
+
+def glitches(Q):
+    """(N,) bool: rows whose position jumps off their neighbours' and back, by more than ten times
+    the log's own fastest step (the 99th percentile of |dq| a row, the largest over the joints: a
+    still joint's is no scale) and twenty robust standard deviations: a bad sample no motion produces, dropped as one row (the rest of the log
+    read as if it were not there). The neighbours' estimate is the median of the two rows on each
+    side (a one-row glitch does not move it)."""
+    N = len(Q)
+    out = np.zeros(N, bool)
+    if N < 5:
+        return out
+    nb = np.stack([Q[:-4], Q[1:-3], Q[3:-1], Q[4:]])                 # rows j-2, j-1, j+1, j+2
+    r = np.zeros_like(Q)
+    r[2:-2] = Q[2:-2] - np.median(nb, axis=0)
+    fastest = float(np.max(np.quantile(np.abs(np.diff(Q, axis=0)), 0.99, axis=0)))
+    sigma = 1.4826 * np.median(np.abs(r[2:-2]), axis=0)
+    out = np.any((np.abs(r) > 10.0 * fastest) & (np.abs(r) > 20.0 * sigma), axis=1)
+    return out
+
+
+def _clock(t, Q, qdm, mode, period, N, rep, bad):
     if mode == "stamps":
-        return _stamps(t, np.arange(N), "asked for (--clock stamps)", N)
+        return _stamps(t, np.flatnonzero(~bad), "asked for (--clock stamps)", N)
     steps = np.diff(t)
-    kept = np.flatnonzero(~rep)
+    rep = rep & ~bad
+    kept = np.flatnonzero(~rep & ~bad)
     lattice = False
     if mode == "auto" and qdm is not None and len(kept) >= 4 * _WINDOW and np.all(np.diff(t[kept]) > 0):
         clock, lattice = _velocity_clock(t, Q, qdm, kept, N, rep)
@@ -243,12 +279,12 @@ def _rebuild(t, Q, qdm, mode, period, t_robot, N):
             return clock
     if (mode == "auto" and not lattice and steps.min() > 0
             and np.all(np.abs(steps - np.median(steps)) <= 1e-6 * np.median(steps))):
-        return _stamps(t, np.arange(N), "uniform: every step the median step to 1e-6", N)
+        return _stamps(t, np.flatnonzero(~bad), "uniform: every step the median step to 1e-6", N)
     if len(kept) < 4 * _WINDOW:
         if mode == "ticks":
             raise ValueError(f"clock: {len(kept)} distinct rows are too few to rebuild a tick clock "
                              f"(at least {4 * _WINDOW})")
-        return _stamps(t, np.arange(N), f"too few distinct rows ({len(kept)}) to rebuild a tick", N)
+        return _stamps(t, np.flatnonzero(~bad), f"too few distinct rows ({len(kept)}) to rebuild a tick", N)
     fit = _fit_ticks(t[kept], Q[kept], period, np.diff(kept) - 1)
     clock = Clock("ticks", kept, fit["c"] + fit["ticks"] * fit["T"], period=fit["T"],
                   ticks=fit["ticks"] - fit["ticks"][0], certain=fit["certain"], delay=fit["delay"],
@@ -265,7 +301,7 @@ def _rebuild(t, Q, qdm, mode, period, t_robot, N):
         return clock
     why = (f"q is no smoother on a fixed tick than on the stamps (mean-square ratio {ratio:.3g}, "
            f"chance allows {needed:.3g}): a sampler that jitters, or too little motion to tell")
-    return _stamps(t, np.arange(N), why, N)
+    return _stamps(t, np.flatnonzero(~bad), why, N)
 
 
 def _velocity_clock(t, Q, V, kept, N, rep):
@@ -298,8 +334,8 @@ def _velocity_clock(t, Q, V, kept, N, rep):
                   reason=(f"the velocity signal qdm measures the intervals: the stamps' steps are "
                           f"{1e6 * S:.3g} us off (std) where it tells"))
     if S <= 1e-6 * float(np.median(step)):
-        return _stamps(t, np.arange(N), f"they agree with the intervals the velocity signal qdm "
-                       f"measures", N), False
+        return _stamps(t, np.union1d(kept, np.flatnonzero(rep)),
+                       f"they agree with the intervals the velocity signal qdm measures", N), False
     return clock, False
 
 

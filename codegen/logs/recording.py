@@ -255,10 +255,26 @@ def read_log(path, joint_names, clock="auto", robot=None):
     t = col["t"]
     qdm = (np.column_stack([col[f"qdm_{j}"] for j in joint_names])
            if all(f"qdm_{j}" in col for j in joint_names) else None)
+    wrapped = [j for j in joint_names if unwrap(col, f"q_{j}")]
     Q = np.column_stack([col[f"q_{j}"] for j in joint_names])
     try:
         c = clocks.rebuild(t, Q, qdm, mode=mode, period=period,
                            t_robot=col.get(clocks.ROBOT_TIME))
     except ValueError as e:
         raise RecordingError(f"{path}: {e}") from None
+    c.unwrapped = wrapped
     return _recording(col, joint_names, c.kept, c.t), c
+
+
+def unwrap(col, name):
+    """Unwrap the column ``col[name]`` in place where it jumps by a whole number of turns (2 pi k,
+    to within an eighth of a turn) between consecutive rows: a continuous joint reported in
+    [-pi, pi) (no arm moves half a turn in one sample). True when it did."""
+    q = col[name]
+    d = np.diff(q)
+    turns = np.rint(d / (2 * np.pi))
+    jump = (turns != 0) & (np.abs(d - 2 * np.pi * turns) < np.pi / 4)
+    if not jump.any():
+        return False
+    col[name] = q - 2 * np.pi * np.concatenate([[0.0], np.cumsum(np.where(jump, turns, 0.0))])
+    return True
