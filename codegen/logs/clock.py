@@ -229,6 +229,7 @@ def rebuild(t, Q, qdm=None, mode="auto", period=None, t_robot=None):
     if len(back):
         k = back[0]
         raise ValueError(f"t: time stamps go back at row {k + 1}: {t[k + 1]:.9g} after {t[k]:.9g} s")
+    _check_unit(t)
     if qdm is not None:
         qdm = np.asarray(qdm, dtype=float).reshape(N, -1)
         if qdm.shape != Q.shape or not np.all(np.isfinite(qdm)):
@@ -236,6 +237,25 @@ def rebuild(t, Q, qdm=None, mode="auto", period=None, t_robot=None):
     clock = _rebuild(t, Q, qdm, mode, period, t_robot, N)
     clock.stamps = t
     return clock
+
+
+SLOWEST = 0.1           # s: a joint-state log's step is below this (a log at 10 Hz or less is not one)
+
+
+def _check_unit(t):
+    """ValueError when the time column's median step is SLOWEST or more: seconds it is not (a log in
+    ms read as seconds is "a 1 Hz log", and every rate after it 1000 x off); the message names the
+    unit that gives a rate between 10 Hz and 100 kHz."""
+    steps = np.diff(t)
+    step = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.0
+    if step < SLOWEST:
+        return
+    units = [(u, f) for u, f in (("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9)) if 1e-5 <= step * f <= 0.1]
+    looks = (f"it looks like {units[0][0]} (a {1.0 / (step * units[0][1]):.4g} Hz log)" if units
+             else "no unit gives a joint-state log's rate")
+    raise ValueError(f"t: the median step is {step:.6g}, a {1.0 / step:.3g} Hz log if the time column is in "
+                     f"seconds; {looks}: state the time column's unit (t_unit in the column mapping) or "
+                     f"write it in seconds")
 
 
 def _rebuild(t, Q, qdm, mode, period, t_robot, N):

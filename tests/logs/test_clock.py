@@ -238,3 +238,12 @@ def test_a_continuous_joint_wrapping_at_pi_is_unwrapped(tmp_path):
     assert clock.unwrapped == ["b"] and "unwrapped" in clock.describe()
     assert clock.kind == "ticks" and _right(clock, source) >= 0.999
     assert np.allclose(rec.q[:, 1], Q[clock.kept, 1] - 2 * np.pi * np.round((Q[0, 1] - wrapped[0, 1]) / (2 * np.pi)), atol=1e-9)
+
+
+@pytest.mark.parametrize("unit, scale", [("ms", 1e3), ("us", 1e6)])
+def test_a_time_column_in_ms_or_us_is_refused_with_its_unit(unit, scale):
+    """Issue 42: a time column in ms was read as seconds ("1000 ms tick, 1 Hz") and tuned for 1 Hz."""
+    t = np.arange(3000) * 1e-3
+    q, _ = motion(t, 2)
+    with pytest.raises(ValueError, match=f"looks like {unit} \\(a 1000 Hz log\\)"):
+        rebuild(t * scale, q)
