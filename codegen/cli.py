@@ -23,7 +23,7 @@ from .pipeline.targets_file import DEFAULT_FAMILY, TargetError, check_unique, lo
 
 TARGETS_FILE = "targets.toml"
 # optional packages -> the extra of pyproject.toml that installs them (tests/test_cli.py checks)
-EXTRAS = {"mujoco": "mujoco", "dask": "sweep", "distributed": "sweep", "pyarrow": "sweep", "pandas": "sweep"}
+EXTRAS = {"mujoco": "mujoco", "rosbags": "ros", "dask": "sweep", "distributed": "sweep", "pyarrow": "sweep", "pandas": "sweep"}
 USER_ERRORS = (TargetError, FolderTaken, ToolError, WriteError, ValueError, KeyError, FileNotFoundError)
 
 
@@ -145,17 +145,16 @@ def _targets(args):
     return targets
 
 
-def tune_target(target, log):
+def tune_target(target, log, columns=None, topic=None):
     """``target`` with its sensor measured on the recording ``log`` and its gains tuned on it
-    without truth (a targets file's ``tune = "log.csv"``; codegen.evaluate.compare.design_on_log):
-    the measured design inputs under the target's own ``build``, the tuned parameters under its
-    own ``params`` (what the file states wins)."""
+    without truth (a targets file's ``tune = "log.csv"``, with ``tune_columns`` and ``tune_topic``;
+    codegen.evaluate.compare.design_on_log): the measured design inputs under the target's own
+    ``build``, the tuned parameters under its own ``params`` (what the file states wins)."""
     from models import from_source
 
     from .evaluate.compare import design_on_log
-    from .logs.recording import read_log
     robot = from_source(target.robot)
-    rec, clock = read_log(log, robot.joint_names, robot=robot)
+    rec, clock = _read_log(log, robot.joint_names, robot=robot, columns=columns, topic=topic)
     entry, _, _ = design_on_log(rec, robot, target.family, design=dict(target.build), clock=clock)
     tuned = entry.tuned.params if entry.tuned is not None else {}
     print(f"{target.prefix}: tuned on {Path(log).name}: "
@@ -339,6 +338,40 @@ def cmd_simulate(args):
     return scenarios.run(args.name, reference=args.reference, out=args.out or work_dir() / "sim", **options)
 
 
+def _is_log(source):
+    """True for a recorded log: a .csv file or a ROS bag (codegen.logs.bag.is_bag)."""
+    from .logs.bag import is_bag
+    return source is not None and (str(source).endswith(".csv") or is_bag(source))
+
+
+def _remedy(e):
+    """The RecordingError ``e`` with its fix in command-line flags (--columns, --topic)."""
+    if e.option == "columns":
+        e.cli_message = (f"{e} (name the log's own columns: --columns 'position_*=q_*,effort_*=tau_*,time=t"
+                         f"[,t_unit=ms][,joints=[a,b]]' or --columns mapping.toml)")
+    elif e.option == "topic":
+        e.cli_message = f"{e}: --topic {e.choices[0] if e.choices else 'NAME'}"
+    return e
+
+
+def _read_log(path, joints, clock="auto", robot=None, columns=None, topic=None):
+    """``codegen.logs.recording.read_log`` of a command: a bag needs the ``ros`` extra (one line
+    naming it), a refusal names the flag that fixes it (``_remedy``)."""
+    from .logs.bag import is_bag
+    from .logs.recording import RecordingError, read_log
+    if is_bag(path):
+        _require("rosbags", f"reading the ROS bag {path}")
+    try:
+        return read_log(path, joints, clock, robot=robot, columns=columns, topic=topic)
+    except RecordingError as e:
+        raise _remedy(e) from None
+
+
+def _read_args(args, path, joints, robot):
+    """``_read_log`` with the command's --clock, --columns and --topic."""
+    return _read_log(path, joints, args.clock, robot=robot, columns=args.columns, topic=args.topic)
+
+
 def _compare_robot(args):
     """The robot of ``compare``: ``--robot NAME`` or ``--urdf PATH [--lock JOINT=VALUE ...]``, read
     as ``build`` reads them (``targets_file.robot_source``). ``--elastic`` is refused: compare
@@ -350,7 +383,7 @@ def _compare_robot(args):
         what = "a CSV needs" if args.source else "give a source (a CSV, mujoco-ur5, mujoco-panda) or"
         raise ValueError(f"robot: {what} --robot NAME or --urdf PATH (the robot it was recorded on)")
     elastic = bool(args.elastic or args.J or args.K)
-    if elastic and not str(args.source or "").endswith(".csv"):
+    if elastic and not _is_log(args.source):
         raise ValueError("--elastic: the MuJoCo plant has rigid joints; compare an elastic robot on its log "
                          "(a CSV of link q_<joint> and motor tau_<joint>), or run seed 004's in `simulate "
                          "seed004-sim1`")
@@ -394,7 +427,6 @@ def _compare_source(args):
     sensor and mismatch options, a MuJoCo run of the robot of ``--robot`` / ``--urdf`` (no
     source), or a recorded CSV of that robot read on its sample clock (``--clock``; the Clock, None
     for a simulation)."""
-    from .logs.recording import read_log
     from .evaluate.scenarios.mujoco import SCENARIOS
     if args.source is None:              # a MuJoCo plant from the robot's URDF
         from .evaluate.scenarios import mujoco
@@ -416,14 +448,14 @@ def _compare_source(args):
         args.quantization, args.noise = args.quantization or 0.0, args.noise or 0.0
         rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
         return rec, load_robot(name), mujoco.title(name, args.quantization, args.noise, args.mismatch), None
-    if not str(args.source).endswith(".csv"):
+    if not _is_log(args.source):
         from models import names
         hint = (f"; a MuJoCo run of {args.source} is `compare --robot {args.source}`"
                 if args.source in names() else "")
-        raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}) or a .csv file, "
+        raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}), a .csv file or a ROS bag, "
                          f"got {args.source!r}{hint}")
     robot = _compare_robot(args)
-    rec, clock = read_log(args.source, robot.joint_names, args.clock, robot=robot)
+    rec, clock = _read_args(args, args.source, robot.joint_names, robot)
     return rec, robot, f"{Path(args.source).name} ({robot.name})", clock
 
 
@@ -535,10 +567,9 @@ def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
     joint (codegen.logs.identify); writes the identified URDF, the friction side file and the
     report to --out. ``args``: the parsed namespace; returns 0."""
-    from .logs.recording import read_log
     from .logs.identify import identify
     robot = _robot_of(args)
-    rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
+    rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
     ident = identify(rec, robot, cutoff=args.cutoff,
                      test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
@@ -551,14 +582,13 @@ def cmd_identify(args):
     return 0
 
 
-def _log_joints(path):
-    """The joints of a recording CSV's q_<joint> columns (its header), in file order."""
-    from .core.columns import read_columns
-    header, _ = read_columns(path)
-    joints = [h[2:] for h in header if h.startswith("q_")]
-    if not joints:
-        raise ValueError(f"{path}: no q_<joint> columns (expected t, q_<joint>, tau_<joint>)")
-    return joints
+def _log_joints(args):
+    """The joints of the log of ``args`` (its q_<joint> columns after --columns; a bag's), in file order."""
+    from .logs.recording import RecordingError, log_joints
+    try:
+        return log_joints(args.log, args.columns, args.topic)
+    except RecordingError as e:
+        raise _remedy(e) from None
 
 
 def cmd_describe(args):
@@ -566,10 +596,9 @@ def cmd_describe(args):
     resolution and noise, its motion's band and, with a robot, the torque against the model
     (codegen.logs.noise). ``args``: the parsed namespace; returns 0."""
     from .logs import noise as noise_of
-    from .logs.recording import read_log
     robot = _robot_of(args) if (args.robot or args.urdf) else None
-    joints = list(robot.joint_names) if robot is not None else _log_joints(args.log)
-    rec, clock = read_log(args.log, joints, args.clock, robot=robot)
+    joints = list(robot.joint_names) if robot is not None else _log_joints(args)
+    rec, clock = _read_args(args, args.log, joints, robot)
     nz = noise_of.measure(rec.t, rec.q, rec.tau if robot is not None else None, robot)
     print(clock.describe())
     print(f"recording: {rec.describe()}")
@@ -594,9 +623,8 @@ def cmd_design(args):
 
     from .evaluate.compare import design_inputs, design_on_log
     from .evaluate.sim.blocks import stage_lines
-    from .logs.recording import read_log
     robot = _robot_of(args)
-    rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
+    rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
     print(f"recording: {rec.describe()}")
     sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization, args.noise)
@@ -657,11 +685,24 @@ def _robot_options(p):
 
 
 def _clock_option(p):
-    """--clock of every command that reads a log."""
+    """--clock of every command that reads a log (and its --columns and --topic)."""
     p.add_argument("--clock", default="auto", metavar="auto|stamps|ticks[=PERIOD]",
                    help="what the log's time column is: auto (default: found from the data: a logger's "
                         "receive times are rebuilt on the robot's fixed tick, repeated rows dropped; a robot-"
                         "time column t_robot is used), stamps (as written), ticks[=PERIOD s] (rebuilt on a tick)")
+    _input_options(p)
+
+
+def _input_options(p):
+    """--columns and --topic of every command that reads a log (codegen.logs.mapping, .bag)."""
+    p.add_argument("--columns", metavar="MAP|FILE",
+                   help="the log's own column names mapped onto t, q_<joint>, tau_<joint>, qd_<joint>, qdm_<joint>: "
+                        "rules SOURCE=TARGET, * for the joint (e.g. 'position_*=q_*,effort_*=tau_*,time=t'), "
+                        "t_unit=s|ms|us|ns (the time column's unit; a mapped log's time counts from its first row), "
+                        "joints=[a,b,...] (the log's joints renamed, in file order); or a .toml/.json file of the "
+                        "same (t_unit, joints, a [columns] table). On a ROS bag, over its default "
+                        "(header.stamp=t, position_*=q_*, velocity_*=qdm_*, effort_*=tau_*)")
+    p.add_argument("--topic", metavar="NAME", help="a ROS bag's sensor_msgs/JointState topic (default: its only one)")
 
 
 def _stepping_options(p):
@@ -744,7 +785,7 @@ def parser():
     cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a MuJoCo "
                         "run of any URDF robot, a scenario or a CSV")
     cp.add_argument("source", nargs="?", help="a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>][, qdm_<joint>]; "
-                    "jittered stamps and gaps allowed), mujoco-ur5 or mujoco-panda; none: a MuJoCo run of "
+                    "other names: --columns; jittered stamps and gaps allowed), a ROS bag, mujoco-ur5 or mujoco-panda; none: a MuJoCo run of "
                     "the robot of --robot or --urdf (computed-torque tracking of sinusoids, --T s)")
     cp.add_argument("--robot", help="the robot: a catalog name (see `list`)")
     _robot_options(cp)
@@ -790,14 +831,14 @@ def parser():
     sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
     d = sub.add_parser("describe", parents=[debug], help="what a log is: its clock, resolution, noise, motion "
                        "band and (with a robot) torque residual, measured from it")
-    d.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    d.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder)")
     d.add_argument("--robot", help="catalog robot (the torque against its model is measured too)")
     d.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
     d.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
     _clock_option(d)
     d.add_argument("--json", metavar="FILE", help="also write the figures to this file")
     de = sub.add_parser("design", parents=[debug], help="a family's gains tuned on a log without truth")
-    de.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    de.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder)")
     de.add_argument("--robot", help="catalog robot")
     de.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
     de.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
@@ -813,7 +854,7 @@ def parser():
                        ("identify", "inertial parameters and friction from a log of q and tau")):
         x = sub.add_parser(name, parents=[debug], help=text)
         if name == "identify":
-            x.add_argument("log", help="CSV with t, q_<joint>, tau_<joint> (jittered stamps allowed)")
+            x.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder); jittered stamps allowed")
             _clock_option(x)
         x.add_argument("--robot", help="catalog robot (ur5, panda)")
         x.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")

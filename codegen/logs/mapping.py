@@ -100,7 +100,7 @@ class ColumnMap:
                 continue
             if not hits:
                 raise MappingError(f"{where}: rule {source}={target} matches no column (its columns: "
-                                   f"{_some(header)})")
+                                   f"{some(header)})")
             for h in hits:
                 if h in used:
                     raise MappingError(f"{where}: column {h!r} is taken by two rules")
@@ -163,7 +163,7 @@ def match(pattern, name):
     return None
 
 
-def _some(names, most=12):
+def some(names, most=12):
     names = list(names)
     return ", ".join(names[:most]) + (f", ... ({len(names)} in all)" if len(names) > most else "")
 

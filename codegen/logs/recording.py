@@ -157,6 +157,11 @@ def _table(path, columns=None, topic=None):
         if topic is not None:
             raise RecordingError(f"{path}: a topic is read from a ROS bag; this is a CSV")
         if cmap is None:
+            header = read_header(path, RecordingError)
+            if not any(h.startswith("q_") for h in header):
+                raise RecordingError(f"{path}: no q_<joint> column (expected t, q_<joint>, tau_<joint>[, qd_<joint>]"
+                                     f"[, qdm_<joint>]; a log with other names needs a column mapping; its columns: "
+                                     f"{mapping.some(header)})", option="columns")
             header, data = read_columns(path, RecordingError)
             return path, header, {h: data[:, i] for i, h in enumerate(header)}
         header = read_header(path, RecordingError)
@@ -171,11 +176,12 @@ def _table(path, columns=None, topic=None):
 def log_joints(path, columns=None, topic=None):
     """The joints of a log (its q_<joint> columns after the mapping ``columns``; a bag's
     JointState names), in file order. RecordingError when there are none."""
+    from . import mapping
     path, header, col = _table(path, columns, topic)
     joints = [h[2:] for h in col if h.startswith("q_")]
     if not joints:
         raise RecordingError(f"{path}: no q_<joint> columns (expected t, q_<joint>, tau_<joint>; a log with "
-                             f"other names needs a column mapping; its columns: {', '.join(header[:12])})",
+                             f"other names needs a column mapping; its columns: {mapping.some(header)})",
                              option="columns")
     return joints
 
@@ -195,8 +201,8 @@ def _columns(path, joint_names, robot=None, columns=None, topic=None):
                                  f"a log with other names needs a column mapping)", option="columns")
         mapped = set(_sources(path, header, columns, topic))
         unmapped = [h for h in header if h not in mapped]
-        raise RecordingError(f"{path}: no {', '.join(missing)} after the column mapping (the robot's joints "
-                             f"{', '.join(joint_names)}; the log's joints {', '.join(h[2:] for h in col if h.startswith('q_')) or 'none'}"
+        raise RecordingError(f"{path}: no {', '.join(missing)} after the column mapping (joints "
+                             f"{', '.join(joint_names)} wanted; the log's joints {', '.join(h[2:] for h in col if h.startswith('q_')) or 'none'}"
                              + (f"; columns no rule maps: {', '.join(unmapped[:12])}" if unmapped else "") + ")",
                              option="columns")
     for g in ("qd", "qdm"):
