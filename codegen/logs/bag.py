@@ -114,6 +114,14 @@ def _read(bag, topic, mtime, size):
     return _columns(bag, topic, rows), topic
 
 
+def check(col, to, where):
+    """BagError when the time ``to["t"]`` (a recording's column -> the bag's) is the header stamp
+    of a publisher that leaves it unset (every stamp zero)."""
+    if to.get("t") == "header.stamp" and np.isnan(col["header.stamp"]).all():
+        raise BagError(f"{where}: every header stamp is zero (the publisher does not stamp its messages): "
+                       f"map the bag's record time instead, the rule bag.time=t")
+
+
 def _columns(bag, topic, rows):
     """The columns of ``rows`` ((record time ns, JointState message), in the bag's order)."""
     where = f"{bag}, topic {topic}"
@@ -134,8 +142,7 @@ def _columns(bag, topic, rows):
     record = np.array([t for t, _ in rows], dtype=np.int64)
     col = {"header.stamp": (stamp - stamp[0]).astype(float), "bag.time": (record - record[0]).astype(float)}
     if not stamp.any():
-        raise BagError(f"{where}: every header stamp is zero (the publisher does not stamp its messages): "
-                       f"map the bag's record time instead, the rule bag.time=t")
+        col["header.stamp"] = np.full(len(rows), np.nan)        # unset: refused if it is the time (``check``)
     for field in ("position", "velocity", "effort"):
         sizes = {len(getattr(m, field)) for _, m in rows}
         if sizes == {0} and field == "velocity":

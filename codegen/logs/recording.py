@@ -152,8 +152,12 @@ def _table(path, columns=None, topic=None):
             header = list(raw)
             optional = [s for s in bag.OPTIONAL if s not in (cmap.rules if cmap else {})]
             to = rules.resolve(header, f"{path}", optional=optional)
+            bag.check(raw, to, f"{path}")
             return path, header, {name: raw[src] / (rules.scale if name in mapping.TIMES else 1)
                                   for name, src in to.items()}
+        if path.is_dir():
+            raise RecordingError(f"{path}: a folder, not a log (a CSV file, a ROS 1 .bag file or a ROS 2 bag "
+                                 f"folder with its metadata.yaml)")
         if topic is not None:
             raise RecordingError(f"{path}: a topic is read from a ROS bag; this is a CSV")
         if cmap is None:
