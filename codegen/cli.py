@@ -1,5 +1,5 @@
 """observer-codegen (python -m codegen): list | generate | build | check | simulate | compare |
-sweep | bench | sanitize | cortex_m | excite | identify | describe | design.
+sweep | bench | sanitize | cortex_m | excite | identify | describe | design | simulate-log.
 
 `generate`, `build`, `check` and `embedded` take the same targets: catalog robots or a URDF with
 options, a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the
@@ -666,10 +666,29 @@ def cmd_design(args):
     return 0
 
 
+def cmd_simulate_log(args):
+    """`simulate-log`: a realistic synthetic log of one's own URDF and its truth
+    (codegen.evaluate.scenarios.log_grid.synthetic_log). ``args``: the parsed namespace; returns 0."""
+    from .evaluate.scenarios.log_grid import synthetic_log
+    robot = _robot_of(args)
+    _require("mujoco", "simulate-log")
+    log, truth, stats = synthetic_log(robot, args.out, T=args.seconds, task=args.task, clock=args.clock,
+                                      torque=args.torque, seed=args.seed)
+    rows = stats.get("rows", stats["logged"])
+    what = (f"{rows} rows stamped when a logger received them (1 ms ticks, {stats['repeats']} repeated rows)"
+            if args.clock == "receive" else f"{rows} rows at jittered instants ({stats['dropped']} dropped)")
+    print(f"wrote {log}: {robot.name}, {stats['T']:g} s of {args.task}, {what}; t, q_<joint>, tau_<joint>")
+    print(f"its truth: {truth} (per row: the true sample time, q, qd and applied tau)")
+    print(f"the plant: the URDF perturbed (masses and inertias, a payload, friction, torque offsets; seed "
+          f"{args.seed}), a 2^20 counts/rev encoder logged to 1e-6 rad, torque noise ({args.torque})")
+    return 0
+
+
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
             "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
             "sanitize": cmd_sanitize, "embedded": cmd_embedded, "excite": cmd_excite, "identify": cmd_identify,
             "describe": cmd_describe, "design": cmd_design}
+COMMANDS["simulate-log"] = cmd_simulate_log
 
 
 # ------------------------------------------------------------------------------------ parser
@@ -883,7 +902,28 @@ def parser():
                            help="rad/s: a joint's samples slower than this are left out of the fit (it may "
                                 f"stick under dry friction; default {idf.DEFAULT_V_STICK:g}, 0 keeps every one)")
             x.add_argument("--out", metavar="DIR", help="folder of the identified URDF and report (default build/identify)")
+    _simulate_log_parser(sub, debug)
     return ap
+
+
+def _simulate_log_parser(sub, debug):
+    """The parser of `simulate-log`."""
+    from .evaluate.scenarios.log_grid import CLOCKS, TASKS, TORQUE_SENSORS
+    sl = sub.add_parser("simulate-log", parents=[debug], help="a realistic synthetic log of your URDF (and its "
+                        "truth): a perturbed MuJoCo plant, an encoder, torque noise, a logger's clock")
+    sl.add_argument("--urdf", metavar="PATH", help="the robot's URDF")
+    sl.add_argument("--robot", help="or a catalog robot")
+    sl.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    sl.add_argument("--out", metavar="CSV", default="log.csv", help="the log (default log.csv; its truth "
+                    "beside it, <stem>_truth.csv)")
+    sl.add_argument("--seconds", type=float, default=20.0, help="length (s, default 20)")
+    sl.add_argument("--task", choices=TASKS, default="multisine", help="the motion: multisine (default), p2p "
+                    "(minimum-jerk moves with rests), bursts (slow drifts, short fast moves)")
+    sl.add_argument("--clock", choices=tuple(CLOCKS), default="receive", help="receive (default: 1 ms ticks "
+                    "stamped when a logger received them, repeated rows) or jitter (jittered instants, dropped rows)")
+    sl.add_argument("--torque", choices=tuple(TORQUE_SENSORS), default="rms", help="torque noise: rms (default: "
+                    "1 %% of each joint's RMS torque) or abs (0.05 N m); both with offsets")
+    sl.add_argument("--seed", type=int, default=0, help="seed of the plant, the motion and the sensors")
 
 
 def main(argv=None):

@@ -178,7 +178,9 @@ def test_compare_gives_the_csvs_table_on_the_bag(logs, tmp_path, kind):
                                  "reduced_order,kalman_model", "--baselines", "kalman,butterworth",
                                  "--out", str(tmp_path / name)])
         assert status == 0, err
-        tables.append([line for line in out.splitlines() if not line.startswith(("figures", "compare ", "log"))])
+        lines = out.splitlines()
+        assert lines[0] == f"{source.name} ({ROBOT})" and lines[-1].startswith("figures, estimates.csv")
+        tables.append(lines[1:-1])                  # but the title (the file's name) and the output folder
         tables[-1].append(json.dumps(json.loads((tmp_path / name / "compare.json").read_text())["rows"]))
     assert len(tables[0]) > 5
     assert tables[0] == tables[1]
