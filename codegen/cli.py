@@ -303,11 +303,13 @@ def cmd_embedded(args):
           f"{'max':>7s} {'step_dt':>7s} {'max':>7s} {'vs glibc':>8s} {'vs newlib':>9s} {'vs double':>9s}")
     from tqdm import tqdm
 
+    from .core.progress import bar as progress_bar
     from .pipeline.emit import with_params
     from .pipeline.stages import resolve_substeps
     from .pipeline.targets_file import build_spec
     rows, targets = [], _targets(args)
-    for target, out in tqdm(targets, desc="embedded", unit="target", file=sys.stderr, leave=False, disable=None):
+    for target, out in progress_bar(targets, desc="embedded", unit="target", file=sys.stderr, leave=False,
+                                    disable=None):
         spec = with_params(build_spec(target), target.params)
         target = resolve_substeps(target, spec)
         for prefix, rec in cortex_m.verify_target(spec, target, out, steps=args.steps):
@@ -619,8 +621,7 @@ def cmd_design(args):
     its gains tuned on the log without truth (codegen.evaluate.compare.design_on_log); prints the
     measured quantities, the tuned gains, the criterion and the lines that build the observer with
     them. ``args``: the parsed namespace; returns 0."""
-    from tqdm import tqdm
-
+    from .core.progress import bar as progress_bar
     from .evaluate.compare import design_inputs, design_on_log
     from .evaluate.sim.blocks import stage_lines
     robot = _robot_of(args)
@@ -629,7 +630,7 @@ def cmd_design(args):
     print(f"recording: {rec.describe()}")
     sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization, args.noise)
     design = design_inputs(*sensor, 0.0, _torque_uncertainty(args.torque_uncertainty, robot))
-    with stage_lines(), tqdm(desc=f"design {args.family}", unit="run", file=sys.stderr, leave=False) as bar:
+    with stage_lines(), progress_bar(desc=f"design {args.family}", unit="run", file=sys.stderr, leave=False) as bar:
         def step(text):
             bar.set_postfix_str(text)
             bar.update()

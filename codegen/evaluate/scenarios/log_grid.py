@@ -337,14 +337,14 @@ def grid(out, names=None, seed=0, T=T_TASK, T_excitation=T_EXCITATION, jobs=1, p
     """
     import sys
 
-    from tqdm import tqdm
+    from ...core.progress import bar as progress_bar
     names = list(cells() if names is None else names)
     for name in names:
         _parse(name)
     if not (isinstance(jobs, int) and jobs >= 1):
         raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     work = [(name, str(out), seed, float(T), float(T_excitation)) for name in names]
-    bar = tqdm(total=len(work), desc="log-grid", unit="cell", file=sys.stderr, disable=None if progress else True)
+    bar = progress_bar(total=len(work), desc="log-grid", unit="cell", file=sys.stderr, disable=None if progress else True)
     rows = {}
     try:
         if jobs == 1:
