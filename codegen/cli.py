@@ -146,8 +146,9 @@ def _targets(args):
 
 
 def tune_target(target, log, columns=None, topic=None):
-    """``target`` with its sensor measured on the recording ``log`` and its gains tuned on it
-    without truth (a targets file's ``tune = "log.csv"``, with ``tune_columns`` and ``tune_topic``;
+    """``target`` with its sensor measured on the recording ``log`` (its column mapping ``columns``,
+    a bag's ``topic``) and its gains tuned on it without truth (a targets file's
+    ``tune = "log.csv"``, with ``tune_columns`` and ``tune_topic``;
     codegen.evaluate.compare.design_on_log): the measured design inputs under the target's own
     ``build``, the tuned parameters under its own ``params`` (what the file states wins)."""
     from models import from_source

@@ -85,7 +85,7 @@ def _open(path, error, limit):
 
 
 def read_header(path, error=ColumnsError, limit=None):
-    """The names of the first row of the CSV file ``path`` (``error`` as ``read_columns``)."""
+    """The names of the first row of the CSV file ``path`` (``error`` and ``limit`` as ``read_columns``)."""
     path = _open(path, error, limit)
     with open(path, newline="") as f:
         first = next(csv.reader(f), None)

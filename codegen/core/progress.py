@@ -23,9 +23,10 @@ def is_terminal(file):
 
 
 def bar(iterable=None, desc=None, total=None, unit="it", file=None, disable=False, **options):
-    """A progress bar (module docstring): tqdm's on a terminal, ``Lines`` otherwise; ``disable``
-    True shows nothing (tqdm's None: nothing off a terminal, as here). Other ``options`` go to
-    tqdm (``leave``, ``miniters``, ...)."""
+    """A progress bar (module docstring) over ``iterable`` (or updated by hand), ``desc`` before its
+    count of ``total`` ``unit``, on ``file`` (default stderr): tqdm's on a terminal, ``Lines``
+    otherwise; ``disable`` True shows nothing (tqdm's None: nothing off a terminal, as here).
+    Other ``options`` go to tqdm (``leave``, ``miniters``, ...)."""
     file = sys.stderr if file is None else file
     if is_terminal(file):
         from tqdm import tqdm
@@ -62,18 +63,19 @@ class Lines:
         self._show()
 
     def set_postfix_str(self, s="", refresh=True):
-        """The text after the count (a line when it changes)."""
+        """The text ``s`` after the count (a line when it changes; ``refresh`` is tqdm's, unused)."""
         changed = str(s) != self.postfix
         self.postfix = str(s)
         self._show(changed)
 
     def set_postfix(self, ordered_dict=None, refresh=True, **kwargs):
-        """tqdm's ``set_postfix``: ``name=value`` pairs after the count."""
+        """tqdm's ``set_postfix``: the ``name=value`` pairs of ``ordered_dict`` and ``kwargs`` after the
+        count (``refresh`` unused)."""
         items = {**(ordered_dict or {}), **kwargs}
         self.set_postfix_str(", ".join(f"{k}={v}" for k, v in items.items()))
 
     def set_description(self, desc=None, refresh=True):
-        """The text before the count (a line when it changes)."""
+        """The text ``desc`` before the count (a line when it changes; ``refresh`` unused)."""
         changed = desc != self.desc
         self.desc = desc
         self._show(changed)
@@ -82,7 +84,7 @@ class Lines:
         """Nothing to redraw: lines are written as they come."""
 
     def write(self, s, file=None):
-        """A message line (tqdm.write's)."""
+        """A message line ``s`` on ``file`` (default the bar's; tqdm.write's)."""
         (file or self.file).write(f"{s}\n")
 
     def close(self):

@@ -40,7 +40,7 @@ class BagError(ValueError):
 
 
 def is_bag(path):
-    """True for a ROS 1 ``.bag`` file, a ROS 2 bag folder (it holds ``metadata.yaml``) or a ROS 2
+    """True when ``path`` is a ROS 1 ``.bag`` file, a ROS 2 bag folder (it holds ``metadata.yaml``) or a ROS 2
     storage file (``.db3``, ``.mcap``)."""
     path = Path(path)
     return (path.suffix == ".bag" or path.suffix in STORAGE
@@ -115,8 +115,8 @@ def _read(bag, topic, mtime, size):
 
 
 def check(col, to, where):
-    """BagError when the time ``to["t"]`` (a recording's column -> the bag's) is the header stamp
-    of a publisher that leaves it unset (every stamp zero)."""
+    """BagError naming ``where`` when the time ``to["t"]`` (a recording's column -> the bag's) is the
+    header stamp of a publisher that leaves it unset (every stamp zero in the bag's columns ``col``)."""
     if to.get("t") == "header.stamp" and np.isnan(col["header.stamp"]).all():
         raise BagError(f"{where}: every header stamp is zero (the publisher does not stamp its messages): "
                        f"map the bag's record time instead, the rule bag.time=t")

@@ -90,7 +90,7 @@ class ColumnMap:
 
     def resolve(self, header, where="log", optional=()):
         """{recording column: log column} of the log columns ``header`` (names), and the log's
-        joints renamed. MappingError naming the rule that matches no column (but those of
+        joints renamed. MappingError naming the log ``where`` and the rule that matches no column (but those of
         ``optional``), a column two rules take, or a ``joints`` list whose length is not the log's
         number of joints."""
         out, joint_of, used = {}, [], set()
@@ -164,6 +164,7 @@ def match(pattern, name):
 
 
 def some(names, most=12):
+    """The first ``most`` of ``names``, comma-separated, and how many there are (a message's list)."""
     names = list(names)
     return ", ".join(names[:most]) + (f", ... ({len(names)} in all)" if len(names) > most else "")
 
@@ -217,7 +218,7 @@ def parse(text, base="."):
 
 
 def read_file(path):
-    """The ColumnMap of a mapping file (TOML or JSON: ``t_unit``, ``joints``, a table ``columns``)."""
+    """The ColumnMap of the mapping file ``path`` (TOML or JSON: ``t_unit``, ``joints``, a table ``columns``)."""
     path = Path(path)
     if not path.is_file():
         raise MappingError(f"{path}: no such mapping file")

@@ -178,8 +178,8 @@ def _table(path, columns=None, topic=None):
 
 
 def log_joints(path, columns=None, topic=None):
-    """The joints of a log (its q_<joint> columns after the mapping ``columns``; a bag's
-    JointState names), in file order. RecordingError when there are none."""
+    """The joints of the log at ``path`` (its q_<joint> columns after the mapping ``columns``; the
+    JointState names of a bag's ``topic``), in file order. RecordingError when there are none."""
     from . import mapping
     path, header, col = _table(path, columns, topic)
     joints = [h[2:] for h in col if h.startswith("q_")]
