@@ -1,5 +1,5 @@
 """observer-codegen (python -m codegen): list | generate | build | check | simulate | compare |
-sweep | bench | sanitize | cortex_m | excite | identify | describe | design.
+sweep | bench | sanitize | cortex_m | excite | identify | describe | design | simulate-log.
 
 `generate`, `build`, `check` and `embedded` take the same targets: catalog robots or a URDF with
 options, a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the
@@ -23,7 +23,7 @@ from .pipeline.targets_file import DEFAULT_FAMILY, TargetError, check_unique, lo
 
 TARGETS_FILE = "targets.toml"
 # optional packages -> the extra of pyproject.toml that installs them (tests/test_cli.py checks)
-EXTRAS = {"mujoco": "mujoco", "dask": "sweep", "distributed": "sweep", "pyarrow": "sweep", "pandas": "sweep"}
+EXTRAS = {"mujoco": "mujoco", "rosbags": "ros", "dask": "sweep", "distributed": "sweep", "pyarrow": "sweep", "pandas": "sweep"}
 USER_ERRORS = (TargetError, FolderTaken, ToolError, WriteError, ValueError, KeyError, FileNotFoundError)
 
 
@@ -145,17 +145,17 @@ def _targets(args):
     return targets
 
 
-def tune_target(target, log):
-    """``target`` with its sensor measured on the recording ``log`` and its gains tuned on it
-    without truth (a targets file's ``tune = "log.csv"``; codegen.evaluate.compare.design_on_log):
-    the measured design inputs under the target's own ``build``, the tuned parameters under its
-    own ``params`` (what the file states wins)."""
+def tune_target(target, log, columns=None, topic=None):
+    """``target`` with its sensor measured on the recording ``log`` (its column mapping ``columns``,
+    a bag's ``topic``) and its gains tuned on it without truth (a targets file's
+    ``tune = "log.csv"``, with ``tune_columns`` and ``tune_topic``;
+    codegen.evaluate.compare.design_on_log): the measured design inputs under the target's own
+    ``build``, the tuned parameters under its own ``params`` (what the file states wins)."""
     from models import from_source
 
     from .evaluate.compare import design_on_log
-    from .logs.recording import read_log
     robot = from_source(target.robot)
-    rec, clock = read_log(log, robot.joint_names, robot=robot)
+    rec, clock = _read_log(log, robot.joint_names, robot=robot, columns=columns, topic=topic)
     entry, _, _ = design_on_log(rec, robot, target.family, design=dict(target.build), clock=clock)
     tuned = entry.tuned.params if entry.tuned is not None else {}
     print(f"{target.prefix}: tuned on {Path(log).name}: "
@@ -304,11 +304,13 @@ def cmd_embedded(args):
           f"{'max':>7s} {'step_dt':>7s} {'max':>7s} {'vs glibc':>8s} {'vs newlib':>9s} {'vs double':>9s}")
     from tqdm import tqdm
 
+    from .core.progress import bar as progress_bar
     from .pipeline.emit import with_params
     from .pipeline.stages import resolve_substeps
     from .pipeline.targets_file import build_spec
     rows, targets = [], _targets(args)
-    for target, out in tqdm(targets, desc="embedded", unit="target", file=sys.stderr, leave=False, disable=None):
+    for target, out in progress_bar(targets, desc="embedded", unit="target", file=sys.stderr, leave=False,
+                                    disable=None):
         spec = with_params(build_spec(target), target.params)
         target = resolve_substeps(target, spec)
         for prefix, rec in cortex_m.verify_target(spec, target, out, steps=args.steps):
@@ -339,6 +341,40 @@ def cmd_simulate(args):
     return scenarios.run(args.name, reference=args.reference, out=args.out or work_dir() / "sim", **options)
 
 
+def _is_log(source):
+    """True for a recorded log: a .csv file or a ROS bag (codegen.logs.bag.is_bag)."""
+    from .logs.bag import is_bag
+    return source is not None and (str(source).endswith(".csv") or is_bag(source))
+
+
+def _remedy(e):
+    """The RecordingError ``e`` with its fix in command-line flags (--columns, --topic)."""
+    if e.option == "columns":
+        e.cli_message = (f"{e} (name the log's own columns: --columns 'position_*=q_*,effort_*=tau_*,time=t"
+                         f"[,t_unit=ms][,joints=[a,b]]' or --columns mapping.toml)")
+    elif e.option == "topic":
+        e.cli_message = f"{e}: --topic {e.choices[0] if e.choices else 'NAME'}"
+    return e
+
+
+def _read_log(path, joints, clock="auto", robot=None, columns=None, topic=None):
+    """``codegen.logs.recording.read_log`` of a command: a bag needs the ``ros`` extra (one line
+    naming it), a refusal names the flag that fixes it (``_remedy``)."""
+    from .logs.bag import is_bag
+    from .logs.recording import RecordingError, read_log
+    if is_bag(path):
+        _require("rosbags", f"reading the ROS bag {path}")
+    try:
+        return read_log(path, joints, clock, robot=robot, columns=columns, topic=topic)
+    except RecordingError as e:
+        raise _remedy(e) from None
+
+
+def _read_args(args, path, joints, robot):
+    """``_read_log`` with the command's --clock, --columns and --topic."""
+    return _read_log(path, joints, args.clock, robot=robot, columns=args.columns, topic=args.topic)
+
+
 def _compare_robot(args):
     """The robot of ``compare``: ``--robot NAME`` or ``--urdf PATH [--lock JOINT=VALUE ...]``, read
     as ``build`` reads them (``targets_file.robot_source``). ``--elastic`` is refused: compare
@@ -350,7 +386,7 @@ def _compare_robot(args):
         what = "a CSV needs" if args.source else "give a source (a CSV, mujoco-ur5, mujoco-panda) or"
         raise ValueError(f"robot: {what} --robot NAME or --urdf PATH (the robot it was recorded on)")
     elastic = bool(args.elastic or args.J or args.K)
-    if elastic and not str(args.source or "").endswith(".csv"):
+    if elastic and not _is_log(args.source):
         raise ValueError("--elastic: the MuJoCo plant has rigid joints; compare an elastic robot on its log "
                          "(a CSV of link q_<joint> and motor tau_<joint>), or run seed 004's in `simulate "
                          "seed004-sim1`")
@@ -394,7 +430,6 @@ def _compare_source(args):
     sensor and mismatch options, a MuJoCo run of the robot of ``--robot`` / ``--urdf`` (no
     source), or a recorded CSV of that robot read on its sample clock (``--clock``; the Clock, None
     for a simulation)."""
-    from .logs.recording import read_log
     from .evaluate.scenarios.mujoco import SCENARIOS
     if args.source is None:              # a MuJoCo plant from the robot's URDF
         from .evaluate.scenarios import mujoco
@@ -416,14 +451,14 @@ def _compare_source(args):
         args.quantization, args.noise = args.quantization or 0.0, args.noise or 0.0
         rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
         return rec, load_robot(name), mujoco.title(name, args.quantization, args.noise, args.mismatch), None
-    if not str(args.source).endswith(".csv"):
+    if not _is_log(args.source):
         from models import names
         hint = (f"; a MuJoCo run of {args.source} is `compare --robot {args.source}`"
                 if args.source in names() else "")
-        raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}) or a .csv file, "
+        raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}), a .csv file or a ROS bag, "
                          f"got {args.source!r}{hint}")
     robot = _compare_robot(args)
-    rec, clock = read_log(args.source, robot.joint_names, args.clock, robot=robot)
+    rec, clock = _read_args(args, args.source, robot.joint_names, robot)
     return rec, robot, f"{Path(args.source).name} ({robot.name})", clock
 
 
@@ -535,10 +570,9 @@ def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
     joint (codegen.logs.identify); writes the identified URDF, the friction side file and the
     report to --out. ``args``: the parsed namespace; returns 0."""
-    from .logs.recording import read_log
     from .logs.identify import identify
     robot = _robot_of(args)
-    rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
+    rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
     ident = identify(rec, robot, cutoff=args.cutoff,
                      test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
@@ -551,14 +585,13 @@ def cmd_identify(args):
     return 0
 
 
-def _log_joints(path):
-    """The joints of a recording CSV's q_<joint> columns (its header), in file order."""
-    from .core.columns import read_columns
-    header, _ = read_columns(path)
-    joints = [h[2:] for h in header if h.startswith("q_")]
-    if not joints:
-        raise ValueError(f"{path}: no q_<joint> columns (expected t, q_<joint>, tau_<joint>)")
-    return joints
+def _log_joints(args):
+    """The joints of the log of ``args`` (its q_<joint> columns after --columns; a bag's), in file order."""
+    from .logs.recording import RecordingError, log_joints
+    try:
+        return log_joints(args.log, args.columns, args.topic)
+    except RecordingError as e:
+        raise _remedy(e) from None
 
 
 def cmd_describe(args):
@@ -566,10 +599,9 @@ def cmd_describe(args):
     resolution and noise, its motion's band and, with a robot, the torque against the model
     (codegen.logs.noise). ``args``: the parsed namespace; returns 0."""
     from .logs import noise as noise_of
-    from .logs.recording import read_log
     robot = _robot_of(args) if (args.robot or args.urdf) else None
-    joints = list(robot.joint_names) if robot is not None else _log_joints(args.log)
-    rec, clock = read_log(args.log, joints, args.clock, robot=robot)
+    joints = list(robot.joint_names) if robot is not None else _log_joints(args)
+    rec, clock = _read_args(args, args.log, joints, robot)
     nz = noise_of.measure(rec.t, rec.q, rec.tau if robot is not None else None, robot)
     print(clock.describe())
     print(f"recording: {rec.describe()}")
@@ -590,18 +622,16 @@ def cmd_design(args):
     its gains tuned on the log without truth (codegen.evaluate.compare.design_on_log); prints the
     measured quantities, the tuned gains, the criterion and the lines that build the observer with
     them. ``args``: the parsed namespace; returns 0."""
-    from tqdm import tqdm
-
+    from .core.progress import bar as progress_bar
     from .evaluate.compare import design_inputs, design_on_log
     from .evaluate.sim.blocks import stage_lines
-    from .logs.recording import read_log
     robot = _robot_of(args)
-    rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
+    rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
     print(f"recording: {rec.describe()}")
     sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization, args.noise)
     design = design_inputs(*sensor, 0.0, _torque_uncertainty(args.torque_uncertainty, robot))
-    with stage_lines(), tqdm(desc=f"design {args.family}", unit="run", file=sys.stderr, leave=False) as bar:
+    with stage_lines(), progress_bar(desc=f"design {args.family}", unit="run", file=sys.stderr, leave=False) as bar:
         def step(text):
             bar.set_postfix_str(text)
             bar.update()
@@ -638,10 +668,29 @@ def cmd_design(args):
     return 0
 
 
+def cmd_simulate_log(args):
+    """`simulate-log`: a realistic synthetic log of one's own URDF and its truth
+    (codegen.evaluate.scenarios.log_grid.synthetic_log). ``args``: the parsed namespace; returns 0."""
+    from .evaluate.scenarios.log_grid import synthetic_log
+    robot = _robot_of(args)
+    _require("mujoco", "simulate-log")
+    log, truth, stats = synthetic_log(robot, args.out, T=args.seconds, task=args.task, clock=args.clock,
+                                      torque=args.torque, seed=args.seed)
+    rows = stats.get("rows", stats["logged"])
+    what = (f"{rows} rows stamped when a logger received them (1 ms ticks, {stats['repeats']} repeated rows)"
+            if args.clock == "receive" else f"{rows} rows at jittered instants ({stats['dropped']} dropped)")
+    print(f"wrote {log}: {robot.name}, {stats['T']:g} s of {args.task}, {what}; t, q_<joint>, tau_<joint>")
+    print(f"its truth: {truth} (per row: the true sample time, q, qd and applied tau)")
+    print(f"the plant: the URDF perturbed (masses and inertias, a payload, friction, torque offsets; seed "
+          f"{args.seed}), a 2^20 counts/rev encoder logged to 1e-6 rad, torque noise ({args.torque})")
+    return 0
+
+
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
             "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
             "sanitize": cmd_sanitize, "embedded": cmd_embedded, "excite": cmd_excite, "identify": cmd_identify,
             "describe": cmd_describe, "design": cmd_design}
+COMMANDS["simulate-log"] = cmd_simulate_log
 
 
 # ------------------------------------------------------------------------------------ parser
@@ -657,11 +706,24 @@ def _robot_options(p):
 
 
 def _clock_option(p):
-    """--clock of every command that reads a log."""
+    """--clock of every command that reads a log (and its --columns and --topic)."""
     p.add_argument("--clock", default="auto", metavar="auto|stamps|ticks[=PERIOD]",
                    help="what the log's time column is: auto (default: found from the data: a logger's "
                         "receive times are rebuilt on the robot's fixed tick, repeated rows dropped; a robot-"
                         "time column t_robot is used), stamps (as written), ticks[=PERIOD s] (rebuilt on a tick)")
+    _input_options(p)
+
+
+def _input_options(p):
+    """--columns and --topic of every command that reads a log (codegen.logs.mapping, .bag)."""
+    p.add_argument("--columns", metavar="MAP|FILE",
+                   help="the log's own column names mapped onto t, q_<joint>, tau_<joint>, qd_<joint>, qdm_<joint>: "
+                        "rules SOURCE=TARGET, * for the joint (e.g. 'position_*=q_*,effort_*=tau_*,time=t'), "
+                        "t_unit=s|ms|us|ns (the time column's unit; a mapped log's time counts from its first row), "
+                        "joints=[a,b,...] (the log's joints renamed, in file order); or a .toml/.json file of the "
+                        "same (t_unit, joints, a [columns] table). On a ROS bag, over its default "
+                        "(header.stamp=t, position_*=q_*, velocity_*=qdm_*, effort_*=tau_*)")
+    p.add_argument("--topic", metavar="NAME", help="a ROS bag's sensor_msgs/JointState topic (default: its only one)")
 
 
 def _stepping_options(p):
@@ -744,7 +806,7 @@ def parser():
     cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a MuJoCo "
                         "run of any URDF robot, a scenario or a CSV")
     cp.add_argument("source", nargs="?", help="a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>][, qdm_<joint>]; "
-                    "jittered stamps and gaps allowed), mujoco-ur5 or mujoco-panda; none: a MuJoCo run of "
+                    "other names: --columns; jittered stamps and gaps allowed), a ROS bag, mujoco-ur5 or mujoco-panda; none: a MuJoCo run of "
                     "the robot of --robot or --urdf (computed-torque tracking of sinusoids, --T s)")
     cp.add_argument("--robot", help="the robot: a catalog name (see `list`)")
     _robot_options(cp)
@@ -790,14 +852,14 @@ def parser():
     sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
     d = sub.add_parser("describe", parents=[debug], help="what a log is: its clock, resolution, noise, motion "
                        "band and (with a robot) torque residual, measured from it")
-    d.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    d.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder)")
     d.add_argument("--robot", help="catalog robot (the torque against its model is measured too)")
     d.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
     d.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
     _clock_option(d)
     d.add_argument("--json", metavar="FILE", help="also write the figures to this file")
     de = sub.add_parser("design", parents=[debug], help="a family's gains tuned on a log without truth")
-    de.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    de.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder)")
     de.add_argument("--robot", help="catalog robot")
     de.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
     de.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
@@ -813,7 +875,7 @@ def parser():
                        ("identify", "inertial parameters and friction from a log of q and tau")):
         x = sub.add_parser(name, parents=[debug], help=text)
         if name == "identify":
-            x.add_argument("log", help="CSV with t, q_<joint>, tau_<joint> (jittered stamps allowed)")
+            x.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder); jittered stamps allowed")
             _clock_option(x)
         x.add_argument("--robot", help="catalog robot (ur5, panda)")
         x.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
@@ -842,7 +904,28 @@ def parser():
                            help="rad/s: a joint's samples slower than this are left out of the fit (it may "
                                 f"stick under dry friction; default {idf.DEFAULT_V_STICK:g}, 0 keeps every one)")
             x.add_argument("--out", metavar="DIR", help="folder of the identified URDF and report (default build/identify)")
+    _simulate_log_parser(sub, debug)
     return ap
+
+
+def _simulate_log_parser(sub, debug):
+    """The parser of `simulate-log`."""
+    from .evaluate.scenarios.log_grid import CLOCKS, TASKS, TORQUE_SENSORS
+    sl = sub.add_parser("simulate-log", parents=[debug], help="a realistic synthetic log of your URDF (and its "
+                        "truth): a perturbed MuJoCo plant, an encoder, torque noise, a logger's clock")
+    sl.add_argument("--urdf", metavar="PATH", help="the robot's URDF")
+    sl.add_argument("--robot", help="or a catalog robot")
+    sl.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    sl.add_argument("--out", metavar="CSV", default="log.csv", help="the log (default log.csv; its truth "
+                    "beside it, <stem>_truth.csv)")
+    sl.add_argument("--seconds", type=float, default=20.0, help="length (s, default 20)")
+    sl.add_argument("--task", choices=TASKS, default="multisine", help="the motion: multisine (default), p2p "
+                    "(minimum-jerk moves with rests), bursts (slow drifts, short fast moves)")
+    sl.add_argument("--clock", choices=tuple(CLOCKS), default="receive", help="receive (default: 1 ms ticks "
+                    "stamped when a logger received them, repeated rows) or jitter (jittered instants, dropped rows)")
+    sl.add_argument("--torque", choices=tuple(TORQUE_SENSORS), default="rms", help="torque noise: rms (default: "
+                    "1 %% of each joint's RMS torque) or abs (0.05 N m); both with offsets")
+    sl.add_argument("--seed", type=int, default=0, help="seed of the plant, the motion and the sensors")
 
 
 def main(argv=None):

@@ -657,7 +657,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         Cut-off (Hz) of the zero-phase reference used when ``rec`` has no true velocity; default
         each joint's measured motion band (codegen.logs.noise).
     progress : bool
-        A progress bar over the methods on stderr (tqdm).
+        A progress bar over the methods on stderr (codegen.core.progress: lines off a terminal).
     stepping : dict, optional
         ``method``, ``hold``, ``substeps`` the observers step with (``run_observer``).
     tune : {"log", "none", "reference"}
@@ -678,7 +678,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     -------
     Comparison
     """
-    from tqdm import tqdm
+    from ..core.progress import bar as progress_bar
 
     from ..families import observers
     from ..logs import noise as noise_of
@@ -710,8 +710,8 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     ref = reference_of(rec, noise_of.reference_cutoff(noise) if ref_cutoff is None else ref_cutoff)
     val = tuning.validation(t, Y, noise.sigma, psd=noise_of.motion_psd(noise, noise.spectrum))
     entries = []
-    bar = tqdm(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
-               file=sys.stderr, disable=not progress, leave=False)
+    bar = progress_bar(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
+                       file=sys.stderr, disable=not progress, leave=False)
     with bar:
         work = [(_observer_entry, item, fam, given, robot, rec, design, noise, val, tune == "log", reference,
                  stepping, ref, t_ss, level) for item, fam, given in parsed]

@@ -78,7 +78,8 @@ out = "c/out"
     assert (t.precision, t.name, t.prefix) == ("double", "arm_cg", "arm_cg")
     assert set(KEYS) == {"robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design",
                          "params", "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision",
-                         "name", "out", "tune"}      # tune: tests/logs/test_log_commands.py
+                         "name", "out", "tune", "tune_columns", "tune_topic"}   # tune: tests/logs/test_log_commands.py,
+    # tune_columns: tests/logs/test_mapping.py
 
 
 def test_a_tune_key_needs_the_command_line_and_a_log(tmp_path):
