@@ -86,12 +86,12 @@ def read_columns(path, error=ColumnsError, limit=None):
                     f"(cut it, or raise the limit: {MAX_BYTES_ENV}=<bytes>)")
     with open(path, newline="") as f:
         reader = csv.reader(f)
-        first = next(reader, None)
+        first = next(_rows(reader, path, error), None)
         if first is None:
             raise error(f"{path}: empty file")
         header = [h.strip() for h in first]
         blocks, chunk, lines = [], [], []
-        for r in reader:
+        for r in _rows(reader, path, error):
             if not r:
                 continue
             if len(r) != len(header):
@@ -104,6 +104,20 @@ def read_columns(path, error=ColumnsError, limit=None):
         if chunk or not blocks:
             blocks.append(_numbers(path, header, chunk, lines, error))
     return header, np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
+
+
+def _rows(reader, path, error):
+    """The rows of the csv ``reader`` of ``path``; ``error`` naming the row (its line) where the
+    csv module refuses the text (a field over its limit, e.g. a NUL-padded tail; a NUL byte)."""
+    while True:
+        try:
+            r = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as e:
+            raise error(f"{path}: row {reader.line_num}: not a CSV row ({e}); a damaged or padded "
+                        "tail (cut the file at its last good row)") from None
+        yield r
 
 
 def _numbers(path, header, rows, lines, error):
