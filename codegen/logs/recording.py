@@ -254,11 +254,20 @@ def check_ranges(path, col, joint_names, robot):
     the log's joints, in the robot's order."""
     from ..core.limits import POSITION_MARGIN, TORQUE_MARGIN, joint_ranges
     lower, upper, tau = joint_ranges(robot)
+    limited = np.asarray(getattr(robot, "position_limited", np.zeros(robot.n, bool)), dtype=bool).reshape(-1)
+    effort = np.asarray(getattr(robot, "effort_limit", np.full(robot.n, np.inf)), dtype=float).reshape(-1)
+    if limited.size != robot.n:
+        limited = np.zeros(robot.n, bool)
+    if effort.size != robot.n:
+        effort = np.full(robot.n, np.inf)
     bad = []
     for j, name in enumerate(joint_names):
-        for column, lo, hi, what in ((f"q_{name}", lower[j], upper[j],
-                                      f"joint {name!r}'s limits and {POSITION_MARGIN:g} x its range beyond either end"),
-                                     (f"tau_{name}", -tau[j], tau[j], f"{TORQUE_MARGIN:g} x joint {name!r}'s effort limit")):
+        q_what = (f"joint {name!r}'s limits and {POSITION_MARGIN:g} x its range beyond either end" if limited[j]
+                  else f"joint {name!r} declares no limits: the range of a reading any motion gives")
+        tau_what = (f"{TORQUE_MARGIN:g} x joint {name!r}'s effort limit" if np.isfinite(effort[j]) and effort[j] > 0
+                    else f"joint {name!r} declares no effort limit: the bound of any drive's torque")
+        for column, lo, hi, what in ((f"q_{name}", lower[j], upper[j], q_what),
+                                     (f"tau_{name}", -tau[j], tau[j], tau_what)):
             v = col[column]
             out = np.flatnonzero((v < lo) | (v > hi))
             if len(out):
