@@ -638,10 +638,36 @@ def cmd_design(args):
     return 0
 
 
+def cmd_detect(args):
+    """`detect`: the momentum observer's external torque, alarms and collided link over a log
+    (codegen.evaluate.detect), thresholds set on a collision-free log (--calibrate) for
+    --false-alarms per hour; writes external_torque.csv, events.csv, detect.json and a figure to
+    --out. ``args``: the parsed namespace; returns 0."""
+    from .evaluate.detect import detect, write_detection
+    from .logs.recording import read_log
+    robot = _robot_of(args)
+    rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
+    clean = None
+    if args.calibrate:
+        clean, _ = read_log(args.calibrate, robot.joint_names, args.clock, robot=robot)
+    build = {} if args.torque_noise is None else {"torque_noise": args.torque_noise}
+    det = detect(robot, rec, clean=clean, false_alarms=args.false_alarms, **build)
+    paths = write_detection(det, Path(args.out or work_dir() / "detect"))
+    how = (f"set on {args.calibrate} for {args.false_alarms:g} false alarm(s) per hour" if clean is not None
+           else "the design's defaults (no collision-free log given)")
+    print(f"thresholds ({how}): " + ", ".join(f"{j} {a:.3g} + {b:.3g}|qd|" for j, a, b in
+                                            zip(robot.joint_names, det.th0, det.th1)))
+    print(f"{len(det.events)} event(s) in {det.t[-1] - det.t[0]:.1f} s" + "".join(
+        f"\n  {e['start']:.3f}-{e['end']:.3f} s  link {e['link']}" for e in det.events[:20]))
+    print(f"files in {paths['json'].parent.resolve()} ({', '.join(p.name for p in paths.values())})")
+    return 0
+
+
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
             "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
             "sanitize": cmd_sanitize, "embedded": cmd_embedded, "excite": cmd_excite, "identify": cmd_identify,
-            "describe": cmd_describe, "design": cmd_design}
+            "describe": cmd_describe, "design": cmd_design,
+            "detect": cmd_detect}
 
 
 # ------------------------------------------------------------------------------------ parser
@@ -808,6 +834,20 @@ def parser():
     de.add_argument("--torque-uncertainty", metavar="NM|FILE",
                     help="the model's torque error (N m, or identify's report.json; default: measured on the log)")
     de.add_argument("--json", metavar="FILE", help="also write the design to this file")
+    dt_ = sub.add_parser("detect", parents=[debug], help="external torque, collisions and the collided link "
+                         "over a log (the momentum observer)")
+    dt_.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    dt_.add_argument("--robot", help="catalog robot")
+    dt_.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
+    dt_.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    _clock_option(dt_)
+    dt_.add_argument("--calibrate", metavar="CLEAN.csv", help="a collision-free log of the arm: the thresholds "
+                     "are set on it (default: the design's, from the torque noise)")
+    dt_.add_argument("--false-alarms", type=float, default=1.0, metavar="PER_HOUR",
+                     help="false alarms per hour the calibrated thresholds allow (default 1)")
+    dt_.add_argument("--torque-noise", type=float, metavar="NM", help="torque sensor noise std (N m) for the "
+                     "default thresholds")
+    dt_.add_argument("--out", metavar="DIR", help="folder of the outputs (default build/detect)")
     from .logs import identify as idf
     for name, text in (("excite", "an excitation trajectory (CSV) to log for `identify`"),
                        ("identify", "inertial parameters and friction from a log of q and tau")):
