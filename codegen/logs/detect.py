@@ -2,7 +2,8 @@
 
 The momentum residual r_j of a contact-free log is noise and model error, its spread growing with
 the joint's speed. Per joint the scale is fitted as s_j(v) = a_j + b_j |v| (non-negative least
-squares of |r_j| on [1, |qd_hat_j|]); the normalised residual u = max_j |r_j| / s_j(qd_hat_j)
+squares of |r_j| on [1, |qd_hat_j|]; b_j = 0 for a joint the log does not move, the 95th percentile
+of |qd_hat_j| below V_MOVING: its speed term would be extrapolated from noise); the normalised residual u = max_j |r_j| / s_j(qd_hat_j)
 raises an alarm when it crosses a common level L, so the thresholds are
 
     th0_j = L a_j,   th1_j = L b_j        (alarm_j: |r_j| > th0_j + th1_j |qd_hat_j|)
@@ -28,6 +29,7 @@ import numpy as np
 FALSE_ALARMS = 1.0          # per hour of the log's time
 MERGE = 0.05                # s: alarms closer than this are one episode
 MIN_EPISODES = 30
+V_MOVING = 0.05             # rad/s
 QUANTILES = (0.999, 0.995, 0.99, 0.98, 0.95, 0.9, 0.8)
 
 __all__ = ["Thresholds", "calibrate", "episodes", "FALSE_ALARMS"]
@@ -37,8 +39,8 @@ __all__ = ["Thresholds", "calibrate", "episodes", "FALSE_ALARMS"]
 class Thresholds:
     """Thresholds fitted on a collision-free log (module docstring): th0 (n,) N m, th1 (n,)
     N m s/rad, the level L, the tail fit (u0, nu0 per hour, xi as fitted and as used, sigma),
-    the rate asked for, the log's duration (s), the tail's level and the largest u of the log
-    (L is the larger of the two)."""
+    the rate asked for, the log's duration (s), the largest u of the log and its episodes above L
+    (about the rate times the duration)."""
 
     th0: list
     th1: list
@@ -50,8 +52,8 @@ class Thresholds:
     sigma: float
     false_alarms_per_hour: float
     duration: float
-    level_tail: float
     u_max: float
+    episodes_above_level: int
     scale_a: list
     scale_b: list
 
@@ -77,8 +79,11 @@ def episodes(t, above, merge=MERGE):
 
 
 def _scale(r, v):
-    """(a, b) >= 0 of |r| ~ a + b |v| (non-negative least squares), a > 0."""
+    """(a, b) >= 0 of |r| ~ a + b |v| (non-negative least squares), a > 0; b = 0 when |v|'s 95th
+    percentile is below V_MOVING."""
     from scipy.optimize import nnls
+    if np.quantile(np.abs(v), 0.95) < V_MOVING:
+        return max(float(np.mean(np.abs(r))), 1e-12), 0.0
     A = np.column_stack([np.ones(len(r)), np.abs(v)])
     (a, b), _ = nnls(A, np.abs(r))
     if not a > 0:
@@ -139,9 +144,9 @@ def calibrate(t, r, qd_hat, false_alarms=FALSE_ALARMS, merge=MERGE):
     if xi_fit < 0:                               # the exponential tail's own fit: the mean excess
         sigma = float(np.mean(peaks - u0))
     L = u0 + (sigma * np.log(nu0 / false_alarms) if xi == 0 else sigma / xi * ((nu0 / false_alarms) ** xi - 1))
-    tail = float(L)
-    L = max(tail, float(u.max()))                # never below what the log itself reached
+    L = float(L)
     return Thresholds(th0=(L * a).tolist(), th1=(L * b).tolist(), level=L, u0=u0, nu0_per_hour=float(nu0),
                       xi_fit=xi_fit, xi=xi, sigma=float(sigma), false_alarms_per_hour=float(false_alarms),
-                      duration=float(t[-1] - t[0]), level_tail=tail, u_max=float(u.max()),
+                      duration=float(t[-1] - t[0]), u_max=float(u.max()),
+                      episodes_above_level=len(episodes(t, u > L, merge)),
                       scale_a=a.tolist(), scale_b=b.tolist())
