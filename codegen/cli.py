@@ -744,13 +744,36 @@ def cmd_simulate_log(args):
     print(f"its truth: {truth} (per row: the true sample time, q, qd and applied tau)")
     print(f"the plant: the URDF perturbed (masses and inertias, a payload, friction, torque offsets; seed "
           f"{args.seed}), a 2^20 counts/rev encoder logged to 1e-6 rad, torque noise ({args.torque})")
+
+
+def cmd_detect(args):
+    """`detect`: the momentum observer's external torque, alarms and collided link over a log
+    (codegen.evaluate.detect), thresholds set on a collision-free log (--calibrate) for
+    --false-alarms per hour; writes external_torque.csv, events.csv, detect.json and a figure to
+    --out. ``args``: the parsed namespace; returns 0."""
+    from .evaluate.detect import detect, write_detection
+    robot = _robot_of(args)
+    rec, clock = _read_args(args, args.log, robot.joint_names, robot)
+    clean = None
+    if args.calibrate:
+        clean, _ = _read_args(args, args.calibrate, robot.joint_names, robot)
+    build = {} if args.torque_noise is None else {"torque_noise": args.torque_noise}
+    det = detect(robot, rec, clean=clean, false_alarms=args.false_alarms, **build)
+    paths = write_detection(det, Path(args.out or work_dir() / "detect"))
+    how = (f"set on {args.calibrate} for {args.false_alarms:g} false alarm(s) per hour" if clean is not None
+           else "the design's defaults (no collision-free log given)")
+    print(f"thresholds ({how}): " + ", ".join(f"{j} {a:.3g} + {b:.3g}|qd|" for j, a, b in
+                                            zip(robot.joint_names, det.th0, det.th1)))
+    print(f"{len(det.events)} event(s) in {det.t[-1] - det.t[0]:.1f} s" + "".join(
+        f"\n  {e['start']:.3f}-{e['end']:.3f} s  link {e['link']}" for e in det.events[:20]))
+    print(f"files in {paths['json'].parent.resolve()} ({', '.join(p.name for p in paths.values())})")
     return 0
 
 
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
             "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
             "sanitize": cmd_sanitize, "embedded": cmd_embedded, "excite": cmd_excite, "identify": cmd_identify,
-            "describe": cmd_describe, "design": cmd_design}
+            "describe": cmd_describe, "design": cmd_design, "detect": cmd_detect}
 COMMANDS["simulate-log"] = cmd_simulate_log
 
 
@@ -931,6 +954,20 @@ def parser():
     de.add_argument("--torque-uncertainty", metavar="NM|FILE",
                     help="the model's torque error (N m, or identify's report.json; default: measured on the log)")
     de.add_argument("--json", metavar="FILE", help="also write the design to this file")
+    dt_ = sub.add_parser("detect", parents=[debug], help="external torque, collisions and the collided link "
+                         "over a log (the momentum observer)")
+    dt_.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    dt_.add_argument("--robot", help="catalog robot")
+    dt_.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
+    dt_.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    _clock_option(dt_)
+    dt_.add_argument("--calibrate", metavar="CLEAN.csv", help="a collision-free log of the arm: the thresholds "
+                     "are set on it (default: the design's, from the torque noise)")
+    dt_.add_argument("--false-alarms", type=float, default=1.0, metavar="PER_HOUR",
+                     help="false alarms per hour the calibrated thresholds allow (default 1)")
+    dt_.add_argument("--torque-noise", type=float, metavar="NM", help="torque sensor noise std (N m) for the "
+                     "default thresholds")
+    dt_.add_argument("--out", metavar="DIR", help="folder of the outputs (default build/detect)")
     from .logs import identify as idf
     for name, text in (("excite", "an excitation trajectory (CSV) to log for `identify`"),
                        ("identify", "inertial parameters and friction from a log of q and tau")):
