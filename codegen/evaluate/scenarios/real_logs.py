@@ -248,8 +248,11 @@ def truth(log):
         known = moving.copy()
     else:
         nominal = spec["tick"] or float(np.median(dt[moving]))
+        # the times between the judged intervals: each fit that is good to a tenth of a step (the
+        # tick's rounding for a fixed-tick arm), else the stamps' step in whole ticks or the nominal
+        _, usable, _, _, _ = true_intervals(log.q, log.dq, 0.3 * nominal, spec["tick"])
         fill = np.maximum(np.round(steps / nominal), 1) * nominal if spec["tick"] else np.full_like(steps, nominal)
-        dt = np.where(moving | repeat, dt, fill)
+        dt = np.where(usable | moving | repeat, dt, fill)
         known = moving
     t = log.t[0] + np.concatenate([[0.0], np.cumsum(dt)])
     kept = np.concatenate([[0], 1 + np.flatnonzero(dt > 0)])
