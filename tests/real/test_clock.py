@@ -9,7 +9,7 @@ import pytest
 
 from codegen.evaluate.scenarios import real_logs
 
-from .conftest import by_arm
+from real_params import by_arm
 
 pytestmark = pytest.mark.real
 PANDA = ("panda", "panda-first-half", "panda-second-half")

@@ -11,7 +11,7 @@ import pytest
 
 from codegen.evaluate.scenarios import real_judge
 
-from .conftest import by_arm
+from real_params import by_arm
 
 pytestmark = pytest.mark.real
 PAIRS = real_judge.PAIRS

@@ -163,7 +163,8 @@ class Bed:
         return r
 
     def build(self, arm):
-        """``build`` of the designed winner (``design``) at the log's step: the run, with "family"."""
+        """``build`` of the designed winner (``design``) of ``arm`` at its held-out log's step: the
+        run, with "family"."""
         d = self.design(arm)
         if not d["ok"]:
             return {"ok": False, "seconds": 0.0, "stderr": "design failed", "family": d.get("family")}
@@ -207,7 +208,7 @@ def _last_line(text):
 # ------------------------------------------------------------------------------ identification
 
 def physical(urdf, locked=None):
-    """[] when every moving body of the URDF (pinocchio's, locked joints reduced) has mass > 0 and
+    """[] when every moving body of the ``urdf`` file (pinocchio's, the ``locked`` joints reduced) has mass > 0 and
     an inertia about its centre of mass with principal moments > 0 and the triangle inequalities
     I_a <= I_b + I_c; else one line per body that breaks them."""
     from ...reference.robots.urdf import UrdfRobot
@@ -224,7 +225,8 @@ def physical(urdf, locked=None):
 
 def torque_residual(log, urdf, locked=None):
     """(n,) RMS of the 10 Hz low-passed torque residual of ``log`` against the model of ``urdf``
-    (its friction side file read), on the log's true sample clock (module docstring)."""
+    (its friction side file read; the ``locked`` joints held), on the log's true sample clock
+    (module docstring)."""
     import pinocchio as pin
 
     from ...logs.identify import lowpass
@@ -270,7 +272,8 @@ def derivatives_edge(cutoff):
 
 
 def judge_identification(bed, train, test):
-    """The identification of ``train`` held out on ``test``: JSON-ready {"ok" (identify ran), "error",
+    """The identification of log ``train`` held out on log ``test``, the commands run by the Bed
+    ``bed``: JSON-ready {"ok" (identify ran), "error",
     "loads", "physical" (lines of what breaks), "shipped", "identified" (per-joint residual, N m),
     "ratio" per joint, "mean_ratio", "seconds"}."""
     ident = bed.identify(train)
@@ -298,8 +301,8 @@ def judge_identification(bed, train, test):
 # ------------------------------------------------------------------------------ velocity
 
 def judge_velocity(bed, name):
-    """compare's best method on log ``name`` (the flow's compare) against the Kalman filter tuned
-    on the reference on the true clock: JSON-ready {"best", "best_rms", "kalman_rms", "ratio",
+    """compare's best method on log ``name`` (the flow's compare, run by the Bed ``bed``) against
+    the Kalman filter tuned on the reference on the true clock: JSON-ready {"best", "best_rms", "kalman_rms", "ratio",
     "signal_rms" (the robot's velocity signal), "rows", "reference"}."""
     from ...logs.recording import Recording
     from ...logs.reference import reference_of
