@@ -531,18 +531,43 @@ def _width(text):
     return w
 
 
+def _identify_remedy(e):
+    """The one line of an IdentificationError with its remedy (``e.remedy``) as flags."""
+    from models import names
+    r, text = e.remedy, str(e).split(". Record")[0]
+    ex = r.get("excite")
+    src = "" if not ex else (f"--robot {ex['robot']}" if ex["robot"] in names() else
+                             f"--urdf {ex['urdf']}" + "".join(f" --lock {k}={v:g}" for k, v in
+                                                              ex["locked_joints"].items()))
+    excite = f"python -m codegen excite {src} --out traj.csv"
+    if "lock" in r:
+        return (f"{text}. Record a log along an excitation trajectory ({excite}) and identify on it, or lock "
+                f"a joint that cannot move (--lock JOINT=VALUE)")
+    if "samples_factor" in r:
+        k, dur, rate = r["samples_factor"], r["duration_s"], r["rate"]
+        return (f"{text}. Record {k:.2g} x the samples of the same motion ({dur:.3g} s at this log's "
+                f"{rate:.3g} samples/s, or {dur / k:.3g} s at {r['rate_needed']:.3g} samples/s), or a log along "
+                f"an excitation trajectory if this one is not ({excite}), or accept the worst at "
+                f"{r['max_rel_std'] / 1.01:.2g} (--max-rel-std {r['max_rel_std']:.2g})")
+    return str(e)
+
+
 def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
     joint (codegen.logs.identify); writes the identified URDF, the friction side file and the
     report to --out. ``args``: the parsed namespace; returns 0."""
     from .logs.recording import read_log
-    from .logs.identify import identify
+    from .logs.identify import IdentificationError, identify
     robot = _robot_of(args)
     rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
     print(clock.describe())
-    ident = identify(rec, robot, cutoff=args.cutoff,
-                     test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
-                     max_rel_std=args.max_rel_std, v_stick=args.v_stick, progress=True)
+    try:
+        ident = identify(rec, robot, cutoff=args.cutoff,
+                         test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
+                         max_rel_std=args.max_rel_std, v_stick=args.v_stick, progress=True)
+    except IdentificationError as e:
+        e.cli_message = _identify_remedy(e)
+        raise
     paths = ident.write(Path(args.out or work_dir() / "identify"))
     print(ident.text, end="")
     lock = "".join(f" --lock {k}={v:g}" for k, v in (robot.source.get("locked_joints") or {}).items())

@@ -282,7 +282,12 @@ def test_refuses_a_log_where_a_joint_does_not_move(gripper, gripper_traj, grippe
     # the elbow's rows are left out (it sticks): its friction and what only its torque tells are
     # undetermined
     assert ": inf" in msg and "forearm." in msg.split(";")[0]
-    assert "python -m codegen excite --urdf" in msg and "--lock finger_left=0.01" in msg
+    # the remedy as data; the CLI renders it as flags
+    from codegen.cli import _identify_remedy
+    assert e.value.remedy["lock"] == ["elbow"] and e.value.remedy["excite"]["locked_joints"] == LOCK
+    assert "--" not in msg and "python -m" not in msg
+    cli = _identify_remedy(e.value)
+    assert "python -m codegen excite --urdf" in cli and "--lock finger_left=0.01" in cli
 
 
 @pytest.mark.slow
@@ -299,7 +304,8 @@ def test_a_refusal_counts_samples_not_seconds(gripper, gripper_case):
         sub = replace(rec, t=rec.t[::k], q=rec.q[::k], tau=rec.tau[::k])
         with pytest.raises(idf.IdentificationError) as e:
             idf.identify(sub, gripper, max_rel_std=1e-3, cutoff=2.0)
-        msg = str(e.value)
+        from codegen.cli import _identify_remedy
+        msg = _identify_remedy(e.value)
         m = re.search(r"Record ([\d.e+]+) x the samples of the same motion \(([\d.e+]+) s at this log's "
                       r"([\d.e+]+) samples/s, or ([\d.e+]+) s at ([\d.e+]+) samples/s\)", msg)
         assert m, msg
