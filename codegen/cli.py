@@ -534,22 +534,12 @@ def _width(text):
 def _identify_remedy(e):
     """The one line of an IdentificationError with its remedy (``e.remedy``) as flags."""
     from models import names
-    r, text = e.remedy, str(e).split(". Record")[0]
-    ex = r.get("excite")
-    src = "" if not ex else (f"--robot {ex['robot']}" if ex["robot"] in names() else
-                             f"--urdf {ex['urdf']}" + "".join(f" --lock {k}={v:g}" for k, v in
-                                                              ex["locked_joints"].items()))
-    excite = f"python -m codegen excite {src} --out traj.csv"
-    if "lock" in r:
-        return (f"{text}. Record a log along an excitation trajectory ({excite}) and identify on it, or lock "
-                f"a joint that cannot move (--lock JOINT=VALUE)")
-    if "samples_factor" in r:
-        k, dur, rate = r["samples_factor"], r["duration_s"], r["rate"]
-        return (f"{text}. Record {k:.2g} x the samples of the same motion ({dur:.3g} s at this log's "
-                f"{rate:.3g} samples/s, or {dur / k:.3g} s at {r['rate_needed']:.3g} samples/s), or a log along "
-                f"an excitation trajectory if this one is not ({excite}), or accept the worst at "
-                f"{r['max_rel_std'] / 1.01:.2g} (--max-rel-std {r['max_rel_std']:.2g})")
-    return str(e)
+    ex = e.remedy.get("excite")
+    if not ex:
+        return str(e)
+    src = (f"--robot {ex['robot']}" if ex["robot"] in names() else
+           f"--urdf {ex['urdf']}" + "".join(f" --lock {k}={v:g}" for k, v in ex["locked_joints"].items()))
+    return str(e).replace("(excitation())", f"(python -m codegen excite {src} --out traj.csv)")
 
 
 def cmd_identify(args):
@@ -564,7 +554,7 @@ def cmd_identify(args):
     try:
         ident = identify(rec, robot, cutoff=args.cutoff,
                          test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
-                         max_rel_std=args.max_rel_std, v_stick=args.v_stick, progress=True)
+                         v_stick=args.v_stick, progress=True)
     except IdentificationError as e:
         e.cli_message = _identify_remedy(e)
         raise
@@ -860,9 +850,6 @@ def parser():
                            help="w of tanh(qd/w) (rad/s), or auto (default): the width of "
                                 f"{', '.join(f'{w:g}' for w in idf.WIDTHS)} and the model's own that "
                                 "predicts the held-out tail best")
-            x.add_argument("--max-rel-std", type=float, default=idf.DEFAULT_MAX_REL_STD,
-                           help="refuse a log leaving a parameter combination's relative std above this "
-                                f"(default {idf.DEFAULT_MAX_REL_STD:g})")
             x.add_argument("--v-stick", type=float, default=idf.DEFAULT_V_STICK,
                            help="rad/s: a joint's samples slower than this are left out of the fit (it may "
                                 f"stick under dry friction; default {idf.DEFAULT_V_STICK:g}, 0 keeps every one)")

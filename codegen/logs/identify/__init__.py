@@ -14,7 +14,7 @@ report dict and text), ``result`` (:class:`Identification`, its URDF and files),
 (:func:`excitation`, :class:`Excitation`).
 """
 from .excitation import Excitation, _Design, excitation
-from .fit import (BAND_MARGIN, CHUNK, DEFAULT_MAX_REL_STD, DEFAULT_PRIOR, DEFAULT_TEST_FRACTION,
+from .fit import (BAND_MARGIN, CHUNK, DEFAULT_PRIOR, DEFAULT_TEST_FRACTION,
                   DEFAULT_V_STICK, FIT_RATE, FTOL, MAX_NFEV, WIDE, WIDTHS, IdentificationError,
                   identification_cutoff, identify, lowpass)
 from .parametrisation import (from_log_cholesky, inertial_to_urdf, log_cholesky, pseudo_inertia,
@@ -23,7 +23,7 @@ from .regressor import DEFAULT_COULOMB_WIDTH, FRICTION, INERTIAL, STRUCTURAL_TOL
 from .report import report_text
 from .result import Identification
 
-__all__ = ["BAND_MARGIN", "CHUNK", "DEFAULT_COULOMB_WIDTH", "DEFAULT_MAX_REL_STD", "DEFAULT_PRIOR",
+__all__ = ["BAND_MARGIN", "CHUNK", "DEFAULT_COULOMB_WIDTH", "DEFAULT_PRIOR",
            "DEFAULT_TEST_FRACTION", "DEFAULT_V_STICK", "FIT_RATE", "FRICTION", "FTOL", "INERTIAL",
            "MAX_NFEV", "STRUCTURAL_TOL", "WIDE", "WIDTHS", "Excitation", "Identification",
            "IdentificationError", "base_parameters", "excitation", "from_log_cholesky",

@@ -11,14 +11,22 @@
    out where its smoothed speed is at most ``v_stick``: stuck by dry friction, a joint holds any
    torque up to its Coulomb friction, which (1) cannot say. The covariance is
    sigma^2 (A^T A)^-1 with sigma the white noise of the unfiltered torque;
-3. base parameters and the log's own covariance of those combinations; a combination's relative
-   std is its std times the torque one unit of it makes on random states of the robot (in units
-   of each joint's RMS torque there or of its torque noise, whichever is larger). A log that
-   leaves one above ``max_rel_std`` is refused (:class:`IdentificationError`);
-4. a physically consistent estimate: each body's parameters as the URDF's fixed extras plus the
-   primary link's pseudo-inertia ``J = U U^T`` in log-Cholesky coordinates, friction
-   ``f_v, f_c >= 0``, by ``scipy.optimize.least_squares`` from the URDF's values, with a Gaussian
-   prior toward the URDF, rows weighted by the torque noise of each joint (from the residual);
+3. a physically consistent estimate, the URDF as the prior: each body's parameters as the
+   URDF's fixed extras plus the primary link's, in bounded log-Cholesky coordinates
+   (``parametrisation.from_bounded``: mass, centre of mass and second moments within the link's
+   ``LinkBounds`` by construction), friction ``f_v, f_c >= 0``, by
+   ``scipy.optimize.least_squares``, minimising
+
+       |W (A x - tau_f)|^2 + |(x - x_URDF) / (prior s_p)|^2,
+
+   W the torque noise of each joint (from the residual), s_p each parameter's scale (friction:
+   the joint's effort limit where larger): a Gaussian prior of relative std ``prior`` on the URDF's
+   values (as Gaz et al., RA-L 2019, keep the Panda's parameters near a feasible reference), the
+   URDF projected into the bounds first where it is not inside them. What the log determines is
+   identified; what it does not keeps the URDF's value. Only a log that does not move is refused;
+4. base parameters (the combinations any log can determine) with their posterior and prior std:
+   a combination whose posterior std is at most ``report.FIXED`` x its prior std was fixed by the
+   log, one at least ``report.KEPT`` x kept the URDF's value;
 5. the held-out residual before (URDF as shipped, no friction) and after.
 
 Why not an SDP: cvxpy is not a dependency, and the log-Cholesky form turns the same
@@ -33,9 +41,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..smoothing import derivatives
-from .parametrisation import _start_theta, from_log_cholesky
-from .regressor import _Arm, _std, _tri
-from .report import _refusal, _report
+from .parametrisation import from_bounded, project, to_bounded
+from .regressor import _Arm, _tri
+from .report import STILL, _report, _still
 from .result import Identification
 
 WIDTHS = (0.2, 0.1, 0.05, 0.02, 0.01)   # rad/s: the Coulomb widths coulomb_width="auto" chooses from
@@ -43,7 +51,6 @@ BAND_MARGIN = 4.0              # the cut-off over the motion's band (identificat
 DEFAULT_TEST_FRACTION = 0.2
 DEFAULT_PRIOR = 1.0             # relative std of the URDF's values (units of each parameter's scale)
 DEFAULT_V_STICK = 0.05         # rad/s: a joint slower than this (smoothed) sticks; its rows are left out
-DEFAULT_MAX_REL_STD = 0.05      # a base parameter's torque uncertainty / the joint's RMS torque
 WIDE = 4.0                      # the Coulomb column's velocity at WIDE x cutoff before the filter
 FTOL = 1e-6                     # relative cost decrease at which the consistent solve stops
 MAX_NFEV = 2000
@@ -52,9 +59,9 @@ CHUNK = 4096                    # samples per regressor block of a prediction
 
 
 class IdentificationError(ValueError):
-    """A log that does not determine the model. ``remedy``: what would work, as data
-    (parameter -> value: ``{"max_rel_std": x}``, ``{"samples_factor": k, ...}``, ``{"excite": True}``),
-    for the caller to render (the CLI as flags)."""
+    """A log that does not move. ``remedy``: what would work, as data (``{"excite": {"robot",
+    "urdf", "locked_joints"}}``: record an excitation trajectory of that robot), for the caller to
+    render (the CLI as flags)."""
 
     def __init__(self, message, remedy=None):
         super().__init__(message)
@@ -131,6 +138,16 @@ class _Fit:
         """RMS per joint of the measured (unfiltered) torque less the model's, training samples."""
         return np.maximum(self.residual(x[:, None], self.train, width)[0], 1e-9 * self.arm.torque_scale)
 
+    def long_run(self, x, width):
+        """The long-run std per joint (n,) of the filtered torque's residual on the training
+        samples, sqrt(var x kappa), kappa = 1 + 2 sum_k rho(k) its integrated autocorrelation
+        (Geyer's initial positive sequence): the std that white noise of the same information
+        would have. White torque noise of std sigma gives sigma (the filter passes the band of
+        the regressor with gain 1); a model error that is not white (a real arm's) counts as the
+        few independent samples it is, not as every row."""
+        r = self.tau_f[self.train] - self.predict(x[:, None], self.train, width)[..., 0]
+        return np.maximum(_long_run_std(r), 1e-9 * self.arm.torque_scale)
+
     def compress(self, rows, w):
         """(R, c): sum over all training samples of |diag(w) (A_fit x - tau_f)|^2 (a joint's rows
         where it sticks left out), from every D-th one weighted sqrt(D), = |R x~ - c|^2 + const."""
@@ -180,6 +197,22 @@ def _prepare(arm, t, q, tau, cutoff, tf, v_stick):
         {"t_split": t_split, "wide": wide, "decimation": D}
 
 
+def _long_run_std(r):
+    """sqrt(var x kappa) per column of ``r`` (N, n) (:meth:`_Fit.long_run`)."""
+    r = r - r.mean(axis=0)
+    N = len(r)
+    f = np.fft.rfft(r, n=2 * N, axis=0)
+    ac = np.fft.irfft(np.abs(f) ** 2, axis=0)[:N] / N
+    rho = ac / np.maximum(ac[:1], 1e-300)
+    pairs = rho[0:N - 1:2] + rho[1:N:2]                   # Gamma_m = rho(2m) + rho(2m + 1)
+    kappa = np.empty(r.shape[1])
+    for j in range(r.shape[1]):
+        stop = np.flatnonzero(pairs[:, j] <= 0)
+        m = stop[0] if len(stop) else len(pairs)
+        kappa[j] = max(2.0 * pairs[:m, j].sum() - 1.0, 1.0)
+    return np.sqrt(ac[0] * kappa)
+
+
 def _select_width(state, widths):
     """(index of the best of ``widths``, held-out RMS (k, n)): each width's unconstrained fit on
     the training samples, scored by sum over joints of (RMS / the smallest RMS any width leaves)^2."""
@@ -193,8 +226,8 @@ def _select_width(state, widths):
 
 
 def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTION,
-             coulomb_width="auto", prior=DEFAULT_PRIOR, max_rel_std=DEFAULT_MAX_REL_STD,
-             v_stick=DEFAULT_V_STICK, progress=False, out=None):
+             coulomb_width="auto", prior=DEFAULT_PRIOR, v_stick=DEFAULT_V_STICK, progress=False,
+             out=None):
     """Identify the inertial parameters and the friction (1) of a URDF robot from a log.
 
     Parameters
@@ -221,14 +254,10 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
         ``coulomb_width`` if it has one, else ``DEFAULT_COULOMB_WIDTH``.
     prior : float
         Relative std of the URDF's values as a prior (in units of each parameter's scale; of the
-        joint's effort limit for friction and offset).
+        joint's effort limit for friction and offset, where larger).
     v_stick : float
         rad/s: a joint's rows where its smoothed velocity is at most this are left out of the fit
         (a joint stuck by dry friction holds an unknown torque); 0 keeps every row.
-    max_rel_std : float
-        Refuse the log when a base parameter's relative std from the log (module docstring, 3:
-        the torque uncertainty it leaves on random states, in units of the joint's RMS torque)
-        exceeds this.
     progress : bool
         A tqdm bar on stderr over the solver iterations.
     out : path, optional
@@ -241,7 +270,8 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     Raises
     ------
     IdentificationError
-        The log does not excite some parameters (message: the joints, and the remedy).
+        The log does not move (no joint's RMS speed reaches STILL of its velocity limit);
+        ``remedy`` says what to record.
     """
     from scipy.optimize import least_squares
     arm = _Arm(robot, coulomb_width)
@@ -252,7 +282,7 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     tf = float(test_fraction)
     if not 0.0 < tf < 1.0:
         raise ValueError(f"test_fraction: expected a number in (0, 1), got {test_fraction!r}")
-    for name, v in (("prior", prior), ("max_rel_std", max_rel_std), ("cutoff", cutoff)):
+    for name, v in (("prior", prior), ("cutoff", cutoff)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise ValueError(f"{name}: expected a positive number, got {v!r}")
     if not (isinstance(v_stick, (int, float)) and math.isfinite(v_stick) and v_stick >= 0):
@@ -279,44 +309,38 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     # round 0: weights from the torque scales; its residual is the first noise estimate
     R0, c0 = state.compress(rows, 1.0 / arm.torque_scale)
     cond = float(np.linalg.cond(_tri(R0[:, arm.indep])))
-    sigma = state.noise(state.ols(R0, c0), width)
+    x0 = state.ols(R0, c0)
+    sigma = state.noise(x0, width)
 
-    # what the log determines: std of the base parameters from the log alone, scaled, as the
-    # torque uncertainty each leaves (arm.effect: against the torque or the noise, the larger)
-    R, c = state.compress(rows, 1.0 / sigma)
-    std_beta, _ = _std(R @ arm.rowspace, arm.T @ arm.rowspace)
-    effect = arm.effect(sigma)
-    rel = std_beta * effect[arm.indep]
-    poor = np.nonzero(~(rel <= max_rel_std))[0]
-    if len(poor):
-        message, remedy = _refusal(arm, poor, rel, max_rel_std, state.d, train)
-        raise IdentificationError(message, remedy)
+    # a log that does not move determines nothing: the only refusal
+    speed = np.sqrt(np.mean(state.d.qd[train] ** 2, axis=0))
+    if not np.any(speed >= STILL * arm.v_limit):
+        raise IdentificationError(*_still(arm, speed))
+    R, c = state.compress(rows, 1.0 / state.long_run(x0, width))
 
     # physically consistent estimate, in scaled units x~ = x / s: each primary link's scaled
-    # parameters in log-Cholesky coordinates, friction f / s with f_v, f_c >= 0
-    att = arm.attached / s[:10 * n]
-    lb = np.concatenate([np.full(10 * n, -np.inf), np.zeros(2 * n), np.full(n, -np.inf)])
-    x_prior = arm.x_urdf / s
+    # parameters in the bounded log-Cholesky coordinates (parametrisation.from_bounded: its mass,
+    # centre of mass and second moments within LinkBounds by construction), friction f / s with
+    # f_v, f_c >= 0; the prior: the URDF (projected into the bounds where it is not inside)
+    solve = _Consistent(arm)
+    x_prior = arm.x_prior / s
     wp = s / (prior * arm.prior_scale)    # 1 / the prior's std, scaled units
-    solve = _Consistent(att, n, p)
     z, rounds = None, []
     for rnd in range(2):                   # solve, re-estimate the noise, solve again
         # |R x~ - c|^2 + |wp (x~ - x~_prior)|^2 = |Rp x~ - cp|^2 + const: one square system,
         # Rp^T Rp = R^T R + diag(wp^2) (Cholesky), cp = Rp^-T (R^T c + wp^2 x~_prior). The same
-        # problem without the constraints is linear: its solution, each pseudo-inertia clipped
-        # into the cone and friction to >= 0, starts the solver; the solver's cost is the full one
+        # problem without the constraints is linear: its solution projected into the bounds, or
+        # the prior, whichever costs less, starts the solver; the solver's cost is the full one
         # less the unconstrained minimum, and it stops when a step lowers that by less than FTOL
         solve.Rp = np.linalg.cholesky(R.T @ R + np.diag(wp ** 2)).T
         solve.cp = np.linalg.solve(solve.Rp.T, R.T @ c + wp ** 2 * x_prior)
         x_lin = np.linalg.solve(solve.Rp, solve.cp)
         cost_lin = 0.5 * float(np.sum((R @ x_lin - c) ** 2) + np.sum((wp * (x_lin - x_prior)) ** 2))
-        if z is None:
-            z = np.concatenate([np.concatenate([_start_theta(x_lin[10 * i:10 * i + 10] - att[10 * i:10 * i + 10])
-                                                for i in range(n)]), x_lin[10 * n:]])
-            z[10 * n:12 * n] = np.maximum(z[10 * n:12 * n], 0.0)
+        starts = [solve.start(x_lin), solve.start(x_prior)] + ([z] if z is not None else [])
+        z = min(starts, key=lambda v: float(np.sum(solve.fun(v) ** 2)))
         bar.set_postfix_str(f"solve {rnd + 1}/2")
         solve.bar = bar
-        result = least_squares(solve.fun, z, jac=solve.jac, bounds=(lb, np.inf), method="trf", x_scale=1.0,
+        result = least_squares(solve.fun, z, jac=solve.jac, bounds=solve.limits(), method="trf", x_scale=1.0,
                                ftol=FTOL, xtol=1e-12, gtol=1e-12, max_nfev=MAX_NFEV)
         result.cost += cost_lin
         z = result.x
@@ -324,28 +348,27 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
                        "cost": float(result.cost), "cost_unconstrained": cost_lin})
         x = solve.assemble(z)[0] * s
         sigma = state.noise(x, width)
-        R, c = state.compress(rows, 1.0 / sigma)
+        R, c = state.compress(rows, 1.0 / state.long_run(x, width))
     bar.close()
 
-    # covariances at the final weights: every parameter (data + prior), from the log alone,
-    # and the base parameters
-    std_post = np.sqrt(np.diag(np.linalg.inv(R.T @ R + np.diag(wp ** 2)))) * s
-    alone = np.linalg.norm(arm.rowspace, axis=1) > 1 - 1e-8     # e_i in the row space
-    G = np.zeros((p, arm.rowspace.shape[1]))
-    G[alone] = arm.rowspace[alone]
-    std_data, _ = _std(R @ arm.rowspace, G)
-    std_data = np.where(alone, std_data * s, np.inf)
-    std_beta, _ = _std(R @ arm.rowspace, arm.T @ arm.rowspace)
+    # covariances at the final weights (linearised, bounds not active): every parameter and the
+    # base combinations, from log and prior, and the prior's alone; a combination's relative
+    # std: the torque uncertainty it leaves on random states of the robot (arm.effect)
+    cov = np.linalg.inv(R.T @ R + np.diag(wp ** 2))
+    std_post = np.sqrt(np.diag(cov)) * s
+    std_beta = np.sqrt(np.einsum("ij,jk,ik->i", arm.T, cov, arm.T))
+    prior_beta = np.sqrt((arm.T ** 2) @ (1.0 / wp ** 2))
+    effect = arm.effect(sigma)
     x_ols = state.ols(R, c)                # the unconstrained optimum, for comparison
 
     res = state.residual(np.column_stack([np.r_[arm.pi_urdf, np.zeros(3 * n)], x, x_ols]), test, width)
     residual = {"before": res[0], "after": res[1], "after_unconstrained": res[2], "train_after": sigma}
     fit = {"t": t, "train": train, "test": test, "t_split": log["t_split"], "cutoff": cutoff,
            "wide": log["wide"], "decimation": log["decimation"], "test_fraction": tf, "v_stick": v_stick,
-           "stuck": 1.0 - state.sliding[train].mean(axis=0)}
-    estimate = {"x": x, "sigma": sigma, "std_post": std_post, "std_data": std_data, "std_beta": std_beta,
+           "stuck": 1.0 - state.sliding[train].mean(axis=0), "speed": speed}
+    estimate = {"x": x, "sigma": sigma, "std_post": std_post, "std_beta": std_beta, "prior_beta": prior_beta,
                 "effect": effect, "residual": residual, "cond": cond, "rounds": rounds}
-    report = _report(arm, fit, estimate, {"prior": prior, "max_rel_std": max_rel_std})
+    report = _report(arm, fit, estimate, {"prior": prior})
     ident = Identification(arm, x, report)
     if out is not None:
         ident.write(out)
@@ -354,18 +377,42 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
 
 class _Consistent:
     """The consistent solve's residual |Rp x~(z) - cp| in the solver's variables z: each primary
-    link's log-Cholesky coordinates (10 per body) then the friction (3 n); ``att`` the bodies'
-    fixed extras (scaled)."""
+    link's bounded log-Cholesky coordinates (10 per body, ``from_bounded`` in its body's scaled
+    units) then the friction (3 n)."""
 
-    def __init__(self, att, n, p):
-        self.att, self.n, self.p = att, n, p
+    def __init__(self, arm):
+        self.arm, self.n, self.p = arm, arm.n, arm.p
+        self.att = arm.attached / arm.scale[:10 * arm.n]
+        self.rho = np.array([b.rho for b in arm.bounds_scaled])
         self.Rp = self.cp = self.bar = None
+
+    def limits(self):
+        """(lower, upper) of z: each link's theta_0 = log(m)/2 >= that of its least mass, its
+        centre of mass theta_7..9 within +-reach; f_v, f_c >= 0."""
+        n = self.n
+        lo, hi = np.full(13 * n, -np.inf), np.full(13 * n, np.inf)
+        for i, b in enumerate(self.arm.bounds_scaled):
+            lo[10 * i] = 0.5 * math.log(b.mass)
+            lo[10 * i + 7:10 * i + 10], hi[10 * i + 7:10 * i + 10] = -b.reach, b.reach
+        lo[10 * n:12 * n] = 0.0
+        return lo, hi
+
+    def start(self, x):
+        """z of scaled parameters ``x`` (p,), each link projected into its bounds and the friction
+        to >= 0."""
+        n = self.n
+        z = np.array(x, dtype=float)
+        for i, b in enumerate(self.arm.bounds_scaled):
+            pi, _ = project(x[10 * i:10 * i + 10] - self.att[10 * i:10 * i + 10], b)
+            z[10 * i:10 * i + 10] = to_bounded(pi, b.rho)
+        z[10 * n:12 * n] = np.maximum(z[10 * n:12 * n], 0.0)
+        return z
 
     def assemble(self, z):
         """(x~, d x~ / d z) of the solver's variables z."""
         n, p = self.n, self.p
         x, D = np.empty(p), np.zeros((p, p))
-        pi, dpi = from_log_cholesky(z[:10 * n].reshape(n, 10))
+        pi, dpi = from_bounded(z[:10 * n].reshape(n, 10), self.rho)
         x[:10 * n] = self.att + pi.ravel()
         for i in range(n):
             D[10 * i:10 * i + 10, 10 * i:10 * i + 10] = dpi[i]

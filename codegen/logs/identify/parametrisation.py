@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -164,10 +165,91 @@ def _link_inertial(link):
     return urdf_to_inertial(m, xyz, R @ Ic @ R.T)
 
 
-def _start_theta(pi):
-    """Log-Cholesky coordinates of scaled parameters ``pi`` (10,) clipped into the cone: the
-    pseudo-inertia's eigenvalues raised to at least 1e-6 (a point mass, a thin rod, a link without
-    <inertial>, an unconstrained estimate outside the cone)."""
-    lam, V = np.linalg.eigh(pseudo_inertia(pi))
-    return log_cholesky(_from_pseudo((V * np.maximum(lam, 1e-6)) @ V.T))
+# =============================================================================================
+# physical consistency with a margin
+# =============================================================================================
+MASS_FLOOR = 0.1                # a link's least mass: this x its URDF mass ...
+MASS_FLOOR_TOTAL = 1e-3         # ... or this x the robot's moving mass, whichever is larger
+COM_MARGIN = 0.1                # m: the centre of mass within the link's reach plus this
+RHO = 1e-3                      # m: every principal second moment about the CoM >= m RHO^2 ...
+RHO_LENGTH = 0.1                # ... RHO at most this x the body's length scale
+INSIDE = 1e-3                   # a projected point this far (relatively) inside the bounds
 
+
+@dataclass(frozen=True)
+class LinkBounds:
+    """The physical region of a link's <inertial>: mass >= ``mass`` (kg); each coordinate of the
+    centre of mass within +-``reach`` (m) of the joint frame's origin; every principal second
+    moment about the centre of mass, s_k = int x_k^2 dm, >= m ``rho``^2 (so the inertia about it
+    is positive definite with the triangle inequalities I_a + I_b - I_c = 2 s_c >= 2 m rho^2)."""
+    mass: float
+    reach: float
+    rho: float
+
+
+def _shift(rho):
+    """10 parameters of a unit mass's second moment rho^2 1 about its centre (I = 2 rho^2 1)."""
+    r = 2.0 * rho ** 2
+    return np.array([0.0, 0.0, 0.0, 0.0, r, 0.0, r, 0.0, 0.0, r])
+
+
+def from_bounded(theta, rho):
+    """(pi (..., 10), d pi / d theta (..., 10, 10)) of the log-Cholesky coordinates of
+    :func:`from_log_cholesky` with the second moment about the centre of mass raised by
+    m rho^2 1 (``rho`` (...,)): Sigma_c = m (D D^T + rho^2 1), inside :class:`LinkBounds`' margin
+    by construction (its mass and centre-of-mass bounds are bounds on theta_0 = log(m)/2 and
+    theta_7..9 = c)."""
+    pi, dpi = from_log_cholesky(theta)
+    extra = pi[..., :1] * np.stack([_shift(r) for r in np.ravel(rho)]).reshape(pi.shape)
+    dpi = dpi.copy()
+    dpi[..., :, 0] += 2.0 * extra                        # d m / d theta_0 = 2 m
+    return pi + extra, dpi
+
+
+def to_bounded(pi, rho):
+    """Coordinates theta of :func:`from_bounded` of parameters ``pi`` (10,) inside the margin of
+    ``rho`` (m, or in the body's scaled units)."""
+    return log_cholesky(np.asarray(pi, float) - pi[0] * _shift(rho))
+
+
+def project(pi, bounds):
+    """(pi', changes): the parameters ``pi`` (10,) of a link moved into its ``bounds``
+    (:class:`LinkBounds`, ``INSIDE`` within them): the mass raised to the least (the inertia about the centre of mass
+    scaled with it), each coordinate of the centre of mass clipped to the reach, the second moment
+    about it Sigma_c = tr(I_c)/2 1 - I_c with its eigenvalues raised to m rho^2 (the nearest such
+    matrix in the Frobenius norm); ``changes`` says what moved (empty: ``pi`` was inside)."""
+    pi = np.asarray(pi, dtype=float)
+    m0 = float(pi[0])
+    changes = []
+    if m0 > 0:
+        m, c, Ic = inertial_to_urdf(pi)
+    else:
+        m, c, Ic = m0, np.zeros(3), np.zeros((3, 3))
+    lo = bounds.mass * (1 + INSIDE)
+    if not m > lo:
+        changes.append(f"mass {m:.4g} kg raised to {lo:.4g}")
+        Ic = Ic * (lo / m) if m > 0 else Ic
+        m = lo
+    reach = bounds.reach * (1 - INSIDE)
+    if np.any(np.abs(c) > reach):
+        changes.append(f"centre of mass [{', '.join(f'{v:.4g}' for v in c)}] m clipped to +-{reach:.4g}")
+        c = np.clip(c, -reach, reach)
+    S = 0.5 * np.trace(Ic) * np.eye(3) - Ic
+    lam, V = np.linalg.eigh(0.5 * (S + S.T))
+    least = m * bounds.rho ** 2 * (1 + INSIDE)
+    if lam[0] < least:
+        changes.append(f"principal second moments [{', '.join(f'{v:.3g}' for v in lam)}] kg m^2 raised to "
+                       f">= {least:.3g} (inertia about the centre of mass positive definite within the "
+                       f"triangle inequalities)")
+        S = (V * np.maximum(lam, least)) @ V.T
+    Ic = np.trace(S) * np.eye(3) - S
+    return urdf_to_inertial(m, c, Ic), changes
+
+
+def inside(pi, bounds, slack=1e-9):
+    """Whether parameters ``pi`` (10,) satisfy ``bounds`` (:class:`LinkBounds`) to a relative
+    ``slack``."""
+    m, c, Ic = inertial_to_urdf(pi)
+    S = 0.5 * np.trace(Ic) * np.eye(3) - Ic
+    return bool(m >= bounds.mass * (1 - slack) and np.all(np.abs(c) <= bounds.reach * (1 + slack))
+                and np.linalg.eigvalsh(S)[0] >= m * bounds.rho ** 2 * (1 - 1e-6))

@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .parametrisation import _link_inertial
+from .parametrisation import (COM_MARGIN, MASS_FLOOR, MASS_FLOOR_TOTAL, RHO, RHO_LENGTH, LinkBounds,
+                              _link_inertial, project)
 
 DEFAULT_COULOMB_WIDTH = 0.05    # rad/s, for a robot model without coulomb_width (models' have one)
 INERTIAL = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
@@ -154,6 +155,7 @@ class _Arm:
             self.owner += list(range(n))
         self.owner = np.array(self.owner)
         self._scales()
+        self._bounds(joints, links)
 
     # ------------------------------------------------------------------ coordinates
     def pin_configurations(self, q):
@@ -201,6 +203,7 @@ class _Arm:
         tau_s (Coulomb, offset)."""
         n, model = self.n, self.model
         s = np.empty(self.p)
+        self.length = np.empty(n)
         for i in range(1, n + 1):
             Y = model.inertias[i]
             m = float(Y.mass)
@@ -209,6 +212,7 @@ class _Arm:
                     for k in range(1, model.njoints) if model.parents[k] == i]
             ell = max(ell)
             s[10 * (i - 1):10 * i] = [m] + [m * ell] * 3 + [m * ell ** 2] * 6
+            self.length[i - 1] = ell
         q, v, a = self.probe(seed=1)
         Y = self.regressor(q, v, a)
         tau = Y[:, :, :10 * n] @ self.pi_urdf
@@ -241,6 +245,39 @@ class _Arm:
         _, sv, Vt = np.linalg.svd(W, full_matrices=False)
         self.rowspace = Vt[:len(self.indep)].T              # (p, r): what a log can determine
         self.K_phys = s[self.indep][:, None] * self.K / s[self.dep][None, :]
+
+    def _bounds(self, joints, links):
+        """Each primary link's :class:`LinkBounds` (physical units, ``bounds``; in the scaled units
+        of its body, ``bounds_scaled``) and the prior: the URDF's <inertial> projected into them
+        (``prior_primary``; ``projected``: link -> what moved, for the links that were not).
+
+        Least mass: MASS_FLOOR x the URDF link's, or MASS_FLOOR_TOTAL x the robot's moving mass if
+        larger; reach: the farthest origin of the link's child joints (of any type) or its URDF
+        centre of mass, plus COM_MARGIN; rho: RHO, at most RHO_LENGTH x the body's length scale."""
+        n = self.n
+        total = float(sum(self.model.inertias[i].mass for i in range(1, n + 1)))
+        self.bounds, self.bounds_scaled, self.projected = [], [], {}
+        prior = []
+        for i, link in enumerate(self.links):
+            pi = self.primary_urdf[10 * i:10 * i + 10]
+            m = float(pi[0])
+            com = np.linalg.norm(pi[1:4] / m) if m > 0 else 0.0
+            reach = [np.linalg.norm([float(v) for v in (j.find("origin").get("xyz", "0 0 0")
+                                                          if j.find("origin") is not None else "0 0 0").split()])
+                     for j in joints.values() if j.find("parent").get("link") == link]
+            b = LinkBounds(mass=max(MASS_FLOOR * max(m, 0.0), MASS_FLOOR_TOTAL * total),
+                           reach=max([com, *reach]) + COM_MARGIN,
+                           rho=min(RHO, RHO_LENGTH * self.length[i]))
+            self.bounds.append(b)
+            m0, ell = self.scale[10 * i], self.length[i]
+            self.bounds_scaled.append(LinkBounds(b.mass / m0, b.reach / ell, b.rho / ell))
+            p, changes = project(pi, b)
+            if changes:
+                self.projected[link] = changes
+            prior.append(p if changes else pi)
+        self.prior_primary = np.concatenate(prior)
+        self.x_prior = self.x_urdf.copy()
+        self.x_prior[:10 * n] = self.attached + self.prior_primary
 
     def combination(self, k, terms=None):
         """Readable text of base parameter ``k`` in physical units, 'x_i + c x_j + ...' (the

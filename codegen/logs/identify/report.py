@@ -12,55 +12,38 @@ from .parametrisation import inertial_to_urdf, pseudo_inertia
 STILL = 0.01                    # a joint slower than this x its velocity limit (RMS) does not move
 
 
-def _refusal(arm, poor, std_beta, bound, d, train):
-    """(message, remedy) of a log that leaves base parameters ``poor`` undetermined: the joints
-    that do not move (RMS speed below STILL of the velocity limit), else those whose parameters
-    lead the undetermined combinations, with their motion; the remedy as data
-    (:class:`IdentificationError`)."""
-    speed = np.sqrt(np.mean(d.qd[train] ** 2, axis=0))
-    still = [j for j in range(arm.n) if speed[j] < STILL * arm.v_limit[j]]
-    joints = still or sorted({int(arm.owner[arm.indep[k]]) for k in poor})
-    motion = ", ".join(f"{arm.joint_names[j]} moves over {np.ptp(d.q[train, j]):.3g} rad at "
-                       f"{speed[j]:.3g} rad/s RMS" for j in joints)
-    worst = sorted(poor, key=lambda k: -std_beta[k])[:3]
-    which = "; ".join(f"{arm.combination(k, 3)}: {std_beta[k]:.3g}" for k in worst)
-    names_ = ", ".join(arm.joint_names[j] for j in joints)
-    what = (f"joint{'s' if len(joints) > 1 else ''} {names_} do{'es' if len(joints) == 1 else ''} not move"
-            if still else f"the motion of joint{'s' if len(joints) > 1 else ''} {names_} does not excite them enough")
-    excite = {"robot": arm.name, "urdf": str(arm.path), "locked_joints": dict(arm.locked)}
-    head = (f"recording: the log does not determine the model: {len(poor)} of {len(arm.indep)} identifiable "
-            f"parameter combinations have a relative std above {bound:g} ({which}"
-            f"{'; ...' if len(poor) > len(worst) else ''}); {what} ({motion}). ")
-    if still:
-        return (head + "Record a log along an excitation trajectory (excitation()) and identify on it, or "
-                "lock a joint that cannot move (locked_joints)"), {"excite": excite, "lock": [arm.joint_names[j]
-                                                                                         for j in still]}
-    # a std falls as 1/sqrt(samples): how many more samples of the same motion (a longer log, or
-    # the same one at a higher rate: a log at 200 Hz needs 5 x the duration of one at 1 kHz)
-    longer = float(np.max(std_beta[poor]) / bound) ** 2
-    duration = float(np.ptp(d.t[train]))
-    rate = float(np.count_nonzero(train)) / duration
-    worst_rel = float(np.max(std_beta[poor]))
-    remedy = {"samples_factor": longer, "duration_s": longer * duration, "rate": rate,
-              "rate_needed": longer * rate, "excite": excite, "max_rel_std": worst_rel * 1.01}
-    return (head + f"Record {longer:.2g} x the samples of the same motion ({longer * duration:.3g} s at this "
-            f"log's {rate:.3g} samples/s, or {duration:.3g} s at {longer * rate:.3g} samples/s), or a log "
-            f"along an excitation trajectory if this one is not (excitation()), or accept the worst at "
-            f"{worst_rel:.2g} (max_rel_std={worst_rel * 1.01:.2g})"), remedy
+FIXED = 0.3                     # posterior std / prior std of a combination at most this: the log fixed it
+KEPT = 0.9                      # at least this: it kept the URDF's value (the prior dominates)
+
+
+def _still(arm, speed):
+    """(message, remedy) of a log in which no joint moves (RMS speed ``speed`` (n,) rad/s below
+    STILL of its velocity limit): the remedy, as data, an excitation trajectory of the robot."""
+    motion = ", ".join(f"{j} {v:.3g} rad/s" for j, v in zip(arm.joint_names, speed))
+    return (f"recording: the log does not move (RMS speed {motion}; below {STILL:g} x each joint's velocity "
+            f"limit): it determines nothing of the model. Record a log along an excitation trajectory "
+            f"(excitation()) and identify on it"), {"excite": {"robot": arm.name, "urdf": str(arm.path),
+                                                               "locked_joints": dict(arm.locked)}}
+
+
+def _determined(post, prior):
+    """"log" (the log fixed it), "urdf" (it kept the URDF's value) or "both", of a combination's
+    posterior and prior std."""
+    r = post / prior
+    return "log" if r <= FIXED else "urdf" if r >= KEPT else "both"
 
 
 def _report(arm, fit, estimate, options):
     """The report dict of an identification: ``fit`` the log's split (t, train, test, t_split,
-    cutoff, wide, decimation, test_fraction, v_stick, stuck), ``estimate`` what was found (x,
-    sigma, std_post, std_data, std_beta, effect, residual, cond, rounds), ``options`` (prior,
-    max_rel_std)."""
+    cutoff, wide, decimation, test_fraction, v_stick, stuck, speed), ``estimate`` what was found
+    (x, sigma, std_post, std_beta and prior_beta in scaled units, effect, residual, cond, rounds),
+    ``options`` (prior)."""
     t, t_split, train, test = fit["t"], fit["t_split"], fit["train"], fit["test"]
     cutoff, wide, decimation, tf = fit["cutoff"], fit["wide"], fit["decimation"], fit["test_fraction"]
     v_stick, stuck = fit["v_stick"], fit["stuck"]
-    x, sigma, std_post, std_data, std_beta = (estimate[k] for k in ("x", "sigma", "std_post", "std_data",
-                                                                    "std_beta"))
+    x, sigma, std_post, std_beta, prior_beta = (estimate[k] for k in ("x", "sigma", "std_post", "std_beta",
+                                                                      "prior_beta"))
     effect, residual, cond, rounds = (estimate[k] for k in ("effect", "residual", "cond", "rounds"))
-    prior, max_rel_std = options["prior"], options["max_rel_std"]
     J = arm.joint_names
     per = lambda v: {j: float(a) for j, a in zip(J, v)}  # noqa: E731
     fv, fc, fo = arm.friction_value(x)
@@ -70,13 +53,17 @@ def _report(arm, fit, estimate, options):
         m, c, Ic = inertial_to_urdf(x[10 * i:10 * i + 10] - arm.attached[10 * i:10 * i + 10])
         m0, c0, _ = inertial_to_urdf(arm.primary_urdf[10 * i:10 * i + 10]) if arm.primary_urdf[10 * i] > 0 \
             else (0.0, np.zeros(3), None)
+        S = 0.5 * np.trace(Ic) * np.eye(3) - Ic
+        b = arm.bounds[i]
         bodies[link] = {"joint": J[i], "mass": m, "mass_urdf": m0, "com": c.tolist(), "com_urdf": c0.tolist(),
                         "inertia_com": Ic.tolist(),
+                        "principal_second_moments": np.linalg.eigvalsh(S).tolist(),
+                        "bounds": {"mass_min": b.mass, "com_reach": b.reach, "rho": b.rho},
                         "pseudo_inertia_min_eigenvalue": float(np.linalg.eigvalsh(
                             pseudo_inertia(x[10 * i:10 * i + 10]))[0])}
     beta = (arm.T @ (x / arm.scale)) * arm.scale[arm.indep]
-    with np.errstate(invalid="ignore"):
-        rel_data = np.where(np.isfinite(std_data), std_data / arm.scale * effect, np.inf)
+    beta_urdf = (arm.T @ (arm.x_prior / arm.scale)) * arm.scale[arm.indep]
+    unit = arm.scale[arm.indep]
     return {
         "robot": arm.name, "urdf": str(arm.path), "locked_joints": arm.locked, "joints": J,
         "model": "tau = Y(q, qd, qdd) pi + f_v qd + f_c tanh(qd / w) + f_o",
@@ -85,7 +72,7 @@ def _report(arm, fit, estimate, options):
                 "coulomb_column_cutoff_hz": float(wide), "fit_every": int(decimation),
                 "train_samples": int(train.sum()), "test_samples": int(test.sum()),
                 "test_from_s": float(t_split), "test_fraction": tf, "v_stick": float(v_stick),
-                "stuck_fraction": per(stuck)},
+                "stuck_fraction": per(stuck), "rms_speed": per(fit["speed"])},
         "coulomb_width": arm.width, "coulomb_width_source": arm.width_source,
         **({"coulomb_width_held_out_rms": arm.width_candidates} if arm.width_candidates else {}),
         "noise_std": per(sigma),
@@ -93,16 +80,25 @@ def _report(arm, fit, estimate, options):
         "condition_number": cond,
         "condition_number_definition": "base regressor on the training samples, columns in units of "
                                        "the parameter scales, rows in units of the joint torque scales",
-        "prior": prior, "max_rel_std": max_rel_std,
+        "prior": {"relative_std": options["prior"],
+                  "rule": "the URDF's values, each with a std of relative_std x its scale (friction: of the "
+                          "joint's effort limit where larger); links outside the physical bounds projected "
+                          "into them first",
+                  "projected": arm.projected},
+        "bounds_rule": "mass >= max(0.1 x the URDF link's, 1e-3 x the robot's moving mass); each coordinate "
+                       "of the centre of mass within +-(the farthest child joint or the URDF centre of mass "
+                       "+ 0.1 m) of the joint frame; every principal second moment about the centre of mass "
+                       ">= m rho^2, rho = min(1 mm, 0.1 x the body's length scale)",
         "solver": rounds,
         "base_parameters": [{"combination": arm.combination(k), "value": float(beta[k]),
-                             "std": float(std_beta[k] * arm.scale[arm.indep[k]]),
-                             "relative_std": float(std_beta[k] * effect[arm.indep[k]])}
+                             "urdf": float(beta_urdf[k]), "std": float(std_beta[k] * unit[k]),
+                             "prior_std": float(prior_beta[k] * unit[k]),
+                             "relative_std": float(std_beta[k] * effect[arm.indep[k]]),
+                             "determined_by": _determined(std_beta[k], prior_beta[k])}
                             for k in range(len(arm.indep))],
         "parameters": [{"name": arm.names[i], "joint": J[arm.owner[i]], "urdf": float(arm.x_urdf[i]),
-                        "value": float(x[i]), "std": float(std_post[i]), "std_data": float(std_data[i]),
-                        "scale": float(arm.scale[i]),
-                        "relative_std": float(rel_data[i]), "identifiable": bool(rel_data[i] <= max_rel_std)}
+                        "prior": float(arm.x_prior[i]), "value": float(x[i]), "std": float(std_post[i]),
+                        "scale": float(arm.scale[i])}
                        for i in range(arm.p)],
         "friction": {j: {"viscous": float(fv[k]), "viscous_std": float(sv[k]), "coulomb": float(fc[k]),
                          "coulomb_std": float(sc[k]), "offset": float(fo[k]), "offset_std": float(so[k])}
@@ -141,16 +137,25 @@ def report_text(report):
     for link, b in report["links"].items():
         lines.append(f"  {link:<24}mass {b['mass']:.4g} kg ({b['mass_urdf']:.4g}), com "
                      f"[{', '.join(f'{v:.4g}' for v in b['com'])}] m ([{', '.join(f'{v:.4g}' for v in b['com_urdf'])}])")
-    lines += ["", f"identifiable combinations (relative std: the torque uncertainty it leaves on random "
-                  f"states / the joint's RMS torque; refused above {report['max_rel_std']:g}):"]
-    for b in report["base_parameters"]:
-        lines.append(f"  {b['value']:>12.5g} +- {b['std']:<10.2g} ({b['relative_std']:.1e})  {b['combination']}")
-    lines += ["", "parameters (value, std from log and prior, std from the log alone, URDF):"]
+    pr = report["prior"]
+    if pr["projected"]:
+        lines += ["", "the URDF is not physical: its values projected into the physical bounds before they "
+                      "serve as the prior:"]
+        lines += [f"  {link}: {'; '.join(ch)}" for link, ch in pr["projected"].items()]
+    bp = report["base_parameters"]
+    count = {k: sum(b["determined_by"] == k for b in bp) for k in ("log", "both", "urdf")}
+    worst = max(bp, key=lambda b: b["relative_std"]) if bp else None
+    lines += ["", f"base combinations: {count['log']} of {len(bp)} fixed by the log (posterior std <= "
+                  f"{FIXED:g} x the prior's), {count['urdf']} kept the URDF's values (>= {KEPT:g} x), "
+                  f"{count['both']} from both" + (f"; the largest relative std {worst['relative_std']:.2g} "
+                                                  f"({worst['combination'][:60]})" if worst else ""),
+              f"  {'value':>12} {'+- std':<10} {'URDF':>12} {'prior std':>10} {'rel. std':>9}  by    combination"]
+    for b in bp:
+        lines.append(f"  {b['value']:>12.5g} +- {b['std']:<7.2g} {b['urdf']:>12.5g} {b['prior_std']:>10.2g} "
+                     f"{b['relative_std']:>9.1e}  {b['determined_by']:<5} {b['combination']}")
+    lines += ["", "parameters (value +- std from log and prior; URDF):"]
     for prm in report["parameters"]:
-        sd = prm["std_data"]
-        lines.append(f"  {prm['name']:<28}{prm['value']:>12.5g} +- {prm['std']:<10.2g}"
-                     f"{('log alone +- ' + format(sd, '.2g')) if math.isfinite(sd) else 'not alone':<22}"
-                     f"URDF {prm['urdf']:.5g}")
+        lines.append(f"  {prm['name']:<28}{prm['value']:>12.5g} +- {prm['std']:<10.2g}URDF {prm['urdf']:.5g}")
     if "files" in report:
         lines += ["", "files:"] + [f"  {v}" for v in report["files"].values()]
     return "\n".join(lines) + "\n"

@@ -6,6 +6,8 @@ import copy
 import io
 import json
 import os
+import shutil
+import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -25,8 +27,6 @@ class Identification:
         Parameters of (1): 10 per body (about the joint frame), then f_v, f_c, f_o.
     std : (13 n,) array
         Their standard deviation from data and prior (linearised weighted least squares).
-    std_data : (13 n,) array
-        From the log alone (inf: the log cannot determine the parameter on its own).
     report : dict
         Everything of ``text`` as JSON-able data.
     text : str
@@ -36,7 +36,6 @@ class Identification:
     def __init__(self, arm, x, report):
         self.arm, self.x, self.report = arm, x, report
         self.std = np.array([p["std"] for p in report["parameters"]])
-        self.std_data = np.array([p["std_data"] for p in report["parameters"]])
 
     @property
     def friction(self):
@@ -103,8 +102,9 @@ class Identification:
 
     def write(self, out):
         """Write ``out/<robot>_identified.urdf``, ``out/<robot>_identified.friction.json``,
-        ``out/report.json`` and ``out/report.txt`` (each through a temporary file; the URDF is
-        checked first: pinocchio parses it back to the identified bodies).
+        ``out/report.json`` and ``out/report.txt`` (staged in a temporary folder there; the URDF is
+        checked first: pinocchio parses it back to the identified bodies, and it loads as every
+        command loads a URDF).
 
         Parameters
         ----------
@@ -125,18 +125,37 @@ class Identification:
         texts = {"urdf": self.urdf(), "friction": json.dumps(self.friction_file(), indent=2) + "\n",
                  "report_json": json.dumps(_jsonable(report), indent=2) + "\n",
                  "report_txt": report_text(report)}
-        tmp = {k: p.with_name(f".{p.name}.tmp") for k, p in paths.items()}
+        stage = Path(tempfile.mkdtemp(prefix=".identify-", dir=out))
+        tmp = {k: stage / p.name for k, p in paths.items()}
         try:
             for k, p in tmp.items():
                 p.write_text(texts[k])
             self._check_urdf(tmp["urdf"])
+            self._check_loads(tmp["urdf"])
             for k, p in tmp.items():
                 os.replace(p, paths[k])
         finally:
-            for p in tmp.values():
-                p.unlink(missing_ok=True)
+            shutil.rmtree(stage, ignore_errors=True)
         self.report = report
         return paths
+
+    def _check_loads(self, path):
+        """The written URDF (with its side file beside it) loads as every command loads a URDF
+        (``models.load_robot(urdf=..., locked_joints=...)``, default snapping), to the identified
+        masses and friction."""
+        from models import load_robot
+        arm = self.arm
+        try:
+            robot = load_robot(urdf=path, locked_joints=arm.locked or None)
+        except Exception as e:
+            raise RuntimeError(f"{path}: the identified URDF does not load: {e}") from e
+        fv, fc, fo = arm.friction_value(self.x)
+        masses = [float(v) for v in robot.masses]
+        want = [float(self.x[10 * i]) for i in range(arm.n)]
+        if not (np.allclose(masses, want, rtol=1e-6) and np.allclose(robot.viscous, fv)
+                and np.allclose(robot.coulomb, fc) and np.allclose(robot.offset, fo)
+                and robot.coulomb_width == arm.width):
+            raise RuntimeError(f"{path}: the identified URDF loads to other masses or friction than identified")
 
     def _check_urdf(self, path):
         """The written URDF, reduced like the robot, gives the identified bodies and friction."""
