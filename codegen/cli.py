@@ -608,11 +608,22 @@ def _width(text):
     return w
 
 
+def _identify_remedy(e):
+    """The one line of an IdentificationError with its remedy (``e.remedy``) as flags."""
+    from models import names
+    ex = e.remedy.get("excite")
+    if not ex:
+        return str(e)
+    src = (f"--robot {ex['robot']}" if ex["robot"] in names() else
+           f"--urdf {ex['urdf']}" + "".join(f" --lock {k}={v:g}" for k, v in ex["locked_joints"].items()))
+    return str(e).replace("(excitation())", f"(python -m codegen excite {src} --out traj.csv)")
+
+
 def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
     joint (codegen.logs.identify); writes the identified URDF, the friction side file and the
     report to --out. ``args``: the parsed namespace; returns 0."""
-    from .logs.identify import identify
+    from .logs.identify import IdentificationError, identify
     robot = _robot_of(args)
     out = Path(args.out or work_dir() / "identify")
     check_writable(out, "or choose another --out", folder=True)     # before the work (identify writes the set)
@@ -621,9 +632,13 @@ def cmd_identify(args):
                     [args.log, args.urdf], "choose another --out")
     rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
-    ident = identify(rec, robot, cutoff=args.cutoff,
-                     test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
-                     max_rel_std=args.max_rel_std, v_stick=args.v_stick, progress=True)
+    try:
+        ident = identify(rec, robot, cutoff=args.cutoff,
+                         test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
+                         v_stick=args.v_stick, progress=True)
+    except IdentificationError as e:
+        e.cli_message = _identify_remedy(e)
+        raise
     paths = ident.write(out)
     print(ident.text, end="")
     lock = "".join(f" --lock {k}={v:g}" for k, v in (robot.source.get("locked_joints") or {}).items())
@@ -995,9 +1010,6 @@ def parser():
                            help="w of tanh(qd/w) (rad/s), or auto (default): the width of "
                                 f"{', '.join(f'{w:g}' for w in idf.WIDTHS)} and the model's own that "
                                 "predicts the held-out tail best")
-            x.add_argument("--max-rel-std", type=float, default=idf.DEFAULT_MAX_REL_STD,
-                           help="refuse a log leaving a parameter combination's relative std above this "
-                                f"(default {idf.DEFAULT_MAX_REL_STD:g})")
             x.add_argument("--v-stick", type=float, default=idf.DEFAULT_V_STICK,
                            help="rad/s: a joint's samples slower than this are left out of the fit (it may "
                                 f"stick under dry friction; default {idf.DEFAULT_V_STICK:g}, 0 keeps every one)")
