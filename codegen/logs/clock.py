@@ -268,7 +268,7 @@ def _rebuild(t, Q, qdm, mode, period, t_robot, N):
 
 
 def glitches(Q):
-    """(N,) bool: rows whose position jumps off their neighbours' and back, by more than ten times
+    """(N,) bool: rows of the positions ``Q`` (N, n) whose position jumps off their neighbours' and back, by more than ten times
     the log's own fastest step (the 99th percentile of |dq| a row, the largest over the joints: a
     still joint's is no scale) and twenty robust standard deviations: a bad sample no motion produces, dropped as one row (the rest of the log
     read as if it were not there). The neighbours' estimate is the median of the two rows on each

@@ -73,8 +73,8 @@ def lattice(h, s, step):
 
 def combine(h, s, step):
     """(intervals (M-1,), stamps' error S, corrected: (M-1,) bool, gross: (M-1,) bool): each
-    interval the precision-weighted mean of the step and the velocity's measurement (module
-    docstring)."""
+    interval the precision-weighted mean of the stamps' ``step`` and the velocity's measurement ``h``
+    (standard error ``s``; module docstring)."""
     step = np.asarray(step, float)
     ok = np.isfinite(h) & np.isfinite(s)
     P = ok & (s < PRECISE * step)
