@@ -145,29 +145,15 @@ def _targets(args):
     return targets
 
 
-SATURATED = 0.1      # a design with more of its samples at the velocity bound is refused (exit 2)
-
-
 def design_failure(entry, family):
-    """Why the design ``entry`` (codegen.evaluate.compare.design_on_log's Entry) of ``family`` on a
-    log is no design, or "": no candidate scored (the log too short for the scoring to start, or
-    none ran finite and stable), a run that stopped early (its estimate not finite), or more than
-    SATURATED of its samples with the velocity estimate at the model's bound."""
-    import numpy as np
-    tuned, n = entry.tuned, len(entry.est)
-    if tuned is not None and not math.isfinite(tuned.score):
-        return f"{family}: no design: {tuned.note or 'no candidate ran finite and stable'}"
-    bad = ~np.all(np.isfinite(entry.est), axis=1)
-    if bad.any():
-        why = entry.note.split("; ")[-1] if entry.note else "a non-finite estimate"
-        return (f"{family}: no design: its run on the log stopped at sample {int(np.argmax(bad))} of {n} "
-                f"({why})")
-    hits = int(entry.metrics.get("at_bound") or 0)
-    if hits > SATURATED * n:
-        return (f"{family}: no design: saturated, {hits} of {n} samples with the velocity estimate at the "
-                f"model's bound (more than {SATURATED:.0%}); raise the bound (--design v_max=...) or choose "
-                "another family")
-    return ""
+    """The one line refusing the design ``entry`` of ``family`` (codegen.evaluate.verdict), with
+    its remedy as a flag, or ""."""
+    from .evaluate.verdict import design_failure as failure
+    found = failure(entry, family)
+    if found is None:
+        return ""
+    why, remedy = found
+    return why + (f"; {remedy[1]} (--design {remedy[0]}=...) or choose another family" if remedy else "")
 
 
 def _check_out(path, option, inputs=()):
@@ -191,7 +177,7 @@ def tune_target(target, log):
     entry, _, _ = design_on_log(rec, robot, target.family, design=dict(target.build), clock=clock)
     failed = design_failure(entry, target.family)
     if failed:
-        raise ValueError(f"{target.prefix}: tune = {str(log)!r}: {failed}")
+        raise ValueError(failed)
     tuned = entry.tuned.params if entry.tuned is not None else {}
     print(f"{target.prefix}: tuned on {Path(log).name}: "
           + (", ".join(f"{k} = {v:.4g}" for k, v in tuned.items()) or "its designed gains (no bandwidth)")

@@ -187,6 +187,32 @@ def write_text(path, text, elsewhere):
     return path
 
 
+@contextmanager
+def held_signals(signums=None):
+    """SIGINT and SIGTERM (or ``signums``) held back for the with-block and delivered after it (a
+    Ctrl-C then interrupts after the block, never inside it). Only the main thread can hold them;
+    elsewhere the block runs as it is."""
+    import signal
+    import threading
+    signums = (signal.SIGINT, signal.SIGTERM) if signums is None else signums
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught, old = [], {}
+
+    def note(signum, frame):
+        caught.append(signum)
+    for s in signums:
+        old[s] = signal.signal(s, note)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        for s in dict.fromkeys(caught):
+            os.kill(os.getpid(), s)
+
+
 class OutputSet:
     """The files ``names`` a command writes into ``folder`` (created), as one set.
 
@@ -204,7 +230,9 @@ class OutputSet:
         self.folder, self.names, self.elsewhere, self.ours = Path(folder), list(names), elsewhere, ours
         check_writable(self.folder, elsewhere, folder=True)
         check_not_input([self.folder / n for n in self.names], inputs, elsewhere)
-        self._foreign()
+        if self.folder.is_dir():
+            with locked(self.folder):       # a set being placed meanwhile is seen whole
+                self._foreign()
 
     def _manifest(self):
         import json
@@ -232,7 +260,6 @@ class OutputSet:
         """A temporary folder to write the set's files into; moved into place on success."""
         import json
         import shutil
-        import signal
         made = not self.folder.exists()
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
@@ -241,9 +268,7 @@ class OutputSet:
             raise write_error(e, self.folder, self.elsewhere) from None
         try:
             yield tmp
-            held = {signal.SIGINT, signal.SIGTERM}
-            old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-            try:
+            with held_signals():
                 with locked(self.folder):
                     self._foreign()
                     files = {}
@@ -254,8 +279,6 @@ class OutputSet:
                             files[name] = [st.st_size, st.st_mtime_ns]
                     (tmp / MANIFEST).write_text(json.dumps({"files": files}, indent=1) + "\n")
                     os.replace(tmp / MANIFEST, self.folder / MANIFEST)
-            finally:
-                signal.pthread_sigmask(signal.SIG_SETMASK, old)
         except OSError as e:
             if isinstance(e, WriteError):
                 raise
