@@ -130,8 +130,9 @@ MANIFEST = ".codegen-outputs.json"     # what the last set written into a folder
 
 
 def check_writable(path, elsewhere, folder=False):
-    """WriteError (naming ``path`` and the fix) when ``path`` (a file, or a folder when ``folder``)
-    cannot be written: the folder it goes in, or its nearest existing parent, refuses a file.
+    """WriteError (naming ``path`` and the fix, then ``elsewhere``: how to write to another place)
+    when ``path`` (a file, or a folder when ``folder``) cannot be written: the folder it goes in,
+    or its nearest existing parent, refuses a file.
     Probed with an unnamed temporary file (nothing is left), so it holds for root and for
     read-only filesystems alike. Run before the work whose result goes there."""
     path = Path(path).absolute()
@@ -155,8 +156,9 @@ def check_writable(path, elsewhere, folder=False):
 
 
 def check_not_input(outputs, inputs, elsewhere):
-    """ValueError when an output path is one of the ``inputs`` (resolved: the same file through
-    another name or a link), before the run that would overwrite what it reads."""
+    """ValueError when a path of ``outputs`` is one of the ``inputs`` (resolved: the same file
+    through another name or a link), before the run that would overwrite what it reads; the
+    message ends with ``elsewhere`` (what to choose instead)."""
     seen = {}
     for p in inputs:
         if p is not None and Path(p).exists():
@@ -170,7 +172,8 @@ def check_not_input(outputs, inputs, elsewhere):
 
 def write_text(path, text, elsewhere):
     """``text`` into the file ``path`` through a temporary file in its folder, renamed into place
-    (a reader sees the old file or the new one); WriteError naming the path and the fix."""
+    (a reader sees the old file or the new one); WriteError naming the path and the fix, then
+    ``elsewhere``. Returns the path."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
