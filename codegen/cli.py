@@ -460,7 +460,7 @@ def cmd_compare(args):
     from .logs.recording import RecordingError
     stepping = {k: getattr(args, k) for k in ("method", "hold", "substeps") if getattr(args, k) is not None}
     outputs = OutputSet(args.out or work_dir() / "compare", COMPARE_OUTPUTS, ours=args.out is None,
-                        inputs=[args.source, args.torque_uncertainty], elsewhere="or choose another --out")
+                        inputs=[args.source, args.torque_uncertainty, args.urdf], elsewhere="or choose another --out")
     try:
         with stage_lines():              # a line per stage on stderr (the MuJoCo run), then a bar
             rec, robot, title, clock = _compare_source(args)

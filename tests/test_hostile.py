@@ -116,14 +116,15 @@ def test_an_unwritable_output_is_refused_before_the_work(tmp_path, argv):
 def _cli(*argv, **kw):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.Popen([sys.executable, "-m", "codegen", *map(str, argv)], env=env, cwd=ROOT,
-                            stderr=subprocess.PIPE, text=True, **kw)
+                            stderr=subprocess.PIPE, text=True, start_new_session=True,   # a terminal's Ctrl-C:
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL), **kw)  # even under &
 
 
 def test_ctrl_c_ends_with_one_line_and_status_130(tmp_path):
     log = hostile.clean(tmp_path)
     p = _cli("compare", log, "--robot", ROBOT, "--out", tmp_path / "c", stdout=subprocess.DEVNULL)
     time.sleep(6.0)                          # inside the work (imports, reading, tuning)
-    p.send_signal(signal.SIGINT)
+    os.killpg(p.pid, signal.SIGINT)          # the whole group, as a terminal sends it
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130 and "interrupted" in _one_line(err), err[-800:]
     assert not (tmp_path / "c").exists()
