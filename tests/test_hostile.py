@@ -241,3 +241,15 @@ def test_sigint_in_the_write_phase_leaves_the_old_set_or_the_new_one(tmp_path, m
                 (tmp / n).write_text("new\n")
     monkeypatch.setattr(os, "replace", real)
     assert {(folder / n).read_text() for n in names} == {"new\n"}
+
+
+# ------------------------------------------------------------------ cases that held: kept
+@pytest.mark.parametrize("make, words", hostile.HELD, ids=[m.__name__ for m, _ in hostile.HELD])
+def test_a_bad_row_is_refused_naming_its_row_and_column(tmp_path, make, words):
+    """Held before issue 42, kept: each reader refuses the log in one line naming what is wrong
+    and where (describe and compare read it the same way)."""
+    log = make(tmp_path)
+    for argv in (["describe", log, "--robot", ROBOT], ["compare", log, *COMPARE, "--out", tmp_path / "c"]):
+        status, out, err = _run(argv)
+        assert status == 2 and words in _one_line(err), err
+        assert not (tmp_path / "c").exists()
