@@ -448,6 +448,22 @@ def _compare_source(args):
     return rec, robot, f"{Path(args.source).name} ({robot.name})", clock
 
 
+def _rigid_check(families, robot, remedy="give --elastic (with --J, --K)"):
+    """ValueError before any work when an elastic-joint family of ``families`` meets the rigid
+    ``robot``: the ``remedy``, and the robots elastic by default."""
+    from models.catalog import ELASTIC
+
+    from .evaluate.compare import parse_observer
+    from .pipeline.targets_file import family_info
+    if hasattr(robot, "rigid"):
+        return
+    for f in families:
+        family = parse_observer(f)[0]
+        if family_info(family)[3]:
+            raise ValueError(f"family {family}: needs an elastic robot (joint stiffness K, motor inertias J); "
+                             f"{robot.name} is rigid: {remedy} (J, K by default on {', '.join(ELASTIC)})")
+
+
 COMPARE_OUTPUTS = ("errors.png", "joint0.png", "estimates.csv", "compare.json")
 
 
@@ -465,6 +481,7 @@ def cmd_compare(args):
         with stage_lines():              # a line per stage on stderr (the MuJoCo run), then a bar
             rec, robot, title, clock = _compare_source(args)
             families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
+            _rigid_check(families, robot)
             bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
             sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization,
                                                                                              args.noise)
@@ -629,14 +646,9 @@ def cmd_design(args):
     from .evaluate.compare import design_inputs, design_on_log
     from .evaluate.sim.blocks import stage_lines
     from .logs.recording import read_log
-    from .evaluate.compare import parse_observer
-    from .pipeline.targets_file import family_info
     robot = _robot_of(args)
-    if family_info(parse_observer(args.family)[0])[3]:
-        from models.catalog import ELASTIC
-        raise ValueError(f"family {args.family}: needs an elastic robot (joint stiffness K, motor inertias J), and "
-                         f"`design` tunes on a rigid one ({robot.name}); run it on a log with `compare LOG.csv "
-                         f"--robot R --elastic --observers {args.family}` (R elastic by default: {', '.join(ELASTIC)})")
+    _rigid_check([args.family], robot, remedy="`design` has no elastic robot; run it on the log with `compare "
+                 f"LOG.csv --robot R --elastic --observers {args.family}`")
     _check_out(args.json, "--json", inputs=[args.log])
     rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
     print(clock.describe())
