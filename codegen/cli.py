@@ -583,17 +583,16 @@ def cmd_identify(args):
     from .logs.recording import read_log
     from .logs.identify import identify
     robot = _robot_of(args)
-    out = Path(args.out or work_dir() / "identify")
-    check_writable(out, "or choose another --out", folder=True)     # before the work (identify writes the set)
-    check_not_input([out / n for n in (f"{robot.name}_identified.urdf", f"{robot.name}_identified.friction.json",
-                                       "report.json", "report.txt")],
-                    [args.log, args.urdf], "choose another --out")
+    names = (f"{robot.name}_identified.urdf", f"{robot.name}_identified.friction.json", "report.json", "report.txt")
+    outputs = OutputSet(args.out or work_dir() / "identify", names, inputs=[args.log, args.urdf],   # before the work
+                        elsewhere="or choose another --out", ours=args.out is None)
     rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
     print(clock.describe())
     ident = identify(rec, robot, cutoff=args.cutoff,
                      test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
                      max_rel_std=args.max_rel_std, v_stick=args.v_stick, progress=True)
-    paths = ident.write(out)
+    paths = ident.write(outputs.folder)      # its own writer (each file through a temporary one)
+    outputs.record()
     print(ident.text, end="")
     lock = "".join(f" --lock {k}={v:g}" for k, v in (robot.source.get("locked_joints") or {}).items())
     print(f"\nthe observers with this model, on a log of the robot: python -m codegen compare LOG.csv "

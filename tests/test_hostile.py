@@ -253,3 +253,14 @@ def test_a_bad_row_is_refused_naming_its_row_and_column(tmp_path, make, words):
         status, out, err = _run(argv)
         assert status == 2 and words in _one_line(err), err
         assert not (tmp_path / "c").exists()
+
+
+def test_identify_never_overwrites_a_users_report(tmp_path):
+    """identify's --out held a user's report.txt: replaced without a word. Refused before the work
+    (the log is not read); its own files of a previous run are listed in the folder's manifest."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "report.txt").write_text("mine\n")
+    status, stdout, err = _run(["identify", hostile.too_short(tmp_path), "--robot", "ur5", "--out", out])
+    assert status == 2 and "report.txt exists and was not written by this command" in _one_line(err)
+    assert stdout == "" and (out / "report.txt").read_text() == "mine\n"

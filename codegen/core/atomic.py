@@ -258,10 +258,35 @@ class OutputSet:
                                      f"{MANIFEST} does not list it): it is not replaced; move it, or "
                                      f"{self.elsewhere}")
 
+    def _record(self, tmp):
+        """Write the manifest of the set's files now in the folder (through ``tmp``, a folder beside it)."""
+        import json
+        files = {}
+        for name in self.names:
+            p = self.folder / name
+            if p.exists():
+                st = p.stat()
+                files[name] = [st.st_size, st.st_mtime_ns]
+        (Path(tmp) / MANIFEST).write_text(json.dumps({"files": files}, indent=1) + "\n")
+        os.replace(Path(tmp) / MANIFEST, self.folder / MANIFEST)
+
+    def record(self):
+        """List the set's files now in the folder as ours (a writer of its own placed them: the
+        next run may replace them); WriteError when the manifest cannot be written."""
+        try:
+            with locked(self.folder):
+                tmp = Path(tempfile.mkdtemp(prefix=".out.", dir=self.folder))
+                try:
+                    self._record(tmp)
+                finally:
+                    import shutil
+                    shutil.rmtree(tmp, ignore_errors=True)
+        except OSError as e:
+            raise write_error(e, self.folder / MANIFEST, self.elsewhere) from None
+
     @contextmanager
     def writing(self):
         """A temporary folder to write the set's files into; moved into place on success."""
-        import json
         import shutil
         made = not self.folder.exists()
         try:
@@ -274,14 +299,10 @@ class OutputSet:
             with held_signals():
                 with locked(self.folder):
                     self._foreign()
-                    files = {}
                     for name in self.names:
                         if (tmp / name).exists():
                             os.replace(tmp / name, self.folder / name)
-                            st = (self.folder / name).stat()
-                            files[name] = [st.st_size, st.st_mtime_ns]
-                    (tmp / MANIFEST).write_text(json.dumps({"files": files}, indent=1) + "\n")
-                    os.replace(tmp / MANIFEST, self.folder / MANIFEST)
+                    self._record(tmp)
         except OSError as e:
             if isinstance(e, WriteError):
                 raise
