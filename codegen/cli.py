@@ -121,6 +121,7 @@ def _targets(args):
                "design": _pairs(args.design, "--design", _value), "params": _pairs(args.param, "--param", _number),
                "lock": _pairs(args.lock, "--lock", _number), "elastic": args.elastic or None,
                "J": _numbers(args.J, "--J"), "K": _numbers(args.K, "--K")}
+    options["sources"] = _sources(args, options["params"], options["design"])
     options = {k: v for k, v in options.items() if v not in (None, {})}
     robots = [{"robot": r} for r in args.robots] + ([{"urdf": args.urdf}] if args.urdf else [])
     if robots and args.config:
@@ -143,6 +144,19 @@ def _targets(args):
         targets = [(t, Path(args.out).resolve()) for t, _ in targets]
     check_unique(targets)
     return targets
+
+
+def _sources(args, params, design):
+    """Where the command line's values came from (``Target.sources``): with ``--tuned-on LOG``
+    the --param values tuned on the log and the --design values measured on it, then each
+    ``--source NAME=TEXT``."""
+    out = {}
+    if getattr(args, "tuned_on", None):
+        log = Path(args.tuned_on).name
+        out.update({k: f"measured on the log {log}" for k in design})
+        out.update({k: f"tuned on the log {log}" for k in params})
+    out.update(_pairs(getattr(args, "source", None), "--source", lambda v, what: v))
+    return out
 
 
 SATURATED = 0.1      # a design with more of its samples at the velocity bound is refused (exit 2)
@@ -197,8 +211,11 @@ def tune_target(target, log, columns=None, topic=None):
           + (", ".join(f"{k} = {v:.4g}" for k, v in tuned.items()) or "its designed gains (no bandwidth)")
           + (f"; variant {entry.variant}" if entry.variant else ""), file=sys.stderr)
     build = {**(entry.build or {}), **target.build}
+    sources = {**{k: f"measured on the log {Path(log).name}" for k in build if k not in target.build},
+               **{k: f"tuned on the log {Path(log).name}" for k in tuned if k not in target.params},
+               **target.sources}
     return replace(target, build=build, variant=entry.variant if "torque_uncertainty" in build else target.variant,
-                   params={**tuned, **target.params})
+                   params={**tuned, **target.params}, sources=sources)
 
 
 def _override(target, disc):
@@ -533,10 +550,11 @@ def cmd_compare(args):
         paths.append(cmp.write_estimates(tmp / "estimates.csv", clock))
         (tmp / "compare.json").write_text(json.dumps(
             {"title": title, "t_ss": cmp.t_ss, "level": cmp.level, "recording": cmp.info.get("recording"),
-             "clock": None if clock is None else clock.to_dict(), "noise": cmp.info.get("noise"),
+             "clock": None if clock is None else clock.to_dict(), "noise": cmp.info.get("noise_data"),
              "tune": cmp.info.get("tune"), "validation": cmp.info.get("validation"),
              "reference": {"label": ref.label, "cutoff": ref.cutoff, "uncertainty": cmp.uncertainty},
-             "verdict": cmp.verdict(), "rows": cmp.rows()}, indent=2, default=float) + "\n")
+             "verdict": cmp.verdict(), "ranking": cmp.ranking(), "rows": cmp.rows()}, indent=2,
+            default=float) + "\n")
         paths.append(tmp / "compare.json")
     print(f"figures, estimates.csv and compare.json in {outputs.folder.resolve()} "
           f"({', '.join(p.name for p in paths)})")
@@ -592,6 +610,11 @@ def cmd_excite(args):
     print(f"{robot.name}: {traj.T:g} s, f0 = {traj.f0:g} Hz, {traj.a.shape[1]} harmonics, condition number "
           f"{traj.condition:.4g}; starts and ends at rest at q = [{', '.join(f'{v:.4g}' for v in q[0])}] "
           f"(move there first; check it for collisions)\nwrote {path}")
+    import shlex
+    src = (["--urdf", str(args.urdf), *[w for v in args.lock or () for w in ("--lock", v)]] if args.urdf
+           else ["--robot", str(args.robot)])
+    print("play it on the robot, log t, q_<joint>, tau_<joint>, then: "
+          + shlex.join(["python", "-m", "codegen", "identify", "LOG.csv", *src]))
     return 0
 
 
@@ -608,15 +631,18 @@ def _width(text):
     return w
 
 
-def _identify_remedy(e):
-    """The one line of an IdentificationError with its remedy (``e.remedy``) as flags."""
-    from models import names
+def _identify_remedy(e, args):
+    """The one line of an IdentificationError with its remedy (``e.remedy``) as flags: an
+    excitation trajectory of the robot as the command line named it (``--urdf`` the user's file
+    and its locks, or ``--robot`` a catalog name)."""
     ex = e.remedy.get("excite")
     if not ex:
         return str(e)
-    src = (f"--robot {ex['robot']}" if ex["robot"] in names() else
-           f"--urdf {ex['urdf']}" + "".join(f" --lock {k}={v:g}" for k, v in ex["locked_joints"].items()))
-    return str(e).replace("(excitation())", f"(python -m codegen excite {src} --out traj.csv)")
+    import shlex
+    src = (["--urdf", str(args.urdf), *[w for v in args.lock or () for w in ("--lock", v)]] if args.urdf
+           else ["--robot", str(args.robot)])
+    line = shlex.join(["python", "-m", "codegen", "excite", *src, "--out", "traj.csv"])
+    return str(e).replace("(excitation())", f"({line})")
 
 
 def cmd_identify(args):
@@ -637,13 +663,16 @@ def cmd_identify(args):
                          test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
                          v_stick=args.v_stick, progress=True)
     except IdentificationError as e:
-        e.cli_message = _identify_remedy(e)
+        e.cli_message = _identify_remedy(e, args)
         raise
     paths = ident.write(out)
-    print(ident.text, end="")
-    lock = "".join(f" --lock {k}={v:g}" for k, v in (robot.source.get("locked_joints") or {}).items())
-    print(f"\nthe observers with this model, on a log of the robot: python -m codegen compare LOG.csv "
-          f"--urdf {paths['urdf']}{lock} --torque-uncertainty {paths['report_json']}")
+    print(ident.summary, end="")
+    print(f"the full report (links, base combinations, every parameter): {paths['report_txt']}")
+    import shlex
+    lock = [w for k, v in (robot.source.get("locked_joints") or {}).items() for w in ("--lock", f"{k}={v:g}")]
+    print("\nthe observers with this model, on a log of the robot: " + shlex.join(
+        ["python", "-m", "codegen", "compare", "LOG.csv", "--urdf", str(paths["urdf"]), *lock,
+         "--torque-uncertainty", str(paths["report_json"])]))
     return 0
 
 
@@ -724,12 +753,7 @@ def cmd_design(args):
     print("parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in entry.params.items() if not k.startswith(("pole_", "cq", "ca"))))
     if entry.note:
         print(f"note: {entry.note}")
-    design_args = " ".join(f"--design {k}={json.dumps(v)}" for k, v in (entry.build or {}).items()
-                           if not (k == "uncertainty" and v == 0.0))
-    param_args = " ".join(f"--param {k}={v:.6g}" for k, v in (tuned.params if tuned else {}).items())
-    src = f"--urdf {args.urdf}" if args.urdf else args.robot
-    print(f"build it: python -m codegen build {src} --family {args.family.split(':')[0]} --dt {rec.dt:.4g} "
-          f"{design_args} {param_args}".rstrip())
+    print("build it: " + _build_line(args, entry, tuned, rec.dt))
     print(f'or in a targets file: tune = "{args.log}" (this design, redone when the target is built)')
     if args.json:
         write_text(args.json, json.dumps({
@@ -742,6 +766,25 @@ def cmd_design(args):
                    "or choose another --json")
         print(f"wrote {args.json}")
     return 0
+
+
+def _build_line(args, entry, tuned, dt):
+    """The `build` command (one line that pastes into a POSIX shell: every value shell-quoted, lists
+    without spaces) of the design ``entry`` of `design` ``args``: the robot, the family, the log's
+    dt, the build inputs (``--design``, measured on the log unless the user stated them:
+    ``--source NAME=TEXT``), the tuned gains (``--param``) and ``--tuned-on LOG``."""
+    import shlex
+    words = ["python", "-m", "codegen", "build", *([args.robot] if args.robot else ["--urdf", args.urdf])]
+    words += [w for v in args.lock or () for w in ("--lock", v)]
+    given = {"quantization": args.quantization, "noise": args.noise, "torque_uncertainty": args.torque_uncertainty}
+    build = {k: v for k, v in (entry.build or {}).items() if not (k == "uncertainty" and v == 0.0)}
+    words += ["--family", args.family.split(":")[0], "--dt", f"{dt:.6g}"]
+    words += [w for k, v in build.items() for w in ("--design", f"{k}={json.dumps(v, separators=(',', ':'))}")]
+    words += [w for k, v in (tuned.params if tuned else {}).items() for w in ("--param", f"{k}={v:.6g}")]
+    words += ["--tuned-on", str(args.log)]
+    words += [w for k in build if given.get(k) is not None
+              for w in ("--source", f"{k}=given by the user ({given[k]})")]
+    return shlex.join(words)
 
 
 def cmd_simulate_log(args):
@@ -848,6 +891,10 @@ def _target_options(p, out_help):
       "build (e.g. noise=1e-4, eta=1, eigenvalues=[-300,-400]); repeatable")
     a("--param", action="append", metavar="NAME=VALUE", help="runtime parameter overriding the designed "
       "default (e.g. k0=50); repeatable")
+    a("--tuned-on", metavar="LOG", help="the --param values were tuned on this log and the --design values "
+      "measured on it (the line `design` prints): the folder's design report and header say so")
+    a("--source", action="append", metavar="NAME=TEXT", help="where a --param or --design value came from "
+      "(the folder's design report and header say it; default: given by the user); repeatable")
     a("--dt", type=float, help="sample time in s (default 1e-3)")
     a("--dt-min", type=float, help="shortest elapsed time between samples the step is checked for, s "
       "(default dt/4)")
@@ -923,8 +970,8 @@ def parser():
                     f"(family:name=value:...); default {','.join(DEFAULT_FAMILIES)}")
     cp.add_argument("--baselines", help="comma-separated (default: all of codegen.evaluate.baselines)")
     cp.add_argument("--quantization", type=float,
-                    help="encoder step (rad); scenario: of its sensor (default 0); both this and --noise "
-                         "unset on a CSV: the design assumes a 2^16 counts/rev encoder")
+                    help="encoder step (rad); scenario: of its sensor (default 0); a log: default its "
+                         "resolution and noise measured on it (this and --noise state them instead)")
     cp.add_argument("--noise", type=float, help="Gaussian noise std (rad; scenario default 0)")
     cp.add_argument("--mismatch", type=float, default=0.0,
                     help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
@@ -983,6 +1030,8 @@ def parser():
     dt_.add_argument("--torque-noise", type=float, metavar="NM", help="torque sensor noise std (N m) for the "
                      "default thresholds")
     dt_.add_argument("--out", metavar="DIR", help="folder of the outputs (default build/detect)")
+    from models.catalog import urdf_names
+
     from .logs import identify as idf
     for name, text in (("excite", "an excitation trajectory (CSV) to log for `identify`"),
                        ("identify", "inertial parameters and friction from a log of q and tau")):
@@ -990,7 +1039,7 @@ def parser():
         if name == "identify":
             x.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder); jittered stamps allowed")
             _clock_option(x)
-        x.add_argument("--robot", help="catalog robot (ur5, panda)")
+        x.add_argument("--robot", help=f"catalog robot with a URDF ({', '.join(urdf_names())})")
         x.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
         x.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
         if name == "excite":
