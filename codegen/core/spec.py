@@ -23,7 +23,7 @@ class DesignReport(dict):
 
     FIRST = ("summary", "choice", "why")
     WIDTH = 12          # numbers of a longer list are elided after this many
-    STATED = ("parameters", "inputs")     # the sections of the built values' sources (source_lines)
+    STATED = ("parameters", "inputs", "sources")     # the sections of the built values' sources (source_lines)
 
     def why(self):
         """Why the designed defaults are what they are: the report's choice and reason, its
@@ -32,16 +32,31 @@ class DesignReport(dict):
                 ": ".join(str(self[k]) for k in ("choice", "why") if k in self) or
                 (str(self["summary"]).splitlines()[0] if "summary" in self else "the family's defaults"))
 
+    def assumption(self):
+        """What the design's predicted error takes for granted, as data, or None: a design that
+        predicts its error (``predicted_error``) from the robot's model without a model or torque
+        uncertainty stated assumes the model exact; ``{"assumes": "exact model", "text": one line,
+        "measure_on": "log"}`` (a log of the robot measures the error: codegen.evaluate.compare)."""
+        if "predicted_error" not in self or self.get("variant") == "kinematic":
+            return None
+        stated = [v for v in (self.get("uncertainty"), self.get("torque_uncertainty")) if v is not None]
+        if any(np.any(np.asarray(v, dtype=float) > 0) for v in stated):
+            return None
+        return {"assumes": "exact model", "measure_on": "log",
+                "text": "its predicted error assumes the robot's model exact (no model or torque uncertainty "
+                        "stated); on a real arm the error can be far larger"}
+
     def source_lines(self):
         """One line per value whose source the report states (codegen.pipeline.emit.with_params):
         ``name = value: source (designed D)`` per parameter, ``input name = value: source`` per
-        build argument."""
+        build argument, ``name: source`` per other value (the discretisation's)."""
         lines = []
         for k, r in (self.get("parameters") or {}).items():
             designed = "" if r["designed"] == r["value"] else f" (designed {_report_value(r['designed'])})"
             lines.append(f"{k} = {_report_value(r['value'])}: {r['source']}{designed}")
         for k, r in (self.get("inputs") or {}).items():
             lines.append(f"input {k} = {_report_value(r['value'])}: {r['source']}")
+        lines += [f"{k}: {text}" for k, text in (self.get("sources") or {}).items()]
         return lines
 
     def __str__(self):
@@ -49,6 +64,9 @@ class DesignReport(dict):
         for k in self.FIRST[1:]:
             if k in self:
                 lines.append(f"{k}: {self[k]}")
+        a = self.assumption()
+        if a:
+            lines.append(f"assumes: {a['text']}: measure it on a log of the robot (codegen.evaluate.compare)")
         stated = self.source_lines()
         if stated:
             lines += ["built with (the design's own values below are its defaults):"] + [f"  {t}" for t in stated]

@@ -635,9 +635,11 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
         other = [c for c in candidates if c[1] is not spec][0]
         notes.append(f"variant {spec.variant} (forward-validation error {math.sqrt(J):.3g} rad/s; "
                      f"{other[1].variant}: {math.sqrt(other[0]):.3g})")
-    if tuned is not None:
+    if tuned is not None and tuned.params:
         notes.append("tuned on the log: " + ", ".join(f"{k} = {v:.4g}" for k, v in tuned.params.items()))
         notes += _margin(obs, tuned)
+    elif tuned is not None:
+        notes.append(f"not tuned, its designed gains: {tuned.note or 'no candidate scored'}")
     est = full[:, slots]
     hits = saturated_samples(full, spec)        # samples with q̇̂ beyond the model's bound
     note = "; ".join(filter(None, notes + [hits and f"{hits} samples at the velocity bound"]))

@@ -408,8 +408,9 @@ def with_params(spec, params, sources=None, build=None):
 
     Its design report then states where each value came from: under "parameters" each
     overridden value, its designed default and its source, under "inputs" each build argument
-    of ``build`` (the Target's) and its source; ``sources`` (name -> text, ``Target.sources``)
-    names them, "given" where it has none. Applied twice, the first designed default is kept."""
+    of ``build`` (the Target's) and its source, under "sources" the other values' (the
+    discretisation's); ``sources`` (name -> text, ``Target.sources``) names them, GIVEN where it
+    has none. Applied twice, the first designed default is kept."""
     unknown = set(params) - set(spec.p_names)
     if unknown:
         raise ValueError(f"params: unknown parameter(s) {sorted(unknown)} of {spec.family}; "
@@ -427,6 +428,9 @@ def with_params(spec, params, sources=None, build=None):
         design["parameters"] = stated
     if build:
         design["inputs"] = {k: {"value": v, "source": sources.get(k) or GIVEN} for k, v in build.items()}
+    other = {k: v for k, v in sources.items() if k not in params and k not in (build or {})}
+    if other:                          # the discretisation's (dt, dt_min, dt_max: the header has the values)
+        design["sources"] = other
     return dataclasses.replace(spec, p_default=p, design=design)
 
 
@@ -499,6 +503,9 @@ def _sources_text(design):
     report = DesignReport(design)
     lines = report.source_lines()
     lines.append(f"{'the other parameters' if lines else 'Default parameters'}: {report.why()}")
+    a = report.assumption()
+    if a:
+        lines.append(f"Assumes: {a['text']}: measure it on a log of the robot (codegen.evaluate.compare).")
     return "\n * ".join(_comment(t) for t in ["Where the default parameters come from:", *lines])
 
 

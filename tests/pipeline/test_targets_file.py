@@ -84,7 +84,7 @@ out = "c/out"
     # tune_columns: tests/logs/test_mapping.py
     # sources name values of params or design only
     path.write_text('[[target]]\nrobot = "seed000_2r"\nsources = { k9 = "a log" }\n')
-    with pytest.raises(TargetError, match="sources: k9 is neither a parameter nor a design input"):
+    with pytest.raises(TargetError, match="sources: k9 is neither a parameter, a design input nor dt"):
         load_targets(path)
 
 
