@@ -298,11 +298,33 @@ def cmd_build(args):
 
     def line(job, row):
         report = "".join(f"\n  {text}" for text in row["design"].brief(row["params"], row.get("stability")))
+        report += _assumption(row["design"], job.target)
         return (f"{row['prefix']}: {row['lib']}  ({_times(row, COMPILE)}){report}\n"
                 f"  the full design report: print(codegen.load(\"{row['folder']}\").design)")
 
     rows, failed = _report(_jobs(args, COMPILE), args, line)
     return 2 if failed else 0
+
+
+def _assumption(design, target):
+    """The line under a design whose predicted error assumes the model exact
+    (``DesignReport.assumption``): what it assumes and the `compare` command that measures it on a
+    log of the target's robot; "" otherwise."""
+    import shlex
+    a = design.assumption()
+    if not a:
+        return ""
+    src = target.robot
+    if src.get("kind") == "catalog":
+        robot = ["--robot", str(src.get("name"))]
+    elif src.get("kind") == "urdf":
+        robot = ["--urdf", str(src.get("path"))] + [w for k, v in (src.get("locked_joints") or {}).items()
+                                                    for w in ("--lock", f"{k}={v:g}")]
+    else:
+        robot = ["--robot", "ROBOT"]
+    line = shlex.join(["python", "-m", "codegen", "compare", "LOG.csv", *robot, "--observers", target.family,
+                       "--build", "DIR"])
+    return f"\n  assumes: {a['text']}; measure it on a log of the robot: {line}"
 
 
 def cmd_check(args):
@@ -525,6 +547,11 @@ def cmd_compare(args):
     from .evaluate.sim.blocks import stage_lines
     from .logs.recording import RecordingError
     stepping = {k: getattr(args, k) for k in ("method", "hold", "substeps") if getattr(args, k) is not None}
+    if args.build and not _is_log(args.source):
+        raise ValueError(f"--build {args.build}: builds the winner on a log (a CSV or a ROS bag), got "
+                         f"{args.source or 'a MuJoCo run'}")
+    if args.build:
+        check_writable(Path(args.build), "or choose another --build", folder=True)
     outputs = OutputSet(args.out or work_dir() / "compare", COMPARE_OUTPUTS, ours=args.out is None,
                         inputs=[args.source, args.torque_uncertainty], elsewhere="or choose another --out")
     try:
@@ -558,7 +585,28 @@ def cmd_compare(args):
         paths.append(tmp / "compare.json")
     print(f"figures, estimates.csv and compare.json in {outputs.folder.resolve()} "
           f"({', '.join(p.name for p in paths)})")
+    if args.build:
+        _build_winner(args, cmp, robot, rec, stepping)
     return 0
+
+
+def _build_winner(args, cmp, robot, rec, stepping):
+    """`compare --build DIR`: the winner's C folder (codegen.evaluate.winner) made as `build` makes
+    it, its library, gains and their sources printed."""
+    from .evaluate.winner import winner_target
+    from .pipeline.stages import make
+    stated = {k: "given by the user" for k in ("quantization", "noise") if getattr(args, k) is not None}
+    if args.torque_uncertainty is not None:
+        stated["torque_uncertainty"] = f"given by the user ({args.torque_uncertainty})"
+    stated["uncertainty"] = ("given by the user" if args.mismatch else
+                             "the default: 0 (no relative model uncertainty stated)")
+    target, e = winner_target(cmp, robot, rec.t, rec.dt, Path(args.source).name, stated=stated,
+                              stepping=stepping)
+    made = make(target, Path(args.build), force=True)
+    meta = json.loads((made.folder / f"{made.target.prefix}.json").read_text())
+    print(f"built the winner, {e.name} (the lowest truth-free error estimate of the observers that did not fail: "
+          f"{e.metrics['validation_rms']:.3g} rad/s by forward validation): {made.folder}"
+          + "".join(f"\n  {line}" for line in made.spec.design.brief(made.spec.params, meta.get("stability"))))
 
 
 def cmd_sweep(args):
@@ -985,6 +1033,9 @@ def parser():
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     cp.add_argument("--out", metavar="DIR", help="folder of the figures and compare.json (default build/compare)")
+    cp.add_argument("--build", metavar="DIR", help="a log: also write the winner's C folder into DIR (the observer "
+                    "with the lowest truth-free error estimate, as `build` writes it: the gains tuned on the log, "
+                    "its dt range, each value's source in the header)")
     sw = sub.add_parser("sweep", parents=[debug], help="Monte-Carlo sweep of observers and baselines on Dask (resumable)")
     sw.add_argument("file", help="the sweep file (TOML; see codegen.evaluate.sweep.plan)")
     where = sw.add_mutually_exclusive_group()
