@@ -132,7 +132,7 @@ def _targets(args):
         targets = [make_target({**entry, **options, **disc}) for entry in robots]
     else:
         if options:
-            given = ", ".join("--" + k for k in options)
+            given = ", ".join("--tuned-on/--source" if k == "sources" else "--" + k for k in options)
             raise TargetError(f"{given}: describe a robot given on the command line; a targets file "
                               "(-c) holds its own")
         path = Path(args.config or TARGETS_FILE)
@@ -659,8 +659,7 @@ def cmd_excite(args):
           f"{traj.condition:.4g}; starts and ends at rest at q = [{', '.join(f'{v:.4g}' for v in q[0])}] "
           f"(move there first; check it for collisions)\nwrote {path}")
     import shlex
-    src = (["--urdf", str(args.urdf), *[w for v in args.lock or () for w in ("--lock", v)]] if args.urdf
-           else ["--robot", str(args.robot)])
+    src = _robot_words(args)
     print("play it on the robot, log t, q_<joint>, tau_<joint>, then: "
           + shlex.join(["python", "-m", "codegen", "identify", "LOG.csv", *src]))
     return 0
@@ -679,6 +678,13 @@ def _width(text):
     return w
 
 
+def _robot_words(args):
+    """The robot of ``args`` as command-line words: ``--urdf PATH [--lock J=V ...]`` or ``--robot NAME``."""
+    if args.urdf:
+        return ["--urdf", str(args.urdf), *[w for v in args.lock or () for w in ("--lock", v)]]
+    return ["--robot", str(args.robot)]
+
+
 def _identify_remedy(e, args):
     """The one line of an IdentificationError with its remedy (``e.remedy``) as flags: an
     excitation trajectory of the robot as the command line named it (``--urdf`` the user's file
@@ -687,8 +693,7 @@ def _identify_remedy(e, args):
     if not ex:
         return str(e)
     import shlex
-    src = (["--urdf", str(args.urdf), *[w for v in args.lock or () for w in ("--lock", v)]] if args.urdf
-           else ["--robot", str(args.robot)])
+    src = _robot_words(args)
     line = shlex.join(["python", "-m", "codegen", "excite", *src, "--out", "traj.csv"])
     return str(e).replace("(excitation())", f"({line})")
 
@@ -850,6 +855,7 @@ def cmd_simulate_log(args):
     print(f"its truth: {truth} (per row: the true sample time, q, qd and applied tau)")
     print(f"the plant: the URDF perturbed (masses and inertias, a payload, friction, torque offsets; seed "
           f"{args.seed}), a 2^20 counts/rev encoder logged to 1e-6 rad, torque noise ({args.torque})")
+    return 0
 
 
 def cmd_detect(args):

@@ -420,10 +420,10 @@ def with_params(spec, params, sources=None, build=None):
     stated = dict(design.get("parameters") or {})
     for k, v in params.items():
         i = spec.p_names.index(k)
-        before = stated.get(k) or {}
-        stated[k] = {"value": float(v), "designed": before.get("designed", float(spec.p_default[i])),
-                     "source": sources.get(k) or before.get("source") or GIVEN}
         p[i] = real_number(f"params[{k!r}]", v)
+        before = stated.get(k) or {}
+        stated[k] = {"value": float(p[i]), "designed": before.get("designed", float(spec.p_default[i])),
+                     "source": sources.get(k) or before.get("source") or GIVEN}
     if stated:
         design["parameters"] = stated
     if build:
