@@ -248,6 +248,10 @@ def test_build_prints_the_designed_gains_and_why(capsys, workdir):
     stated = observers.build("reduced_order", load_robot("seed000_2r"), uncertainty=0.1).design
     assert stated.assumption() is None and "assumes:" not in str(stated)
     assert observers.build("kalman_model", load_robot("seed000_2r")).design.assumption() is None  # no model
+    from codegen.core.spec import DesignReport
+    tuned = DesignReport({**report, "parameters": {"k0": {"value": 5.0, "designed": k0,
+                                                          "source": "tuned on the log log.csv"}}})
+    assert tuned.assumption() is None                     # its error was measured on the log
 
 
 def test_build_prints_the_stability_of_what_it_built(capsys, workdir):

@@ -16,6 +16,9 @@ from .options import DEFAULT_INPUTS, InputRanges, Options
 from .target import Target, default_name, discretization, sanitize  # noqa: F401  (sanitize re-exported)
 
 
+ON_A_LOG = "on the log"      # in a value's source (Target.sources): it was tuned or measured on a log
+
+
 class DesignReport(dict):
     """A family's design report: a plain dict (JSON-able; the metadata JSON records it), printed
     as text: the report's own ``summary`` when the design wrote one, its choice and why, the
@@ -36,9 +39,12 @@ class DesignReport(dict):
         """What the design's predicted error takes for granted, as data, or None: a design that
         predicts its error (``predicted_error``) from the robot's model without a model or torque
         uncertainty stated assumes the model exact; ``{"assumes": "exact model", "text": one line,
-        "measure_on": "log"}`` (a log of the robot measures the error: codegen.evaluate.compare)."""
+        "measure_on": "log"}`` (a log of the robot measures the error: codegen.evaluate.compare).
+        None too when its gains were tuned on a log (a parameter's source names ON_A_LOG)."""
         if "predicted_error" not in self or self.get("variant") == "kinematic":
             return None
+        if any(ON_A_LOG in str(r.get("source")) for r in (self.get("parameters") or {}).values()):
+            return None                 # its gains were scored on a log of the robot: measured there
         stated = [v for v in (self.get("uncertainty"), self.get("torque_uncertainty")) if v is not None]
         if any(np.any(np.asarray(v, dtype=float) > 0) for v in stated):
             return None
