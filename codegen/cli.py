@@ -121,6 +121,7 @@ def _targets(args):
                "design": _pairs(args.design, "--design", _value), "params": _pairs(args.param, "--param", _number),
                "lock": _pairs(args.lock, "--lock", _number), "elastic": args.elastic or None,
                "J": _numbers(args.J, "--J"), "K": _numbers(args.K, "--K")}
+    options["sources"] = _sources(args, options["params"], options["design"])
     options = {k: v for k, v in options.items() if v not in (None, {})}
     robots = [{"robot": r} for r in args.robots] + ([{"urdf": args.urdf}] if args.urdf else [])
     if robots and args.config:
@@ -131,7 +132,7 @@ def _targets(args):
         targets = [make_target({**entry, **options, **disc}) for entry in robots]
     else:
         if options:
-            given = ", ".join("--" + k for k in options)
+            given = ", ".join("--tuned-on/--source" if k == "sources" else "--" + k for k in options)
             raise TargetError(f"{given}: describe a robot given on the command line; a targets file "
                               "(-c) holds its own")
         path = Path(args.config or TARGETS_FILE)
@@ -143,6 +144,19 @@ def _targets(args):
         targets = [(t, Path(args.out).resolve()) for t, _ in targets]
     check_unique(targets)
     return targets
+
+
+def _sources(args, params, design):
+    """Where the command line's values came from (``Target.sources``): with ``--tuned-on LOG``
+    the --param values tuned on the log and the --design values measured on it, then each
+    ``--source NAME=TEXT``."""
+    out = {}
+    if getattr(args, "tuned_on", None):
+        log = Path(args.tuned_on).name
+        out.update({k: f"measured on the log {log}" for k in design})
+        out.update({k: f"tuned on the log {log}" for k in params})
+    out.update(_pairs(getattr(args, "source", None), "--source", lambda v, what: v))
+    return out
 
 
 def design_failure(entry, family):
@@ -183,8 +197,11 @@ def tune_target(target, log, columns=None, topic=None):
           + (", ".join(f"{k} = {v:.4g}" for k, v in tuned.items()) or "its designed gains (no bandwidth)")
           + (f"; variant {entry.variant}" if entry.variant else ""), file=sys.stderr)
     build = {**(entry.build or {}), **target.build}
+    sources = {**{k: f"measured on the log {Path(log).name}" for k in build if k not in target.build},
+               **{k: f"tuned on the log {Path(log).name}" for k in tuned if k not in target.params},
+               **target.sources}
     return replace(target, build=build, variant=entry.variant if "torque_uncertainty" in build else target.variant,
-                   params={**tuned, **target.params})
+                   params={**tuned, **target.params}, sources=sources)
 
 
 def _override(target, disc):
@@ -267,11 +284,33 @@ def cmd_build(args):
 
     def line(job, row):
         report = "".join(f"\n  {text}" for text in row["design"].brief(row["params"], row.get("stability")))
+        report += _assumption(row["design"], job.target)
         return (f"{row['prefix']}: {row['lib']}  ({_times(row, COMPILE)}){report}\n"
                 f"  the full design report: print(codegen.load(\"{row['folder']}\").design)")
 
     rows, failed = _report(_jobs(args, COMPILE), args, line)
     return 2 if failed else 0
+
+
+def _assumption(design, target):
+    """The line under a design whose predicted error assumes the model exact
+    (``DesignReport.assumption``): what it assumes and the `compare` command that measures it on a
+    log of the target's robot; "" otherwise."""
+    import shlex
+    a = design.assumption()
+    if not a:
+        return ""
+    src = target.robot
+    if src.get("kind") == "catalog":
+        robot = ["--robot", str(src.get("name"))]
+    elif src.get("kind") == "urdf":
+        robot = ["--urdf", str(src.get("path"))] + [w for k, v in (src.get("locked_joints") or {}).items()
+                                                    for w in ("--lock", f"{k}={v:g}")]
+    else:
+        robot = ["--robot", "ROBOT"]
+    line = shlex.join(["python", "-m", "codegen", "compare", "LOG.csv", *robot, "--observers", target.family,
+                       "--build", "DIR"])
+    return f"\n  assumes: {a['text']}; measure it on a log of the robot: {line}"
 
 
 def cmd_check(args):
@@ -510,6 +549,11 @@ def cmd_compare(args):
     from .evaluate.sim.blocks import stage_lines
     from .logs.recording import RecordingError
     stepping = {k: getattr(args, k) for k in ("method", "hold", "substeps") if getattr(args, k) is not None}
+    if args.build and not _is_log(args.source):
+        raise ValueError(f"--build {args.build}: builds the winner on a log (a CSV or a ROS bag), got "
+                         f"{args.source or 'a MuJoCo run'}")
+    if args.build:
+        check_writable(Path(args.build), "or choose another --build", folder=True)
     outputs = OutputSet(args.out or work_dir() / "compare", COMPARE_OUTPUTS, ours=args.out is None,
                         inputs=[args.source, args.torque_uncertainty, args.urdf], elsewhere="or choose another --out")
     try:
@@ -536,14 +580,36 @@ def cmd_compare(args):
         paths.append(cmp.write_estimates(tmp / "estimates.csv", clock))
         (tmp / "compare.json").write_text(json.dumps(
             {"title": title, "t_ss": cmp.t_ss, "level": cmp.level, "recording": cmp.info.get("recording"),
-             "clock": None if clock is None else clock.to_dict(), "noise": cmp.info.get("noise"),
+             "clock": None if clock is None else clock.to_dict(), "noise": cmp.info.get("noise_data"),
              "tune": cmp.info.get("tune"), "validation": cmp.info.get("validation"),
              "reference": {"label": ref.label, "cutoff": ref.cutoff, "uncertainty": cmp.uncertainty},
-             "verdict": cmp.verdict(), "rows": cmp.rows()}, indent=2, default=float) + "\n")
+             "verdict": cmp.verdict(), "ranking": cmp.ranking(), "rows": cmp.rows()}, indent=2,
+            default=float) + "\n")
         paths.append(tmp / "compare.json")
     print(f"figures, estimates.csv and compare.json in {outputs.folder.resolve()} "
           f"({', '.join(p.name for p in paths)})")
+    if args.build:
+        _build_winner(args, cmp, robot, rec, stepping)
     return 0
+
+
+def _build_winner(args, cmp, robot, rec, stepping):
+    """`compare --build DIR`: the winner's C folder (codegen.evaluate.winner) made as `build` makes
+    it, its library, gains and their sources printed."""
+    from .evaluate.winner import winner_target
+    from .pipeline.stages import make
+    stated = {k: "given by the user" for k in ("quantization", "noise") if getattr(args, k) is not None}
+    if args.torque_uncertainty is not None:
+        stated["torque_uncertainty"] = f"given by the user ({args.torque_uncertainty})"
+    stated["uncertainty"] = ("given by the user" if args.mismatch else
+                             "the default: 0 (no relative model uncertainty stated)")
+    target, e = winner_target(cmp, robot, rec.t, rec.dt, Path(args.source).name, stated=stated,
+                              stepping=stepping)
+    made = make(target, Path(args.build), force=True)
+    meta = json.loads((made.folder / f"{made.target.prefix}.json").read_text())
+    print(f"built the winner, {e.name} (the lowest truth-free error estimate of the observers that did not fail: "
+          f"{e.metrics['validation_rms']:.3g} rad/s by forward validation): {made.folder}"
+          + "".join(f"\n  {line}" for line in made.spec.design.brief(made.spec.params, meta.get("stability"))))
 
 
 def cmd_sweep(args):
@@ -595,6 +661,10 @@ def cmd_excite(args):
     print(f"{robot.name}: {traj.T:g} s, f0 = {traj.f0:g} Hz, {traj.a.shape[1]} harmonics, condition number "
           f"{traj.condition:.4g}; starts and ends at rest at q = [{', '.join(f'{v:.4g}' for v in q[0])}] "
           f"(move there first; check it for collisions)\nwrote {path}")
+    import shlex
+    src = _robot_words(args)
+    print("play it on the robot, log t, q_<joint>, tau_<joint>, then: "
+          + shlex.join(["python", "-m", "codegen", "identify", "LOG.csv", *src]))
     return 0
 
 
@@ -611,15 +681,24 @@ def _width(text):
     return w
 
 
-def _identify_remedy(e):
-    """The one line of an IdentificationError with its remedy (``e.remedy``) as flags."""
-    from models import names
+def _robot_words(args):
+    """The robot of ``args`` as command-line words: ``--urdf PATH [--lock J=V ...]`` or ``--robot NAME``."""
+    if args.urdf:
+        return ["--urdf", str(args.urdf), *[w for v in args.lock or () for w in ("--lock", v)]]
+    return ["--robot", str(args.robot)]
+
+
+def _identify_remedy(e, args):
+    """The one line of an IdentificationError with its remedy (``e.remedy``) as flags: an
+    excitation trajectory of the robot as the command line named it (``--urdf`` the user's file
+    and its locks, or ``--robot`` a catalog name)."""
     ex = e.remedy.get("excite")
     if not ex:
         return str(e)
-    src = (f"--robot {ex['robot']}" if ex["robot"] in names() else
-           f"--urdf {ex['urdf']}" + "".join(f" --lock {k}={v:g}" for k, v in ex["locked_joints"].items()))
-    return str(e).replace("(excitation())", f"(python -m codegen excite {src} --out traj.csv)")
+    import shlex
+    src = _robot_words(args)
+    line = shlex.join(["python", "-m", "codegen", "excite", *src, "--out", "traj.csv"])
+    return str(e).replace("(excitation())", f"({line})")
 
 
 def cmd_identify(args):
@@ -638,14 +717,17 @@ def cmd_identify(args):
                          test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
                          v_stick=args.v_stick, progress=True)
     except IdentificationError as e:
-        e.cli_message = _identify_remedy(e)
+        e.cli_message = _identify_remedy(e, args)
         raise
     paths = ident.write(outputs.folder)      # its own writer (each file through a temporary one)
     outputs.record()
-    print(ident.text, end="")
-    lock = "".join(f" --lock {k}={v:g}" for k, v in (robot.source.get("locked_joints") or {}).items())
-    print(f"\nthe observers with this model, on a log of the robot: python -m codegen compare LOG.csv "
-          f"--urdf {paths['urdf']}{lock} --torque-uncertainty {paths['report_json']}")
+    print(ident.summary, end="")
+    print(f"the full report (links, base combinations, every parameter): {paths['report_txt']}")
+    import shlex
+    lock = [w for k, v in (robot.source.get("locked_joints") or {}).items() for w in ("--lock", f"{k}={v:g}")]
+    print("\nthe observers with this model, on a log of the robot: " + shlex.join(
+        ["python", "-m", "codegen", "compare", "LOG.csv", "--urdf", str(paths["urdf"]), *lock,
+         "--torque-uncertainty", str(paths["report_json"])]))
     return 0
 
 
@@ -721,12 +803,7 @@ def cmd_design(args):
     print("parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in entry.params.items() if not k.startswith(("pole_", "cq", "ca"))))
     if entry.note:
         print(f"note: {entry.note}")
-    design_args = " ".join(f"--design {k}={json.dumps(v)}" for k, v in (entry.build or {}).items()
-                           if not (k == "uncertainty" and v == 0.0))
-    param_args = " ".join(f"--param {k}={v:.6g}" for k, v in (tuned.params if tuned else {}).items())
-    src = f"--urdf {args.urdf}" if args.urdf else args.robot
-    print(f"build it: python -m codegen build {src} --family {args.family.split(':')[0]} --dt {rec.dt:.4g} "
-          f"{design_args} {param_args}".rstrip())
+    print("build it: " + _build_line(args, entry, tuned, rec.dt))
     print(f'or in a targets file: tune = "{args.log}" (this design, redone when the target is built)')
     if args.json:
         write_text(args.json, json.dumps({
@@ -739,6 +816,25 @@ def cmd_design(args):
                    "or choose another --json")
         print(f"wrote {args.json}")
     return 0
+
+
+def _build_line(args, entry, tuned, dt):
+    """The `build` command (one line that pastes into a POSIX shell: every value shell-quoted, lists
+    without spaces) of the design ``entry`` of `design` ``args``: the robot, the family, the log's
+    dt, the build inputs (``--design``, measured on the log unless the user stated them:
+    ``--source NAME=TEXT``), the tuned gains (``--param``) and ``--tuned-on LOG``."""
+    import shlex
+    words = ["python", "-m", "codegen", "build", *([args.robot] if args.robot else ["--urdf", args.urdf])]
+    words += [w for v in args.lock or () for w in ("--lock", v)]
+    given = {"quantization": args.quantization, "noise": args.noise, "torque_uncertainty": args.torque_uncertainty}
+    build = {k: v for k, v in (entry.build or {}).items() if not (k == "uncertainty" and v == 0.0)}
+    words += ["--family", args.family.split(":")[0], "--dt", f"{dt:.6g}"]
+    words += [w for k, v in build.items() for w in ("--design", f"{k}={json.dumps(v, separators=(',', ':'))}")]
+    words += [w for k, v in (tuned.params if tuned else {}).items() for w in ("--param", f"{k}={v:.6g}")]
+    words += ["--tuned-on", str(args.log)]
+    words += [w for k in build if given.get(k) is not None
+              for w in ("--source", f"{k}=given by the user ({given[k]})")]
+    return shlex.join(words)
 
 
 def cmd_simulate_log(args):
@@ -756,6 +852,7 @@ def cmd_simulate_log(args):
     print(f"its truth: {truth} (per row: the true sample time, q, qd and applied tau)")
     print(f"the plant: the URDF perturbed (masses and inertias, a payload, friction, torque offsets; seed "
           f"{args.seed}), a 2^20 counts/rev encoder logged to 1e-6 rad, torque noise ({args.torque})")
+    return 0
 
 
 def cmd_detect(args):
@@ -845,6 +942,10 @@ def _target_options(p, out_help):
       "build (e.g. noise=1e-4, eta=1, eigenvalues=[-300,-400]); repeatable")
     a("--param", action="append", metavar="NAME=VALUE", help="runtime parameter overriding the designed "
       "default (e.g. k0=50); repeatable")
+    a("--tuned-on", metavar="LOG", help="the --param values were tuned on this log and the --design values "
+      "measured on it (the line `design` prints): the folder's design report and header say so")
+    a("--source", action="append", metavar="NAME=TEXT", help="where a --param or --design value came from "
+      "(the folder's design report and header say it; default: given by the user); repeatable")
     a("--dt", type=float, help="sample time in s (default 1e-3)")
     a("--dt-min", type=float, help="shortest elapsed time between samples the step is checked for, s "
       "(default dt/4)")
@@ -920,8 +1021,8 @@ def parser():
                     f"(family:name=value:...); default {','.join(DEFAULT_FAMILIES)}")
     cp.add_argument("--baselines", help="comma-separated (default: all of codegen.evaluate.baselines)")
     cp.add_argument("--quantization", type=float,
-                    help="encoder step (rad); scenario: of its sensor (default 0); both this and --noise "
-                         "unset on a CSV: the design assumes a 2^16 counts/rev encoder")
+                    help="encoder step (rad); scenario: of its sensor (default 0); a log: default its "
+                         "resolution and noise measured on it (this and --noise state them instead)")
     cp.add_argument("--noise", type=float, help="Gaussian noise std (rad; scenario default 0)")
     cp.add_argument("--mismatch", type=float, default=0.0,
                     help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
@@ -935,6 +1036,9 @@ def parser():
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     cp.add_argument("--out", metavar="DIR", help="folder of the figures and compare.json (default build/compare)")
+    cp.add_argument("--build", metavar="DIR", help="a log: also write the winner's C folder into DIR (the observer "
+                    "with the lowest truth-free error estimate, as `build` writes it: the gains tuned on the log, "
+                    "its dt range, each value's source in the header)")
     sw = sub.add_parser("sweep", parents=[debug], help="Monte-Carlo sweep of observers and baselines on Dask (resumable)")
     sw.add_argument("file", help="the sweep file (TOML; see codegen.evaluate.sweep.plan)")
     where = sw.add_mutually_exclusive_group()
@@ -980,6 +1084,8 @@ def parser():
     dt_.add_argument("--torque-noise", type=float, metavar="NM", help="torque sensor noise std (N m) for the "
                      "default thresholds")
     dt_.add_argument("--out", metavar="DIR", help="folder of the outputs (default build/detect)")
+    from models.catalog import urdf_names
+
     from .logs import identify as idf
     for name, text in (("excite", "an excitation trajectory (CSV) to log for `identify`"),
                        ("identify", "inertial parameters and friction from a log of q and tau")):
@@ -987,7 +1093,7 @@ def parser():
         if name == "identify":
             x.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder); jittered stamps allowed")
             _clock_option(x)
-        x.add_argument("--robot", help="catalog robot (ur5, panda)")
+        x.add_argument("--robot", help=f"catalog robot with a URDF ({', '.join(urdf_names())})")
         x.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
         x.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
         if name == "excite":

@@ -389,8 +389,12 @@ def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None, 
     tune = bandwidth(family, spec.p_names)
     if not tune:
         return None, p0
-    t_from = max(start_of_steady(spec, p0, t), t_from if t_from is not None else -math.inf)
-    short = too_short(val, t, t_from, spec, p0)
+    start = start_of_steady(spec, p0, t)
+    t_from = max(start, t_from if t_from is not None else -math.inf)
+    # the log scores at least as long as the start-up skips (a window the caller chose later, such
+    # as compare's t_ss in the middle, only needs scored rows)
+    short = too_short(val, t, start, spec, p0) or ("" if np.any(val.valid & (t >= t_from)) else
+                                                   too_short(val, t, t_from, spec, p0))
     if short:
         return Tuned(family, {}, 1.0, math.inf, math.inf, [], short), p0
 

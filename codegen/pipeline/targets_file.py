@@ -13,6 +13,8 @@ One ``[[target]]`` table per generated observer; the CLI's options are the same 
     variant = "O2"                 # of families that have variants (default: the family's)
     design = { eigenvalues = [] }  # keyword arguments of the family's build: design inputs, gains
     params = { rcond_min = 1e-9 }  # runtime parameters overriding the designed defaults
+    # sources = { k0 = "tuned on the log log.csv" }   # where a params, design or dt value came from
+                                   #   (the folder's design report and header state it; default: given by the user)
     dt = 1e-3                      # discretisation: dt (s), method, hold, substeps (a number, or
     substeps = "auto"              #   "auto", the default: the fewest that are stable), and the
     # dt_min = 2.5e-4              #   range of the elapsed time between samples (default [dt/4,
@@ -40,7 +42,7 @@ from pathlib import Path
 
 from ..core.target import AUTO, Discretization, Target
 
-KEYS = ("robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design", "params",
+KEYS = ("robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design", "params", "sources",
         "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision", "name", "out", "tune",
         "tune_columns", "tune_topic")
 DISCRETIZATION_KEYS = ("dt", "dt_min", "dt_max", "method", "hold", "substeps")
@@ -219,11 +221,17 @@ def make_target(entry, base=".", where="", tuner=None):
     if bad:
         _fail(where, f"unknown design input{'s' * (len(bad) > 1)} {', '.join(bad)} of {family}; "
               f"valid: {', '.join(design_names) or '(none)'}")
+    params, sources = _table(entry, "params", where), _table(entry, "sources", where)
+    stray = sorted(set(sources) - set(params) - set(design) - set(DISCRETIZATION_KEYS))
+    if stray:
+        _fail(where, f"sources: {', '.join(stray)} {'is' if len(stray) == 1 else 'are'} neither a parameter, a "
+              f"design input nor {', '.join(DISCRETIZATION_KEYS)} of this target (sources say where a value of "
+              "params, design or the discretisation came from)")
     try:
         # unstated substeps: the fewest stable ones (resolved when the target is made)
         disc = Discretization(**{"substeps": AUTO, **{k: entry[k] for k in DISCRETIZATION_KEYS if k in entry}})
         target = Target(robot=source, family=family, variant=variant, build=design,
-                        params=_table(entry, "params", where), discretization=disc,
+                        params=params, discretization=disc, sources=sources,
                         precision=entry.get("precision", "double"), name=entry.get("name"))
     except (TypeError, ValueError) as e:
         _fail(where, str(e))
