@@ -166,8 +166,10 @@ def robot_options(log, out):
     if log.spec["robot"] is not None:
         return {"robot": log.spec["robot"]}
     urdf = Path(out) / f"{log.arm}.urdf"
-    if not urdf.is_file():
-        urdf.write_text(log.urdf)
+    if not urdf.is_file():                  # through a temporary file: parallel writers see it whole
+        tmp = urdf.with_name(f".{urdf.name}.{os.getpid()}.tmp")
+        tmp.write_text(log.urdf)
+        os.replace(tmp, urdf)
     return {"urdf": urdf}
 
 
