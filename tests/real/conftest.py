@@ -1,15 +1,16 @@
 """The real arms' logs (codegen.evaluate.scenarios.real_logs): from ``$CODEGEN_REAL_LOGS`` or
 ``../shared/data/real`` beside the repository. Without either (a clone has no ``../shared``) only
-test_folder.py is collected, and it skips: one line. The run's workers share one ``Bed`` folder:
+test_real_folder.py is collected, and it skips: one line. The run's workers share one ``Bed`` folder:
 each command runs once."""
 import os
+from pathlib import Path
 
 import pytest
 
 from codegen.evaluate.scenarios import real_judge, real_logs
 
 if real_logs.folder() is None:
-    collect_ignore_glob = ["test_[!f]*.py"]
+    collect_ignore = [p.name for p in Path(__file__).parent.glob("test_*.py") if p.name != "test_real_folder.py"]
 
 
 @pytest.fixture(scope="session")

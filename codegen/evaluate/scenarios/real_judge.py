@@ -412,16 +412,17 @@ def table(fig):
         per = "-" if c["period"] is None else f"{1e3 * c['period']:.5g} ms"
         lines.append(f"| {n} | {c['kind']} | {per} | {100 * c['right']:.2f} % of {c['pairs']} "
                      f"({1e6 * c['tol']:.0f} µs) | ≥ {100 * c['share']:.1f} % |")
-    lines += ["", "| identified on → held out | identify | physical, loads | residual / shipped per joint | "
-              "mean ratio |", "|---|---|---|---|---|"]
+    lines += ["", "| identified on → held out | identify | physical, loads | shipped URDF's residual per joint "
+              "(N m) | identified / shipped per joint | mean ratio |", "|---|---|---|---|---|---|"]
     for r in fig["identification"] + [dict(fig["no_load"], train=fig["no_load"]["train"] + " (no load)")]:
         if not r["ok"]:
-            lines.append(f"| {r['train']} → {r['test']} | refused: {r['error'][:120]} | - | - | - |")
+            lines.append(f"| {r['train']} → {r['test']} | refused: {r['error'][:120]} | - | "
+                         f"{', '.join(f'{x:.2g}' for x in r['shipped'])} | - | - |")
             continue
         phys = "yes" if not r["physical"] else f"no ({len(r['physical'])} bodies)"
         lines.append(f"| {r['train']} → {r['test']} | {r['seconds']:.0f} s | {phys}, "
-                     f"{'yes' if r['loads'] else 'no'} | {', '.join(f'{x:.2f}' for x in r['ratio'])} | "
-                     f"{r['mean_ratio']:.2f} |")
+                     f"{'yes' if r['loads'] else 'no'} | {', '.join(f'{x:.2g}' for x in r['shipped'])} | "
+                     f"{', '.join(f'{x:.2f}' for x in r['ratio'])} | {r['mean_ratio']:.2f} |")
     lines += ["", "| held-out log | model | reference cut-off | compare's best | its RMS | "
               "KF on the true clock | ratio | robot's signal |", "|---|---|---|---|---|---|---|---|"]
     for n, v in fig["velocity"].items():

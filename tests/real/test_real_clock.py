@@ -7,7 +7,7 @@ import pytest
 
 from codegen.evaluate.scenarios import real_logs
 
-from real_params import params
+from .real_params import params
 
 pytestmark = pytest.mark.real
 PANDA = ("panda", "panda-first-half", "panda-second-half")

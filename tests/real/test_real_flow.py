@@ -6,7 +6,7 @@ import pytest
 
 from codegen.evaluate.scenarios import real_judge
 
-from real_params import params
+from .real_params import params
 
 pytestmark = pytest.mark.real
 ARMS = tuple(real_judge.FLOWS)

@@ -4,14 +4,13 @@ identified URDF against the shipped one, on the true sample clock. Bars of issue
 identified URDF loads and is physical; its residual at most the shipped URDF's on every joint and
 at most 0.7 x it on average; with the 2.805 kg payload, also at most 0.6 x the no-load model's on
 joints 2 and 3."""
-import functools
 
 import numpy as np
 import pytest
 
 from codegen.evaluate.scenarios import real_judge
 
-from real_params import params
+from .real_params import params
 
 pytestmark = pytest.mark.real
 PAIRS = real_judge.PAIRS
