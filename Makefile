@@ -44,10 +44,10 @@ test-long: $(VENV)/.installed
 
 # the real arms' logs (tests/real: $$CODEGEN_REAL_LOGS or ../shared/data/real; skipped with one line
 # when neither exists): each arm's clock, identification, velocity and the user's flow judged
-# against the robot's own velocity signal; one arm's commands on one worker (--dist loadgroup).
+# against the robot's own velocity signal (each command run once, its result shared by the workers).
 # CI runs it after `make test`
 test-real: $(VENV)/.installed c-tools
-	$(PY) -m pytest -n auto --dist loadgroup -m real -rs
+	$(PY) -m pytest -n auto -m real -rs
 
 # the C under ASan/UBSan on edge-case CSVs and a libFuzzer campaign (also part of `make test`)
 sanitize: $(VENV)/.installed c-tools

@@ -74,18 +74,33 @@ class Bed:
             self._csv[name] = real_logs.write_log(self.log(name), self.work / "logs")
         return self._csv[name]
 
-    def run(self, key, args):
-        """``python -m codegen *args`` once per ``key``: {"ok", "seconds", "stdout", "stderr"}."""
+    def cached(self, key, make):
+        """``make()`` (JSON-ready) once per ``key``, kept in ``work/runs`` under a lock: Beds of
+        parallel test workers on the same folder compute it once."""
         if key not in self._runs:
-            env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[3]) + os.pathsep
-                       + os.environ.get("PYTHONPATH", ""))
-            t0 = time.perf_counter()
-            p = subprocess.run([sys.executable, "-m", "codegen", *map(str, args)], capture_output=True, text=True,
-                               env=env, cwd=self.work)
-            self._runs[key] = {"ok": p.returncode == 0, "seconds": round(time.perf_counter() - t0, 1),
-                               "stdout": p.stdout, "stderr": p.stderr, "args": [str(a) for a in args]}
-            self.times[key] = self._runs[key]["seconds"]
-        return self._runs[key]
+            import fcntl
+            runs = self.work / "runs"
+            runs.mkdir(exist_ok=True)
+            done = runs / ("-".join(map(str, key)) + ".json")
+            with open(done.with_suffix(".lock"), "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                if done.is_file():
+                    self._runs[key] = json.loads(done.read_text())
+                else:
+                    self._runs[key] = make()
+                    done.write_text(json.dumps(self._runs[key]))
+        return dict(self._runs[key])
+
+    def run(self, key, args):
+        """``python -m codegen *args`` once per ``key`` (``cached``): {"ok", "seconds", "stdout",
+        "stderr", "args"}."""
+        r = self.cached(key, lambda: _command(args, self.work))
+        self.times[key] = r["seconds"]
+        return r
+
+    def clock(self, name):
+        """``real_logs.judge_clock`` of log ``name``, once (``cached``)."""
+        return self.cached(("clock", name), lambda: real_logs.judge_clock(self.log(name), self.work / "clock"))
 
     def robot_args(self, name, urdf=None):
         """The CLI arguments of log ``name``'s robot: its shipped one, or the URDF ``urdf``."""
@@ -114,46 +129,50 @@ class Bed:
         out = self.work / "identify" / name
         r = self.run(("identify", name), ["identify", self.csv(name)[0], *self.robot_args(name), "--out", out])
         found = sorted(out.glob("*_identified.urdf")) if r["ok"] else []
-        r["urdf"] = found[0] if found else None
-        r["report"] = out / "report.json" if found else None
+        r["urdf"] = str(found[0]) if found else None
+        r["report"] = str(out / "report.json") if found else None
         return r
 
-    def compare(self, arm):
-        """``compare`` of the arm's held-out log with the model identified on its other part (the
-        shipped one if ``identify`` refused): the run, with "json" (compare.json) and "estimates"."""
+    def _model_args(self, arm, model):
+        """(robot arguments, torque-uncertainty arguments) of the arm's ``model``: "identified" (on
+        its identification log; the shipped one when ``identify`` refused) or "shipped"."""
         train, test = FLOWS[arm]
         ident = self.identify(train)
-        out = self.work / "compare" / test
-        extra = ([*self.robot_args(test, ident["urdf"]), "--torque-uncertainty", ident["report"]]
-                 if ident["ok"] else self.robot_args(test))
-        r = self.run(("compare", test), ["compare", self.csv(test)[0], *extra, "--out", out])
-        r["model"] = "identified" if ident["ok"] else "shipped"
+        if model == "shipped" or not ident["ok"]:
+            return self.robot_args(test), [], "shipped"
+        return self.robot_args(test, ident["urdf"]), ["--torque-uncertainty", ident["report"]], "identified"
+
+    def compare(self, arm, model="identified"):
+        """``compare`` of the arm's held-out log with the ``model`` (``_model_args``): the run, with
+        "model", "json" (compare.json) and "estimates"."""
+        test = FLOWS[arm][1]
+        robot, unc, used = self._model_args(arm, model)
+        out = self.work / "compare" / f"{test}-{used}"
+        r = self.run(("compare", test, used), ["compare", self.csv(test)[0], *robot, *unc, "--out", out])
+        r["model"] = used
         r["json"] = json.loads((out / "compare.json").read_text()) if r["ok"] else None
         r["estimates"] = out / "estimates.csv"
         return r
 
+    def compared(self, arm):
+        """The arm's ``compare`` with the identified model, or with the shipped one when that failed."""
+        r = self.compare(arm)
+        return r if r["ok"] else self.compare(arm, "shipped")
+
     def winner(self, arm):
-        """The best observer of the arm's ``compare`` (its compare.json row), or None."""
-        cmp = self.compare(arm)
-        obs = [r for r in (cmp["json"] or {}).get("rows", []) if r["kind"] == "observer" and not r["failed"]]
+        """The best observer of the arm's ``compared`` (its compare.json row), or None."""
+        obs = [r for r in (self.compared(arm)["json"] or {}).get("rows", [])
+               if r["kind"] == "observer" and not r["failed"]]
         return min(obs, key=lambda r: r["rms"]) if obs else None
 
-    def _model_args(self, arm):
-        """(robot arguments, torque-uncertainty arguments) of the arm's compare model."""
-        train, test = FLOWS[arm]
-        ident = self.identify(train)
-        if not ident["ok"]:
-            return self.robot_args(test), []
-        return self.robot_args(test, ident["urdf"]), ["--torque-uncertainty", ident["report"]]
-
     def design(self, arm):
-        """``design`` of the winning observer on the arm's held-out log (as the user builds it:
-        its sensor measured and its gains tuned on the log): the run, with "json"."""
+        """``design`` of the winning observer (``winner``) on the arm's held-out log (as the user
+        builds it: its sensor measured and its gains tuned on the log): the run, with "json"."""
         best = self.winner(arm)
         if best is None:
             return {"ok": False, "seconds": 0.0, "stderr": "no observer ran in compare", "json": None}
         test = FLOWS[arm][1]
-        robot, unc = self._model_args(arm)
+        robot, unc, _ = self._model_args(arm, self.compared(arm)["model"])
         out = self.work / "design" / f"{arm}.json"
         out.parent.mkdir(parents=True, exist_ok=True)
         r = self.run(("design", arm), ["design", self.csv(test)[0], *robot, *unc, "--family",
@@ -168,11 +187,11 @@ class Bed:
         d = self.design(arm)
         if not d["ok"]:
             return {"ok": False, "seconds": 0.0, "stderr": "design failed", "family": d.get("family")}
-        robot, _ = self._model_args(arm)
+        cmp = self.compared(arm)
+        robot, _, _ = self._model_args(arm, cmp["model"])
         if robot[0] == "--robot":
             robot = robot[1:]                   # build takes a catalog robot as its positional
-        step = json.loads((self.work / "compare" / FLOWS[arm][1] / "compare.json").read_text())
-        clock = step.get("clock") or {}
+        clock = cmp["json"].get("clock") or {}
         dt = clock.get("period") or float(np.median(np.diff(self.log(FLOWS[arm][1]).t)))
         args = ["build", *robot, "--family", d["family"].split(":")[0], "--dt", f"{dt:.6g}",
                 "--out", self.work / "build", "--name", f"real_{arm}", "--force", "-j", "1"]
@@ -195,6 +214,18 @@ class Bed:
                  "compare": self.compare(arm), "design": self.design(arm), "build": self.build(arm)}
         return {k: {"ok": r["ok"], "seconds": r["seconds"],
                     "error": "" if r["ok"] else _last_line(r.get("stderr", ""))} for k, r in steps.items()}
+
+
+def _command(args, cwd):
+    """``python -m codegen *args`` in ``cwd`` with this checkout first on the path: {"ok", "seconds",
+    "stdout", "stderr", "args"}."""
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[3]) + os.pathsep
+               + os.environ.get("PYTHONPATH", ""))
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-m", "codegen", *map(str, args)], capture_output=True, text=True,
+                       env=env, cwd=cwd)
+    return {"ok": p.returncode == 0, "seconds": round(time.perf_counter() - t0, 1), "stdout": p.stdout,
+            "stderr": p.stderr, "args": [str(a) for a in args]}
 
 
 def _last_line(text):
@@ -301,17 +332,17 @@ def judge_identification(bed, train, test):
 # ------------------------------------------------------------------------------ velocity
 
 def judge_velocity(bed, name):
-    """compare's best method on log ``name`` (the flow's compare, run by the Bed ``bed``) against
-    the Kalman filter tuned on the reference on the true clock: JSON-ready {"best", "best_rms", "kalman_rms", "ratio",
-    "signal_rms" (the robot's velocity signal), "rows", "reference"}."""
+    """compare's best method on log ``name`` (``Bed.compared`` of the Bed ``bed``) against the
+    Kalman filter tuned on the reference on the true clock: JSON-ready {"best", "best_rms",
+    "kalman_rms", "ratio", "signal_rms" (the robot's velocity signal), "rows", "reference"}."""
     from ...logs.recording import Recording
     from ...logs.reference import reference_of
     from ..compare import tune_on_reference
     from ...core.columns import read_columns
     arm = bed.log(name).arm
-    cmp = bed.compare(arm)
     if FLOWS[arm][1] != name:
         raise ValueError(f"{name}: not the held-out log of a flow ({', '.join(v[1] for v in FLOWS.values())})")
+    cmp = bed.compared(arm)
     out = {"log": name, "model": cmp["model"], "ok": cmp["ok"],
            "error": "" if cmp["ok"] else _last_line(cmp["stderr"])}
     if not cmp["ok"]:
@@ -362,7 +393,7 @@ def sharp_reference(rec, signal, t_ss):
 def figures(bed):
     """Every judge on the Bed ``bed``: {"clock": {log: ...}, "identification": [...], "no_load": ...,
     "velocity": {log: ...}, "flow": {arm: ...}} (JSON-ready)."""
-    clock = {n: real_logs.judge_clock(bed.log(n), bed.work / "clock") for n in real_logs.CLOCK_LOGS}
+    clock = {n: bed.clock(n) for n in real_logs.CLOCK_LOGS}
     ident = [judge_identification(bed, a, b) for a, b in PAIRS]
     no_load = judge_identification(bed, *NO_LOAD)
     vel = {n: judge_velocity(bed, n) for n in VELOCITY_LOGS}
@@ -381,24 +412,26 @@ def table(fig):
         per = "-" if c["period"] is None else f"{1e3 * c['period']:.5g} ms"
         lines.append(f"| {n} | {c['kind']} | {per} | {100 * c['right']:.2f} % of {c['pairs']} "
                      f"({1e6 * c['tol']:.0f} µs) | ≥ {100 * c['share']:.1f} % |")
-    lines += ["", "| identified on → held out | identify | physical, loads | residual / shipped per joint | "
-              "mean ratio |", "|---|---|---|---|---|"]
+    lines += ["", "| identified on → held out | identify | physical, loads | shipped URDF's residual per joint "
+              "(N m) | identified / shipped per joint | mean ratio |", "|---|---|---|---|---|---|"]
     for r in fig["identification"] + [dict(fig["no_load"], train=fig["no_load"]["train"] + " (no load)")]:
         if not r["ok"]:
-            lines.append(f"| {r['train']} → {r['test']} | refused: {r['error'][:120]} | - | - | - |")
+            lines.append(f"| {r['train']} → {r['test']} | refused: {r['error'][:120]} | - | "
+                         f"{', '.join(f'{x:.2g}' for x in r['shipped'])} | - | - |")
             continue
         phys = "yes" if not r["physical"] else f"no ({len(r['physical'])} bodies)"
         lines.append(f"| {r['train']} → {r['test']} | {r['seconds']:.0f} s | {phys}, "
-                     f"{'yes' if r['loads'] else 'no'} | {', '.join(f'{x:.2f}' for x in r['ratio'])} | "
-                     f"{r['mean_ratio']:.2f} |")
-    lines += ["", "| held-out log | model | compare's best | its RMS | KF on the true clock | ratio | robot's signal |",
-              "|---|---|---|---|---|---|---|"]
+                     f"{'yes' if r['loads'] else 'no'} | {', '.join(f'{x:.2g}' for x in r['shipped'])} | "
+                     f"{', '.join(f'{x:.2f}' for x in r['ratio'])} | {r['mean_ratio']:.2f} |")
+    lines += ["", "| held-out log | model | reference cut-off | compare's best | its RMS | "
+              "KF on the true clock | ratio | robot's signal |", "|---|---|---|---|---|---|---|---|"]
     for n, v in fig["velocity"].items():
         if not v["ok"]:
-            lines.append(f"| {n} | {v['model']} | compare failed: {v['error'][:120]} | - | - | - | - |")
+            lines.append(f"| {n} | {v['model']} | - | compare failed: {v['error'][:120]} | - | - | - | - |")
             continue
-        lines.append(f"| {n} | {v['model']} | {v['best']} | {v['best_rms']:.3g} rad/s | {v['kalman_rms']:.3g} | "
-                     f"{v['ratio']:.2f} | {v['signal_rms']:.3g} |")
+        lines.append(f"| {n} | {v['model']} | {v['reference_cutoff']:.3g} Hz | "
+                     f"{v['best']} | {v['best_rms']:.3g} rad/s | {v['kalman_rms']:.3g} | {v['ratio']:.2f} | "
+                     f"{v['signal_rms']:.3g} |")
     lines += ["", "| arm | describe | identify | compare | design | build |", "|---|---|---|---|---|---|"]
     for arm, steps in fig["flow"].items():
         cells = [f"{s['seconds']:.0f} s" if s["ok"] else f"failed: {s['error'][:80]}" for s in steps.values()]

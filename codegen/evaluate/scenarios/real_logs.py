@@ -24,6 +24,7 @@ fixed-tick arm (the Panda) has whole ticks: round(dt_j / T) T.
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -166,8 +167,10 @@ def robot_options(log, out):
     if log.spec["robot"] is not None:
         return {"robot": log.spec["robot"]}
     urdf = Path(out) / f"{log.arm}.urdf"
-    if not urdf.is_file():
-        urdf.write_text(log.urdf)
+    if not urdf.is_file():                  # through a temporary file: parallel writers see it whole
+        tmp = urdf.with_name(f".{urdf.name}.{os.getpid()}.tmp")
+        tmp.write_text(log.urdf)
+        os.replace(tmp, urdf)
     return {"urdf": urdf}
 
 
@@ -270,7 +273,6 @@ def judge_clock(log, out):
     from ...logs.recording import read_log
     path, options = write_log(log, out)
     robot = robot_of(log.spec, options.get("urdf"))
-    import time
     t0 = time.perf_counter()
     rec, clock = read_log(path, log.joint_names, clock="auto", robot=robot)
     seconds = time.perf_counter() - t0
@@ -283,13 +285,13 @@ def judge_clock(log, out):
     judged = (bad[b] - bad[a] == 0) & (mov[b] - mov[a] > 0)
     err = np.abs(np.diff(rec.t) - (cum[b] - cum[a]))[judged]
     tol = log.spec["tol"]
-    out = {"log": log.name, "kind": clock.kind, "period": clock.period, "text": clock.describe(),
+    res = {"log": log.name, "kind": clock.kind, "period": clock.period, "text": clock.describe(),
            "pairs": int(judged.sum()), "right": float(np.mean(err <= tol)) if len(err) else 0.0,
            "tol": tol, "share": log.spec["share"], "p99_error": float(np.quantile(err, 0.99)) if len(err) else None,
            "rows": len(log.t), "kept": len(kept), "true_kept": len(tr.kept),
            "repeats_true": int(len(log.t) - len(tr.kept)), "convention": tr.convention,
            "known_share": float(np.mean(tr.moving)), "seconds": round(seconds, 2)}
     if log.spec["tick"] is not None:
-        out["tick"] = log.spec["tick"]
-        out["period_error"] = (abs(clock.period / log.spec["tick"] - 1.0) if clock.period is not None else None)
-    return out
+        res["tick"] = log.spec["tick"]
+        res["period_error"] = (abs(clock.period / log.spec["tick"] - 1.0) if clock.period is not None else None)
+    return res

@@ -7,15 +7,17 @@ import pytest
 
 from codegen.evaluate.scenarios import real_judge
 
-from real_params import by_arm
+from .real_params import params
 
 pytestmark = pytest.mark.real
 ARMS = tuple(real_judge.FLOWS)
 
 
-@pytest.mark.parametrize("arm", by_arm(ARMS, {a: "identify refuses the log" for a in ARMS if a != "panda"}))
+@pytest.mark.parametrize("arm", params(ARMS, {
+    "panda": "compare refuses identify's URDF (panda_link4's inertia not positive definite after snapping)",
+    **{a: "identify refuses the log (relative std above 0.05, inf on the Gen3 and the UR5)" for a in ARMS
+       if a != "panda"}}))
 def test_the_flow_runs(arm, bed):
     steps = bed.flow(arm)
     failed = {k: s["error"] for k, s in steps.items() if not s["ok"]}
     assert not failed, failed
-
