@@ -587,7 +587,10 @@ def cmd_identify(args):
 
 def _log_joints(args):
     """The joints of the log of ``args`` (its q_<joint> columns after --columns; a bag's), in file order."""
+    from .logs.bag import is_bag
     from .logs.recording import RecordingError, log_joints
+    if is_bag(args.log):
+        _require("rosbags", f"reading the ROS bag {args.log}")
     try:
         return log_joints(args.log, args.columns, args.topic)
     except RecordingError as e:

@@ -184,3 +184,17 @@ def test_compare_gives_the_csvs_table_on_the_bag(logs, tmp_path, kind):
         tables[-1].append(json.dumps(json.loads((tmp_path / name / "compare.json").read_text())["rows"]))
     assert len(tables[0]) > 5
     assert tables[0] == tables[1]
+
+
+def test_a_targets_file_tunes_on_a_bag(logs, tmp_path):
+    """``tune = "<bag folder>"`` (and ``tune_topic``) tunes as the CSV does: the same gain."""
+    folder, _ = logs
+    tuned = []
+    for name, log, extra in (("csv", folder / "log.csv", ""), ("bag", _bag_path(folder, "db3"),
+                                                               'tune_topic = "/joint_states"\n')):
+        (tmp_path / f"{name}.toml").write_text(f'[[target]]\nrobot = "{ROBOT}"\nfamily = "reduced_order"\n'
+                                               f'tune = "{log}"\n{extra}')
+        status, _, err = _run(["build", "-c", str(tmp_path / f"{name}.toml"), "--out", str(tmp_path / name)])
+        assert status == 0, err
+        tuned.append(err.split("k0 = ")[1].split()[0])
+    assert tuned[0] == tuned[1]

@@ -157,3 +157,13 @@ def test_a_targets_file_tunes_on_a_mapped_log(logs, tmp_path):
         assert status == 0, err
         tuned.append(err.split("k0 = ")[1].split()[0])
     assert tuned[0] == tuned[1]
+
+
+def test_a_bag_without_rosbags_is_one_line_naming_the_extra(monkeypatch, tmp_path):
+    import importlib.util
+    find = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "rosbags" else find(name, *a))
+    for robot in (["--robot", ROBOT], []):
+        status, _, err = _run(["describe", str(tmp_path / "run.bag")] + robot)
+        assert status == 2 and err == (f"error: reading the ROS bag {tmp_path / 'run.bag'} needs the optional package "
+                                       "rosbags: pip install 'observer-codegen[ros]'\n")
