@@ -79,15 +79,6 @@ class ColumnMap:
         return ColumnMap({**rules, **other.rules}, other.t_unit or self.t_unit,
                          other.joints if other.joints is not None else self.joints)
 
-    def text(self):
-        """The mapping as one line of rules (what a message quotes)."""
-        parts = [f"{s}={t}" for s, t in self.rules.items()] + [f"t_unit={self.t_unit}"] * bool(self.t_unit)
-        if isinstance(self.joints, list):
-            parts.append(f"joints=[{','.join(self.joints)}]")
-        elif isinstance(self.joints, dict):
-            parts.append("joints={" + ",".join(f"{k}:{v}" for k, v in self.joints.items()) + "}")
-        return ",".join(parts)
-
     def resolve(self, header, where="log", optional=()):
         """{recording column: log column} of the log columns ``header`` (names), and the log's
         joints renamed. MappingError naming the log ``where`` and the rule that matches no column (but those of
