@@ -658,7 +658,8 @@ def cmd_design(args):
     src = f"--urdf {args.urdf}" if args.urdf else args.robot
     print(f"build it: python -m codegen build {src} --family {args.family.split(':')[0]} --dt {rec.dt:.4g} "
           f"{design_args} {param_args}".rstrip())
-    print(f'or in a targets file: tune = "{args.log}" (this design, redone when the target is built)')
+    print(f'or in a targets file: tune = "{args.log}"' + "".join(f', {k} = {json.dumps(v)}' for k, v in (
+        ("tune_columns", args.columns), ("tune_topic", args.topic)) if v) + " (this design, redone when the target is built)")
     if args.json:
         Path(args.json).write_text(json.dumps({
             "clock": clock.to_dict(), "noise": nz.to_dict(), "family": args.family, "variant": entry.variant,

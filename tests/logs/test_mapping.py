@@ -167,3 +167,11 @@ def test_a_bag_without_rosbags_is_one_line_naming_the_extra(monkeypatch, tmp_pat
         status, _, err = _run(["describe", str(tmp_path / "run.bag")] + robot)
         assert status == 2 and err == (f"error: reading the ROS bag {tmp_path / 'run.bag'} needs the optional package "
                                        "rosbags: pip install 'observer-codegen[ros]'\n")
+
+
+def test_design_names_the_mapping_for_a_targets_file(logs):
+    plain, export, rec = logs
+    status, out, err = _run(["design", str(export), "--robot", ROBOT, "--family", "reduced_order",
+                             "--columns", ROS_EXPORT])
+    assert status == 0, err
+    assert f'or in a targets file: tune = "{export}", tune_columns = "{ROS_EXPORT}" (this design' in out
