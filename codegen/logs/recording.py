@@ -136,18 +136,18 @@ class Recording:
         return write_columns(path, {name: data[:, i] for i, name in enumerate(names)})
 
 
-def _table(path, columns=None, topic=None):
+def _table(path, columns=None, topic=None, joints=None):
     """(path, header, {recording column: (N,) values}) of the log at ``path``: a recording CSV as it
     is (``columns`` None), a CSV whose own names the mapping ``columns`` maps (codegen.logs.mapping:
     its text, a mapping file or a ColumnMap), or a ROS bag's JointState topic (codegen.logs.bag,
-    ``topic``; its default mapping under ``columns``). ``header``: the log's own column names (a
-    message lists the unmapped ones)."""
+    ``topic``, the messages carrying the ``joints`` wanted; its default mapping under ``columns``).
+    ``header``: the log's own column names (a message lists the unmapped ones)."""
     from . import bag, mapping
     path = Path(path)
     try:
         cmap = mapping.parse(columns)
         if bag.is_bag(path):
-            raw, _ = bag.read(path, topic)
+            raw, _ = bag.read(path, topic, joints if cmap is None or cmap.joints is None else None)
             rules = bag.DEFAULT.updated(cmap)
             header = list(raw)
             optional = [s for s in bag.OPTIONAL if s not in (cmap.rules if cmap else {})]
@@ -195,7 +195,7 @@ def _columns(path, joint_names, robot=None, columns=None, topic=None):
     every column there and finite, at least two rows, positions and torques within the ``robot``'s
     declared ranges when it is given (``check_ranges``; the stamps not yet checked): ``read_csv``
     and ``read_log``."""
-    path, header, col = _table(path, columns, topic)
+    path, header, col = _table(path, columns, topic, joint_names)
     need = ["t"] + [f"{g}_{j}" for g in ("q", "tau") for j in joint_names]
     missing = [c for c in need if c not in col]
     if missing:
