@@ -15,7 +15,7 @@ import tomllib
 from dataclasses import replace
 from pathlib import Path
 
-from .core.atomic import WriteError
+from .core.atomic import OutputSet, WriteError, check_not_input, check_writable, write_text
 from .pipeline.compile import ToolError, work_dir
 from .pipeline.emit import FolderTaken
 from .core.target import HOLDS, METHODS, PRECISIONS, check_substeps
@@ -145,6 +145,38 @@ def _targets(args):
     return targets
 
 
+SATURATED = 0.1      # a design with more of its samples at the velocity bound is refused (exit 2)
+
+
+def design_failure(entry, family):
+    """Why the design ``entry`` (codegen.evaluate.compare.design_on_log's Entry) of ``family`` on a
+    log is no design, or "": no candidate scored (the log too short for the scoring to start, or
+    none ran finite and stable), a run that stopped early (its estimate not finite), or more than
+    SATURATED of its samples with the velocity estimate at the model's bound."""
+    import numpy as np
+    tuned, n = entry.tuned, len(entry.est)
+    if tuned is not None and not math.isfinite(tuned.score):
+        return f"{family}: no design: {tuned.note or 'no candidate ran finite and stable'}"
+    bad = ~np.all(np.isfinite(entry.est), axis=1)
+    if bad.any():
+        why = entry.note.split("; ")[-1] if entry.note else "a non-finite estimate"
+        return (f"{family}: no design: its run on the log stopped at sample {int(np.argmax(bad))} of {n} "
+                f"({why})")
+    hits = int(entry.metrics.get("at_bound") or 0)
+    if hits > SATURATED * n:
+        return (f"{family}: no design: saturated, {hits} of {n} samples with the velocity estimate at the "
+                f"model's bound (more than {SATURATED:.0%}); raise the bound (--design v_max=...) or choose "
+                "another family")
+    return ""
+
+
+def _check_out(path, option, inputs=()):
+    """A file output ``path`` of ``option`` checked before the work: writable, not an input."""
+    if path is not None:
+        check_writable(path, f"or choose another {option}")
+        check_not_input([path], inputs, f"choose another {option}")
+
+
 def tune_target(target, log, columns=None, topic=None):
     """``target`` with its sensor measured on the recording ``log`` (its column mapping ``columns``,
     a bag's ``topic``) and its gains tuned on it without truth (a targets file's
@@ -157,6 +189,9 @@ def tune_target(target, log, columns=None, topic=None):
     robot = from_source(target.robot)
     rec, clock = _read_log(log, robot.joint_names, robot=robot, columns=columns, topic=topic)
     entry, _, _ = design_on_log(rec, robot, target.family, design=dict(target.build), clock=clock)
+    failed = design_failure(entry, target.family)
+    if failed:
+        raise ValueError(f"{target.prefix}: tune = {str(log)!r}: {failed}")
     tuned = entry.tuned.params if entry.tuned is not None else {}
     print(f"{target.prefix}: tuned on {Path(log).name}: "
           + (", ".join(f"{k} = {v:.4g}" for k, v in tuned.items()) or "its designed gains (no bandwidth)")
@@ -462,6 +497,9 @@ def _compare_source(args):
     return rec, robot, f"{Path(args.source).name} ({robot.name})", clock
 
 
+COMPARE_OUTPUTS = ("errors.png", "joint0.png", "estimates.csv", "compare.json")
+
+
 def cmd_compare(args):
     """Observers and tuned baselines on a scenario or a CSV: a progress bar (stderr), the table
     (every parameter, the reference and its uncertainty, the verdict line), figures, JSON.
@@ -470,6 +508,8 @@ def cmd_compare(args):
     from .evaluate.sim.blocks import stage_lines
     from .logs.recording import RecordingError
     stepping = {k: getattr(args, k) for k in ("method", "hold", "substeps") if getattr(args, k) is not None}
+    outputs = OutputSet(args.out or work_dir() / "compare", COMPARE_OUTPUTS, ours=args.out is None,
+                        inputs=[args.source, args.torque_uncertainty], elsewhere="or choose another --out")
     try:
         with stage_lines():              # a line per stage on stderr (the MuJoCo run), then a bar
             rec, robot, title, clock = _compare_source(args)
@@ -487,17 +527,19 @@ def cmd_compare(args):
         print(f"error: {_message(e)}", file=sys.stderr)
         return 2
     print(cmp.table())
-    out = Path(args.out or work_dir() / "compare")
-    paths = cmp.figures(out)
-    paths.append(cmp.write_estimates(out / "estimates.csv", clock))
     ref = cmp.ref
-    (out / "compare.json").write_text(json.dumps(
-        {"title": title, "t_ss": cmp.t_ss, "level": cmp.level, "recording": cmp.info.get("recording"),
-         "clock": None if clock is None else clock.to_dict(), "noise": cmp.info.get("noise"),
-         "tune": cmp.info.get("tune"), "validation": cmp.info.get("validation"),
-         "reference": {"label": ref.label, "cutoff": ref.cutoff, "uncertainty": cmp.uncertainty},
-         "verdict": cmp.verdict(), "rows": cmp.rows()}, indent=2, default=float) + "\n")
-    print(f"figures, estimates.csv and compare.json in {out.resolve()} ({', '.join(p.name for p in paths)})")
+    with outputs.writing() as tmp:       # the set moves into --out at once (codegen.core.atomic.OutputSet)
+        paths = cmp.figures(tmp)
+        paths.append(cmp.write_estimates(tmp / "estimates.csv", clock))
+        (tmp / "compare.json").write_text(json.dumps(
+            {"title": title, "t_ss": cmp.t_ss, "level": cmp.level, "recording": cmp.info.get("recording"),
+             "clock": None if clock is None else clock.to_dict(), "noise": cmp.info.get("noise"),
+             "tune": cmp.info.get("tune"), "validation": cmp.info.get("validation"),
+             "reference": {"label": ref.label, "cutoff": ref.cutoff, "uncertainty": cmp.uncertainty},
+             "verdict": cmp.verdict(), "rows": cmp.rows()}, indent=2, default=float) + "\n")
+        paths.append(tmp / "compare.json")
+    print(f"figures, estimates.csv and compare.json in {outputs.folder.resolve()} "
+          f"({', '.join(p.name for p in paths)})")
     return 0
 
 
@@ -566,18 +608,38 @@ def _width(text):
     return w
 
 
+def _identify_remedy(e):
+    """The one line of an IdentificationError with its remedy (``e.remedy``) as flags."""
+    from models import names
+    ex = e.remedy.get("excite")
+    if not ex:
+        return str(e)
+    src = (f"--robot {ex['robot']}" if ex["robot"] in names() else
+           f"--urdf {ex['urdf']}" + "".join(f" --lock {k}={v:g}" for k, v in ex["locked_joints"].items()))
+    return str(e).replace("(excitation())", f"(python -m codegen excite {src} --out traj.csv)")
+
+
 def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
     joint (codegen.logs.identify); writes the identified URDF, the friction side file and the
     report to --out. ``args``: the parsed namespace; returns 0."""
-    from .logs.identify import identify
+    from .logs.identify import IdentificationError, identify
     robot = _robot_of(args)
+    out = Path(args.out or work_dir() / "identify")
+    check_writable(out, "or choose another --out", folder=True)     # before the work (identify writes the set)
+    check_not_input([out / n for n in (f"{robot.name}_identified.urdf", f"{robot.name}_identified.friction.json",
+                                       "report.json", "report.txt")],
+                    [args.log, args.urdf], "choose another --out")
     rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
-    ident = identify(rec, robot, cutoff=args.cutoff,
-                     test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
-                     max_rel_std=args.max_rel_std, v_stick=args.v_stick, progress=True)
-    paths = ident.write(Path(args.out or work_dir() / "identify"))
+    try:
+        ident = identify(rec, robot, cutoff=args.cutoff,
+                         test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
+                         v_stick=args.v_stick, progress=True)
+    except IdentificationError as e:
+        e.cli_message = _identify_remedy(e)
+        raise
+    paths = ident.write(out)
     print(ident.text, end="")
     lock = "".join(f" --lock {k}={v:g}" for k, v in (robot.source.get("locked_joints") or {}).items())
     print(f"\nthe observers with this model, on a log of the robot: python -m codegen compare LOG.csv "
@@ -603,6 +665,7 @@ def cmd_describe(args):
     (codegen.logs.noise). ``args``: the parsed namespace; returns 0."""
     from .logs import noise as noise_of
     robot = _robot_of(args) if (args.robot or args.urdf) else None
+    _check_out(args.json, "--json", inputs=[args.log])
     joints = list(robot.joint_names) if robot is not None else _log_joints(args)
     rec, clock = _read_args(args, args.log, joints, robot)
     nz = noise_of.measure(rec.t, rec.q, rec.tau if robot is not None else None, robot)
@@ -614,8 +677,8 @@ def cmd_describe(args):
     print("zero-phase reference cut-off per joint (Hz): "
           + ", ".join(f"{c:.3g}" for c in noise_of.reference_cutoff(nz)))
     if args.json:
-        Path(args.json).write_text(json.dumps({"clock": clock.to_dict(), "recording": rec.describe(),
-                                               "noise": nz.to_dict()}, indent=2) + "\n")
+        write_text(args.json, json.dumps({"clock": clock.to_dict(), "recording": rec.describe(),
+                                          "noise": nz.to_dict()}, indent=2) + "\n", "or choose another --json")
         print(f"wrote {args.json}")
     return 0
 
@@ -628,7 +691,15 @@ def cmd_design(args):
     from .core.progress import bar as progress_bar
     from .evaluate.compare import design_inputs, design_on_log
     from .evaluate.sim.blocks import stage_lines
+    from .evaluate.compare import parse_observer
+    from .pipeline.targets_file import family_info
     robot = _robot_of(args)
+    if family_info(parse_observer(args.family)[0])[3]:
+        from models.catalog import ELASTIC
+        raise ValueError(f"family {args.family}: needs an elastic robot (joint stiffness K, motor inertias J), and "
+                         f"`design` tunes on a rigid one ({robot.name}); run it on a log with `compare LOG.csv "
+                         f"--robot R --elastic --observers {args.family}` (R elastic by default: {', '.join(ELASTIC)})")
+    _check_out(args.json, "--json", inputs=[args.log])
     rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
     print(f"recording: {rec.describe()}")
@@ -643,6 +714,10 @@ def cmd_design(args):
         print(line)
     tuned = entry.tuned
     print(f"forward validation: each estimate against the velocity the next {val.window} samples imply")
+    failed = design_failure(entry, args.family)
+    if failed:
+        print(f"error: {failed}", file=sys.stderr)
+        return 2
     if tuned is None:
         print(f"{args.family}: declares no bandwidth to tune; its designed gains")
     else:
@@ -661,13 +736,14 @@ def cmd_design(args):
     print(f'or in a targets file: tune = "{args.log}"' + "".join(f', {k} = {json.dumps(v)}' for k, v in (
         ("tune_columns", args.columns), ("tune_topic", args.topic)) if v) + " (this design, redone when the target is built)")
     if args.json:
-        Path(args.json).write_text(json.dumps({
+        write_text(args.json, json.dumps({
             "clock": clock.to_dict(), "noise": nz.to_dict(), "family": args.family, "variant": entry.variant,
             "build": entry.build, "params": entry.params,
             "tuned": None if tuned is None else {"params": tuned.params, "scale": tuned.scale,
                                                  "criterion": tuned.score, "rms_estimate": tuned.rms,
                                                  "tried": tuned.tried},
-            "validation": {"window": val.window, "constant": val.constant}}, indent=2, default=float) + "\n")
+            "validation": {"window": val.window, "constant": val.constant}}, indent=2, default=float) + "\n",
+                   "or choose another --json")
         print(f"wrote {args.json}")
     return 0
 
@@ -687,13 +763,36 @@ def cmd_simulate_log(args):
     print(f"its truth: {truth} (per row: the true sample time, q, qd and applied tau)")
     print(f"the plant: the URDF perturbed (masses and inertias, a payload, friction, torque offsets; seed "
           f"{args.seed}), a 2^20 counts/rev encoder logged to 1e-6 rad, torque noise ({args.torque})")
+
+
+def cmd_detect(args):
+    """`detect`: the momentum observer's external torque, alarms and collided link over a log
+    (codegen.evaluate.detect), thresholds set on a collision-free log (--calibrate) for
+    --false-alarms per hour; writes external_torque.csv, events.csv, detect.json and a figure to
+    --out. ``args``: the parsed namespace; returns 0."""
+    from .evaluate.detect import detect, write_detection
+    robot = _robot_of(args)
+    rec, clock = _read_args(args, args.log, robot.joint_names, robot)
+    clean = None
+    if args.calibrate:
+        clean, _ = _read_args(args, args.calibrate, robot.joint_names, robot)
+    build = {} if args.torque_noise is None else {"torque_noise": args.torque_noise}
+    det = detect(robot, rec, clean=clean, false_alarms=args.false_alarms, **build)
+    paths = write_detection(det, Path(args.out or work_dir() / "detect"))
+    how = (f"set on {args.calibrate} for {args.false_alarms:g} false alarm(s) per hour" if clean is not None
+           else "the design's defaults (no collision-free log given)")
+    print(f"thresholds ({how}): " + ", ".join(f"{j} {a:.3g} + {b:.3g}|qd|" for j, a, b in
+                                            zip(robot.joint_names, det.th0, det.th1)))
+    print(f"{len(det.events)} event(s) in {det.t[-1] - det.t[0]:.1f} s" + "".join(
+        f"\n  {e['start']:.3f}-{e['end']:.3f} s  link {e['link']}" for e in det.events[:20]))
+    print(f"files in {paths['json'].parent.resolve()} ({', '.join(p.name for p in paths.values())})")
     return 0
 
 
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
             "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
             "sanitize": cmd_sanitize, "embedded": cmd_embedded, "excite": cmd_excite, "identify": cmd_identify,
-            "describe": cmd_describe, "design": cmd_design}
+            "describe": cmd_describe, "design": cmd_design, "detect": cmd_detect}
 COMMANDS["simulate-log"] = cmd_simulate_log
 
 
@@ -874,6 +973,20 @@ def parser():
     de.add_argument("--torque-uncertainty", metavar="NM|FILE",
                     help="the model's torque error (N m, or identify's report.json; default: measured on the log)")
     de.add_argument("--json", metavar="FILE", help="also write the design to this file")
+    dt_ = sub.add_parser("detect", parents=[debug], help="external torque, collisions and the collided link "
+                         "over a log (the momentum observer)")
+    dt_.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    dt_.add_argument("--robot", help="catalog robot")
+    dt_.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
+    dt_.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    _clock_option(dt_)
+    dt_.add_argument("--calibrate", metavar="CLEAN.csv", help="a collision-free log of the arm: the thresholds "
+                     "are set on it (default: the design's, from the torque noise)")
+    dt_.add_argument("--false-alarms", type=float, default=1.0, metavar="PER_HOUR",
+                     help="false alarms per hour the calibrated thresholds allow (default 1)")
+    dt_.add_argument("--torque-noise", type=float, metavar="NM", help="torque sensor noise std (N m) for the "
+                     "default thresholds")
+    dt_.add_argument("--out", metavar="DIR", help="folder of the outputs (default build/detect)")
     from .logs import identify as idf
     for name, text in (("excite", "an excitation trajectory (CSV) to log for `identify`"),
                        ("identify", "inertial parameters and friction from a log of q and tau")):
@@ -901,9 +1014,6 @@ def parser():
                            help="w of tanh(qd/w) (rad/s), or auto (default): the width of "
                                 f"{', '.join(f'{w:g}' for w in idf.WIDTHS)} and the model's own that "
                                 "predicts the held-out tail best")
-            x.add_argument("--max-rel-std", type=float, default=idf.DEFAULT_MAX_REL_STD,
-                           help="refuse a log leaving a parameter combination's relative std above this "
-                                f"(default {idf.DEFAULT_MAX_REL_STD:g})")
             x.add_argument("--v-stick", type=float, default=idf.DEFAULT_V_STICK,
                            help="rad/s: a joint's samples slower than this are left out of the fit (it may "
                                 f"stick under dry friction; default {idf.DEFAULT_V_STICK:g}, 0 keeps every one)")
@@ -935,9 +1045,25 @@ def _simulate_log_parser(sub, debug):
 def main(argv=None):
     """Run the command of ``argv`` (None: sys.argv[1:]); returns the exit status (2: a user error,
     printed on one line unless --debug)."""
-    args = parser().parse_args(argv)
+    try:
+        args = parser().parse_args(argv)
+    except KeyboardInterrupt:
+        print("\ninterrupted", file=sys.stderr)
+        return 130
     try:
         return COMMANDS[args.cmd](args)
+    except KeyboardInterrupt:          # Ctrl-C: one line (outputs are written as sets: none is cut)
+        if args.debug:
+            raise
+        print(f"\ninterrupted: `{args.cmd}` stopped; nothing half-written", file=sys.stderr)
+        return 130
+    except BrokenPipeError:            # `describe LOG | head`: the reader left; quiet, as a shell tool
+        import os
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # no second error at exit
+        except (OSError, ValueError):
+            pass
+        return 141
     except USER_ERRORS as e:
         if args.debug:
             raise

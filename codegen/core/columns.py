@@ -108,7 +108,7 @@ def read_columns(path, error=ColumnsError, limit=None, keep=None, origin=None):
     path = _open(path, error, limit)
     with open(path, newline="") as f:
         reader = csv.reader(f)
-        first = next(reader, None)
+        first = next(_rows(reader, path, error), None)
         if first is None:
             raise error(f"{path}: empty file")
         header = [h.strip() for h in first]
@@ -120,7 +120,7 @@ def read_columns(path, error=ColumnsError, limit=None, keep=None, origin=None):
         origin = origin or {}
         exact = [i for i, k in enumerate(names) if k in origin]
         blocks, chunk, lines, zero = [], [], [], {}
-        for r in reader:
+        for r in _rows(reader, path, error):
             if not r:
                 continue
             if len(r) != len(header):
@@ -149,6 +149,20 @@ def _difference(path, name, text, zero, divisor, line, error):
     if not value.is_finite():
         raise error(f"{path}: row {line}, column {name!r}: {text.strip()!r} is not a finite number")
     return float((value - zero.setdefault(name, value)) / Decimal(divisor))
+
+
+def _rows(reader, path, error):
+    """The rows of the csv ``reader`` of ``path``; ``error`` naming the row (its line) where the
+    csv module refuses the text (a field over its limit, e.g. a NUL-padded tail; a NUL byte)."""
+    while True:
+        try:
+            r = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as e:
+            raise error(f"{path}: row {reader.line_num}: not a CSV row ({e}); a damaged or padded "
+                        "tail (cut the file at its last good row)") from None
+        yield r
 
 
 def _numbers(path, header, rows, lines, error):

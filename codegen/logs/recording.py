@@ -254,11 +254,20 @@ def check_ranges(path, col, joint_names, robot):
     the log's joints, in the robot's order."""
     from ..core.limits import POSITION_MARGIN, TORQUE_MARGIN, joint_ranges
     lower, upper, tau = joint_ranges(robot)
+    limited = np.asarray(getattr(robot, "position_limited", np.zeros(robot.n, bool)), dtype=bool).reshape(-1)
+    effort = np.asarray(getattr(robot, "effort_limit", np.full(robot.n, np.inf)), dtype=float).reshape(-1)
+    if limited.size != robot.n:
+        limited = np.zeros(robot.n, bool)
+    if effort.size != robot.n:
+        effort = np.full(robot.n, np.inf)
     bad = []
     for j, name in enumerate(joint_names):
-        for column, lo, hi, what in ((f"q_{name}", lower[j], upper[j],
-                                      f"joint {name!r}'s limits and {POSITION_MARGIN:g} x its range beyond either end"),
-                                     (f"tau_{name}", -tau[j], tau[j], f"{TORQUE_MARGIN:g} x joint {name!r}'s effort limit")):
+        q_what = (f"joint {name!r}'s limits and {POSITION_MARGIN:g} x its range beyond either end" if limited[j]
+                  else f"joint {name!r} declares no limits: the range of a reading any motion gives")
+        tau_what = (f"{TORQUE_MARGIN:g} x joint {name!r}'s effort limit" if np.isfinite(effort[j]) and effort[j] > 0
+                    else f"joint {name!r} declares no effort limit: the bound of any drive's torque")
+        for column, lo, hi, what in ((f"q_{name}", lower[j], upper[j], q_what),
+                                     (f"tau_{name}", -tau[j], tau[j], tau_what)):
             v = col[column]
             out = np.flatnonzero((v < lo) | (v > hi))
             if len(out):
@@ -343,11 +352,28 @@ def read_log(path, joint_names, clock="auto", robot=None, columns=None, topic=No
     mode, period = clocks.parse_mode(clock)
     path, col = _columns(path, joint_names, robot, columns, topic)
     t = col["t"]
-    others = [col[h] for h in col if h not in ("t", clocks.ROBOT_TIME) and not h.startswith("q_")]
+    qdm = (np.column_stack([col[f"qdm_{j}"] for j in joint_names])
+           if all(f"qdm_{j}" in col for j in joint_names) else None)
+    wrapped = [j for j in joint_names if unwrap(col, f"q_{j}")]
     Q = np.column_stack([col[f"q_{j}"] for j in joint_names])
     try:
-        c = clocks.rebuild(t, Q, np.column_stack(others) if others else None, mode=mode, period=period,
+        c = clocks.rebuild(t, Q, qdm, mode=mode, period=period,
                            t_robot=col.get(clocks.ROBOT_TIME))
     except ValueError as e:
         raise RecordingError(f"{path}: {e}") from None
+    c.unwrapped = wrapped
     return _recording(col, joint_names, c.kept, c.t), c
+
+
+def unwrap(col, name):
+    """Unwrap the column ``col[name]`` in place where it jumps by a whole number of turns (2 pi k,
+    to within an eighth of a turn) between consecutive rows: a continuous joint reported in
+    [-pi, pi) (no arm moves half a turn in one sample). True when it did."""
+    q = col[name]
+    d = np.diff(q)
+    turns = np.rint(d / (2 * np.pi))
+    jump = (turns != 0) & (np.abs(d - 2 * np.pi * turns) < np.pi / 4)
+    if not jump.any():
+        return False
+    col[name] = q - 2 * np.pi * np.concatenate([[0.0], np.cumsum(np.where(jump, turns, 0.0))])
+    return True

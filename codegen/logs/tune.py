@@ -295,6 +295,22 @@ def start_of_steady(spec, p, t):
     return float(t[0] + max(start, 0.05 * (t[-1] - t[0])))
 
 
+def too_short(val, t, t_from, spec, p):
+    """Why the log of times ``t`` (N,) (s) is too short to score from ``t_from`` (s) with the
+    Validation ``val`` (a scored row needs its ``val.window`` following samples), or "" when it is
+    not: the log must score at least as long as it skips, T >= 2 (t_from - t_0) + m h."""
+    t0, T = float(t[0]), float(t[-1] - t[0])
+    h = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    need = 2.0 * (t_from - t0) + val.window * h
+    if T >= need and np.any(val.valid & (t >= t_from)):
+        return ""
+    names = list(spec.p_names)
+    why = (f"twice its start-up t_switch = {float(p[names.index('t_switch')]):.3g} s"
+           if "t_switch" in names else "after the first 5 % of the log")
+    return (f"the log is too short: {T:.3g} s, and scoring starts at {t_from - t0:.3g} s ({why}) with "
+            f"{val.window} samples ahead of each scored one; record at least {need:.3g} s")
+
+
 def _with_params(obs, p):
     """Set ``p`` on a freshly reset observer: the C's set_params without the stability check
     (a candidate; the chosen one is checked), or the reference's own setter."""
@@ -373,6 +389,9 @@ def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None, 
     if not tune:
         return None, p0
     t_from = max(start_of_steady(spec, p0, t), t_from if t_from is not None else -math.inf)
+    short = too_short(val, t, t_from, spec, p0)
+    if short:
+        return Tuned(family, {}, 1.0, math.inf, math.inf, [], short), p0
 
     def score(s):
         p = scaled(spec.p_names, p0, tune, s)

@@ -218,24 +218,16 @@ def test_a_targets_file_tunes_on_a_bag(logs, tmp_path):
     assert tuned[0] == tuned[1]
 
 
-def _real_logs():
-    """The real arms' logs folder ($CODEGEN_REAL_LOGS, else ../shared/data/real), or None."""
-    import os
-    from pathlib import Path
-    folder = Path(os.environ.get("CODEGEN_REAL_LOGS") or Path(__file__).resolve().parents[2] / ".." / "shared" /
-                  "data" / "real")
-    return folder if (folder / "panda_real_log.npz").is_file() else None
-
-
 @pytest.mark.real
 @pytest.mark.slow
 def test_a_real_arms_log_as_a_bag_reads_as_its_csv(tmp_path):
     """The Panda's log (a logger's receive times, repeated rows, its own velocity signal) written as
     a ROS 2 bag and as a CSV of the same data (stamps in whole ns): the same recording after the
     clock is rebuilt, to the last bit, and the same clock."""
-    folder = _real_logs()
-    if folder is None:
-        pytest.skip("no real logs (set CODEGEN_REAL_LOGS or put them in ../shared/data/real)")
+    from codegen.evaluate.scenarios import real_logs
+    folder = real_logs.folder()
+    if folder is None or not (folder / "panda_real_log.npz").is_file():
+        pytest.skip(real_logs.skip_reason())
     data = np.load(folder / "panda_real_log.npz")
     ns = np.rint((data["t"] - data["t"][0]) * 1e9).astype(np.int64)
     joints = [f"panda_joint{i + 1}" for i in range(data["q"].shape[1])]

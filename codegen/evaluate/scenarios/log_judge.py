@@ -144,7 +144,7 @@ def _identified(folder, robot, progress):
     from ...logs.identify import identify
     from ...logs.recording import read_log
     rec, _ = read_log(Path(folder) / "excitation.csv", robot.joint_names)
-    ident = identify(rec, robot, progress=progress, max_rel_std=1.0)
+    ident = identify(rec, robot, progress=progress)
     files = ident.write(Path(folder) / "identified")
     residual = [ident.report["residual_rms"]["after"][j] for j in robot.joint_names]
     model = load_robot(urdf=files["urdf"], locked_joints=robot.source.get("locked_joints") or None)

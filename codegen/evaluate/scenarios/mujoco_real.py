@@ -169,7 +169,7 @@ def truth_recording(folder, name, joint_names):
 
 
 def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, families=None,
-            torque_noise_of="effort", max_rel_std=None, reference=False, progress=True):
+            torque_noise_of="effort", reference=False, progress=True):
     """What a user of the real arm does, judged against the plant's truth: identify the robot on
     the excitation log, then run the observers on the task log twice, with the identified model
     and with the URDF as shipped, against the baselines tuned on the truth.
@@ -193,9 +193,6 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
         As in ``runs``.
     reference : bool
         Run the observers with the numpy reference instead of the compiled C.
-    max_rel_std : float, optional
-        Identification's refusal bound (default ``identify``'s, 0.05: the 10 s logs of seed 0
-        leave ur5's worst combination at 0.042, panda's at 0.049, kinova's at 0.43, refused).
     progress : bool
         Progress bars on stderr.
 
@@ -226,7 +223,7 @@ def observe(robot_name, out, seed=0, T=T_TASK, T_excitation=T_EXCITATION, famili
     models = {"urdf": (robot, design_inputs(quantization=step))}
     try:
         ident = identify(replace(truth_recording(out, "excitation", joints), qd=None), robot,
-                         progress=progress, **({} if max_rel_std is None else {"max_rel_std": max_rel_std}))
+                         progress=progress)
     except IdentificationError as e:        # what the user is told; the URDF is all they have
         summary["identification"] = {"refused": str(e)}
         ident = None
