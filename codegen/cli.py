@@ -387,6 +387,8 @@ def _remedy(e):
     if e.option == "columns":
         e.cli_message = (f"{e} (name the log's own columns: --columns 'position_*=q_*,effort_*=tau_*,time=t"
                          f"[,t_unit=ms][,joints=[a,b]]' or --columns mapping.toml)")
+    elif e.option == "t_unit" and e.choices:
+        e.cli_message = f"{e}: --columns t_unit={e.choices[0]} (with other rules, add t_unit={e.choices[0]} to them)"
     elif e.option == "topic":
         e.cli_message = f"{e}: --topic {e.choices[0] if e.choices else 'NAME'}"
     return e

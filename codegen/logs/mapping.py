@@ -11,7 +11,9 @@ joint), the same part in the target; a rule without one names one column. ``t_un
 or µs, ns; default s) is the unit of the time columns; a mapped log's time counts from its first
 row, exactly (from the digits written, however large the stamps). ``joints`` renames the log's
 joints (the ``*`` parts of its q columns, in file order): a list, in that order, or a table
-``{log name = joint}``. Columns that no rule maps are not read (text columns, a frame id).
+``{log name = joint}``. Columns that no rule maps are not read (text columns, a frame id), but
+those already named as a recording's (``t``, ``q_<joint>``, ...): ``t_unit=ms`` alone reads a
+recording CSV whose time is in ms.
 """
 from __future__ import annotations
 
@@ -103,6 +105,11 @@ class ColumnMap:
                         joint_of.append(part)
                 else:
                     out[target] = h
+        for h in header:                        # a column already named as a recording's is kept
+            if h not in used and h not in out and is_recording_name(h):
+                out[h] = h
+                if h.startswith("q_"):
+                    joint_of.append(h[2:])
         return self._renamed(out, joint_of, where)
 
     def _renamed(self, out, joint_of, where):
@@ -127,6 +134,12 @@ class ColumnMap:
                 name = f"{group}_{rename[joint]}"
             renamed[name] = source
         return renamed
+
+
+def is_recording_name(name):
+    """True for a recording's column name: t, t_robot, or q_, tau_, qd_, qdm_ and a joint."""
+    group, _, joint = name.partition("_")
+    return name in TIMES or (group in GROUPS and bool(joint))
 
 
 def _check_rule(source, target):

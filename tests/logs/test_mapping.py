@@ -175,3 +175,19 @@ def test_design_names_the_mapping_for_a_targets_file(logs):
                              "--columns", ROS_EXPORT])
     assert status == 0, err
     assert f'or in a targets file: tune = "{export}", tune_columns = "{ROS_EXPORT}" (this design' in out
+
+
+def test_a_recording_csv_in_ms_is_read_with_t_unit_alone(logs, tmp_path):
+    """A column already named as a recording's is kept by any mapping: ``t_unit=ms`` alone reads
+    a recording CSV whose time is in ms as the one in seconds; without it the clock's refusal
+    prints the flag."""
+    plain, _, rec = logs
+    ms = Recording(t=rec.t * 1e3, q=rec.q, tau=rec.tau, qd=None, joint_names=rec.joint_names, qdm=rec.qdm)
+    path = ms.write_csv(tmp_path / "ms.csv")
+    got, _ = read_log(path, rec.joint_names, "stamps", columns="t_unit=ms")
+    assert np.allclose(got.t, rec.t, rtol=0, atol=1e-12) and np.array_equal(got.q, rec.q)
+    assert np.array_equal(got.qdm, rec.qdm)
+    status, _, err = _run(["describe", str(path)])
+    assert status == 2 and err.rstrip().endswith("--columns t_unit=ms (with other rules, add t_unit=ms to them)"), err
+    status, out, err = _run(["describe", str(path), "--columns", "t_unit=ms"])
+    assert status == 0 and "joints: q1, q2" in out, err
