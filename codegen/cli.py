@@ -765,6 +765,7 @@ def cmd_simulate_log(args):
     print(f"its truth: {truth} (per row: the true sample time, q, qd and applied tau)")
     print(f"the plant: the URDF perturbed (masses and inertias, a payload, friction, torque offsets; seed "
           f"{args.seed}), a 2^20 counts/rev encoder logged to 1e-6 rad, torque noise ({args.torque})")
+    return 0
 
 
 def cmd_detect(args):
