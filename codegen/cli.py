@@ -145,29 +145,15 @@ def _targets(args):
     return targets
 
 
-SATURATED = 0.1      # a design with more of its samples at the velocity bound is refused (exit 2)
-
-
 def design_failure(entry, family):
-    """Why the design ``entry`` (codegen.evaluate.compare.design_on_log's Entry) of ``family`` on a
-    log is no design, or "": no candidate scored (the log too short for the scoring to start, or
-    none ran finite and stable), a run that stopped early (its estimate not finite), or more than
-    SATURATED of its samples with the velocity estimate at the model's bound."""
-    import numpy as np
-    tuned, n = entry.tuned, len(entry.est)
-    if tuned is not None and not math.isfinite(tuned.score):
-        return f"{family}: no design: {tuned.note or 'no candidate ran finite and stable'}"
-    bad = ~np.all(np.isfinite(entry.est), axis=1)
-    if bad.any():
-        why = entry.note.split("; ")[-1] if entry.note else "a non-finite estimate"
-        return (f"{family}: no design: its run on the log stopped at sample {int(np.argmax(bad))} of {n} "
-                f"({why})")
-    hits = int(entry.metrics.get("at_bound") or 0)
-    if hits > SATURATED * n:
-        return (f"{family}: no design: saturated, {hits} of {n} samples with the velocity estimate at the "
-                f"model's bound (more than {SATURATED:.0%}); raise the bound (--design v_max=...) or choose "
-                "another family")
-    return ""
+    """The one line refusing the design ``entry`` of ``family`` (codegen.evaluate.verdict), with
+    its remedy as a flag, or ""."""
+    from .evaluate.verdict import design_failure as failure
+    found = failure(entry, family)
+    if found is None:
+        return ""
+    why, remedy = found
+    return why + (f"; {remedy[1]} (--design {remedy[0]}=...) or choose another family" if remedy else "")
 
 
 def _check_out(path, option, inputs=()):
@@ -191,7 +177,7 @@ def tune_target(target, log, columns=None, topic=None):
     entry, _, _ = design_on_log(rec, robot, target.family, design=dict(target.build), clock=clock)
     failed = design_failure(entry, target.family)
     if failed:
-        raise ValueError(f"{target.prefix}: tune = {str(log)!r}: {failed}")
+        raise ValueError(failed)
     tuned = entry.tuned.params if entry.tuned is not None else {}
     print(f"{target.prefix}: tuned on {Path(log).name}: "
           + (", ".join(f"{k} = {v:.4g}" for k, v in tuned.items()) or "its designed gains (no bandwidth)")
@@ -499,6 +485,22 @@ def _compare_source(args):
     return rec, robot, f"{Path(args.source).name} ({robot.name})", clock
 
 
+def _rigid_check(families, robot, remedy="give --elastic (with --J, --K)"):
+    """ValueError before any work when an elastic-joint family of ``families`` meets the rigid
+    ``robot``: the ``remedy``, and the robots elastic by default."""
+    from models.catalog import ELASTIC
+
+    from .evaluate.compare import parse_observer
+    from .pipeline.targets_file import family_info
+    if hasattr(robot, "rigid"):
+        return
+    for f in families:
+        family = parse_observer(f)[0]
+        if family_info(family)[3]:
+            raise ValueError(f"family {family}: needs an elastic robot (joint stiffness K, motor inertias J); "
+                             f"{robot.name} is rigid: {remedy} (J, K by default on {', '.join(ELASTIC)})")
+
+
 COMPARE_OUTPUTS = ("errors.png", "joint0.png", "estimates.csv", "compare.json")
 
 
@@ -511,11 +513,12 @@ def cmd_compare(args):
     from .logs.recording import RecordingError
     stepping = {k: getattr(args, k) for k in ("method", "hold", "substeps") if getattr(args, k) is not None}
     outputs = OutputSet(args.out or work_dir() / "compare", COMPARE_OUTPUTS, ours=args.out is None,
-                        inputs=[args.source, args.torque_uncertainty], elsewhere="or choose another --out")
+                        inputs=[args.source, args.torque_uncertainty, args.urdf], elsewhere="or choose another --out")
     try:
         with stage_lines():              # a line per stage on stderr (the MuJoCo run), then a bar
             rec, robot, title, clock = _compare_source(args)
             families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
+            _rigid_check(families, robot)
             bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
             sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization,
                                                                                              args.noise)
@@ -627,11 +630,9 @@ def cmd_identify(args):
     report to --out. ``args``: the parsed namespace; returns 0."""
     from .logs.identify import IdentificationError, identify
     robot = _robot_of(args)
-    out = Path(args.out or work_dir() / "identify")
-    check_writable(out, "or choose another --out", folder=True)     # before the work (identify writes the set)
-    check_not_input([out / n for n in (f"{robot.name}_identified.urdf", f"{robot.name}_identified.friction.json",
-                                       "report.json", "report.txt")],
-                    [args.log, args.urdf], "choose another --out")
+    names = (f"{robot.name}_identified.urdf", f"{robot.name}_identified.friction.json", "report.json", "report.txt")
+    outputs = OutputSet(args.out or work_dir() / "identify", names, inputs=[args.log, args.urdf],   # before the work
+                        elsewhere="or choose another --out", ours=args.out is None)
     rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
     try:
@@ -641,7 +642,8 @@ def cmd_identify(args):
     except IdentificationError as e:
         e.cli_message = _identify_remedy(e)
         raise
-    paths = ident.write(out)
+    paths = ident.write(outputs.folder)      # its own writer (each file through a temporary one)
+    outputs.record()
     print(ident.text, end="")
     lock = "".join(f" --lock {k}={v:g}" for k, v in (robot.source.get("locked_joints") or {}).items())
     print(f"\nthe observers with this model, on a log of the robot: python -m codegen compare LOG.csv "
@@ -693,14 +695,9 @@ def cmd_design(args):
     from .core.progress import bar as progress_bar
     from .evaluate.compare import design_inputs, design_on_log
     from .evaluate.sim.blocks import stage_lines
-    from .evaluate.compare import parse_observer
-    from .pipeline.targets_file import family_info
     robot = _robot_of(args)
-    if family_info(parse_observer(args.family)[0])[3]:
-        from models.catalog import ELASTIC
-        raise ValueError(f"family {args.family}: needs an elastic robot (joint stiffness K, motor inertias J), and "
-                         f"`design` tunes on a rigid one ({robot.name}); run it on a log with `compare LOG.csv "
-                         f"--robot R --elastic --observers {args.family}` (R elastic by default: {', '.join(ELASTIC)})")
+    _rigid_check([args.family], robot, remedy="`design` has no elastic robot; run it on the log with `compare "
+                 f"LOG.csv --robot R --elastic --observers {args.family}`")
     _check_out(args.json, "--json", inputs=[args.log])
     rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())

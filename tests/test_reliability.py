@@ -111,10 +111,10 @@ def test_load_reads_the_metadata_that_was_built(spec_of, tmp_path):
 
 
 # ------------------------------------------------------------------ run() and rhs on error
-def test_run_failing_at_sample_k_rolls_the_state_back(compiled, spec_of):
+def test_run_failing_at_sample_k_rolls_the_state_back(unranged, spec_of):
     """A sample k > 0 fails: the C run restores the state it had at entry (x, last y and u),
     as docs/guide/reliability.md and ObserverError say, and reports k."""
-    obs = compiled("seed000_2r")
+    obs = unranged
     obs.reset([0.1, 0.2])
     for _ in range(3):
         obs.step([0.1, 0.2], [1.0, -1.0])

@@ -130,8 +130,9 @@ MANIFEST = ".codegen-outputs.json"     # what the last set written into a folder
 
 
 def check_writable(path, elsewhere, folder=False):
-    """WriteError (naming ``path`` and the fix) when ``path`` (a file, or a folder when ``folder``)
-    cannot be written: the folder it goes in, or its nearest existing parent, refuses a file.
+    """WriteError (naming ``path`` and the fix, then ``elsewhere``: how to write to another place)
+    when ``path`` (a file, or a folder when ``folder``) cannot be written: the folder it goes in,
+    or its nearest existing parent, refuses a file.
     Probed with an unnamed temporary file (nothing is left), so it holds for root and for
     read-only filesystems alike. Run before the work whose result goes there."""
     path = Path(path).absolute()
@@ -155,8 +156,9 @@ def check_writable(path, elsewhere, folder=False):
 
 
 def check_not_input(outputs, inputs, elsewhere):
-    """ValueError when an output path is one of the ``inputs`` (resolved: the same file through
-    another name or a link), before the run that would overwrite what it reads."""
+    """ValueError when a path of ``outputs`` is one of the ``inputs`` (resolved: the same file
+    through another name or a link), before the run that would overwrite what it reads; the
+    message ends with ``elsewhere`` (what to choose instead)."""
     seen = {}
     for p in inputs:
         if p is not None and Path(p).exists():
@@ -170,7 +172,8 @@ def check_not_input(outputs, inputs, elsewhere):
 
 def write_text(path, text, elsewhere):
     """``text`` into the file ``path`` through a temporary file in its folder, renamed into place
-    (a reader sees the old file or the new one); WriteError naming the path and the fix."""
+    (a reader sees the old file or the new one); WriteError naming the path and the fix, then
+    ``elsewhere``. Returns the path."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -185,6 +188,32 @@ def write_text(path, text, elsewhere):
     except OSError as e:
         raise write_error(e, path, elsewhere) from None
     return path
+
+
+@contextmanager
+def held_signals(signums=None):
+    """SIGINT and SIGTERM (or ``signums``) held back for the with-block and delivered after it (a
+    Ctrl-C then interrupts after the block, never inside it). Only the main thread can hold them;
+    elsewhere the block runs as it is."""
+    import signal
+    import threading
+    signums = (signal.SIGINT, signal.SIGTERM) if signums is None else signums
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught, old = [], {}
+
+    def note(signum, frame):
+        caught.append(signum)
+    for s in signums:
+        old[s] = signal.signal(s, note)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        for s in dict.fromkeys(caught):
+            os.kill(os.getpid(), s)
 
 
 class OutputSet:
@@ -204,7 +233,9 @@ class OutputSet:
         self.folder, self.names, self.elsewhere, self.ours = Path(folder), list(names), elsewhere, ours
         check_writable(self.folder, elsewhere, folder=True)
         check_not_input([self.folder / n for n in self.names], inputs, elsewhere)
-        self._foreign()
+        if self.folder.is_dir():
+            with locked(self.folder):       # a set being placed meanwhile is seen whole
+                self._foreign()
 
     def _manifest(self):
         import json
@@ -227,12 +258,36 @@ class OutputSet:
                                      f"{MANIFEST} does not list it): it is not replaced; move it, or "
                                      f"{self.elsewhere}")
 
+    def _record(self, tmp):
+        """Write the manifest of the set's files now in the folder (through ``tmp``, a folder beside it)."""
+        import json
+        files = {}
+        for name in self.names:
+            p = self.folder / name
+            if p.exists():
+                st = p.stat()
+                files[name] = [st.st_size, st.st_mtime_ns]
+        (Path(tmp) / MANIFEST).write_text(json.dumps({"files": files}, indent=1) + "\n")
+        os.replace(Path(tmp) / MANIFEST, self.folder / MANIFEST)
+
+    def record(self):
+        """List the set's files now in the folder as ours (a writer of its own placed them: the
+        next run may replace them); WriteError when the manifest cannot be written."""
+        try:
+            with locked(self.folder):
+                tmp = Path(tempfile.mkdtemp(prefix=".out.", dir=self.folder))
+                try:
+                    self._record(tmp)
+                finally:
+                    import shutil
+                    shutil.rmtree(tmp, ignore_errors=True)
+        except OSError as e:
+            raise write_error(e, self.folder / MANIFEST, self.elsewhere) from None
+
     @contextmanager
     def writing(self):
         """A temporary folder to write the set's files into; moved into place on success."""
-        import json
         import shutil
-        import signal
         made = not self.folder.exists()
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
@@ -241,21 +296,13 @@ class OutputSet:
             raise write_error(e, self.folder, self.elsewhere) from None
         try:
             yield tmp
-            held = {signal.SIGINT, signal.SIGTERM}
-            old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-            try:
+            with held_signals():
                 with locked(self.folder):
                     self._foreign()
-                    files = {}
                     for name in self.names:
                         if (tmp / name).exists():
                             os.replace(tmp / name, self.folder / name)
-                            st = (self.folder / name).stat()
-                            files[name] = [st.st_size, st.st_mtime_ns]
-                    (tmp / MANIFEST).write_text(json.dumps({"files": files}, indent=1) + "\n")
-                    os.replace(tmp / MANIFEST, self.folder / MANIFEST)
-            finally:
-                signal.pthread_sigmask(signal.SIG_SETMASK, old)
+                    self._record(tmp)
         except OSError as e:
             if isinstance(e, WriteError):
                 raise

@@ -228,7 +228,8 @@ def rebuild(t, Q, qdm=None, mode="auto", period=None, t_robot=None):
     back = np.flatnonzero(np.diff(t) < 0)
     if len(back):
         k = back[0]
-        raise ValueError(f"t: time stamps go back at row {k + 1}: {t[k + 1]:.9g} after {t[k]:.9g} s")
+        raise ValueError(f"t: time stamps go back at sample {k + 1} (row {k + 3} of a file with a header): "
+                         f"{t[k + 1]:.9g} after {t[k]:.9g} s")
     _check_unit(t)
     if qdm is not None:
         qdm = np.asarray(qdm, dtype=float).reshape(N, -1)

@@ -298,7 +298,8 @@ def start_of_steady(spec, p, t):
 def too_short(val, t, t_from, spec, p):
     """Why the log of times ``t`` (N,) (s) is too short to score from ``t_from`` (s) with the
     Validation ``val`` (a scored row needs its ``val.window`` following samples), or "" when it is
-    not: the log must score at least as long as it skips, T >= 2 (t_from - t_0) + m h."""
+    not: the log must score at least as long as it skips, T >= 2 (t_from - t_0) + m h. ``spec``
+    and its parameters ``p`` (np,) say why scoring starts late (a ``t_switch``)."""
     t0, T = float(t[0]), float(t[-1] - t[0])
     h = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
     need = 2.0 * (t_from - t0) + val.window * h
