@@ -206,16 +206,10 @@ def test_compare_gives_the_csvs_table_on_the_bag(logs, tmp_path, kind):
 
 def test_a_targets_file_tunes_on_a_bag(logs, tmp_path):
     """``tune = "<bag folder>"`` (and ``tune_topic``) tunes as the CSV does: the same gain."""
+    from test_mapping import tuned_k0                       # tests/logs/test_mapping.py
     folder, _ = logs
-    tuned = []
-    for name, log, extra in (("csv", folder / "log.csv", ""), ("bag", _bag_path(folder, "db3"),
-                                                               'tune_topic = "/joint_states"\n')):
-        (tmp_path / f"{name}.toml").write_text(f'[[target]]\nrobot = "{ROBOT}"\nfamily = "reduced_order"\n'
-                                               f'tune = "{log}"\n{extra}')
-        status, _, err = _run(["build", "-c", str(tmp_path / f"{name}.toml"), "--out", str(tmp_path / name)])
-        assert status == 0, err
-        tuned.append(err.split("k0 = ")[1].split()[0])
-    assert tuned[0] == tuned[1]
+    assert tuned_k0(tmp_path, "csv", folder / "log.csv") == tuned_k0(tmp_path, "bag", _bag_path(folder, "db3"),
+                                                                     'tune_topic = "/joint_states"\n')
 
 
 @pytest.mark.real

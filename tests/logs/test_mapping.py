@@ -146,17 +146,20 @@ def test_every_log_command_takes_the_mapping(logs, tmp_path):
     assert status == 2 and "tune_columns: belongs with tune" in err
 
 
+def tuned_k0(folder, name, log, extra=""):
+    """The k0 a targets file ``folder/<name>.toml`` tunes reduced_order to on ``log`` (its text)
+    (``extra``: more lines of the target, e.g. tune_columns)."""
+    (folder / f"{name}.toml").write_text(f'[[target]]\nrobot = "{ROBOT}"\nfamily = "reduced_order"\n'
+                                         f'tune = "{log}"\n{extra}')
+    status, _, err = _run(["build", "-c", str(folder / f"{name}.toml"), "--out", str(folder / name)])
+    assert status == 0, err
+    return err.split("k0 = ")[1].split()[0]
+
+
 def test_a_targets_file_tunes_on_a_mapped_log(logs, tmp_path):
     plain, export, rec = logs
-    tuned = []
-    for name, extra in (("plain", ""), ("export", f'tune_columns = "{ROS_EXPORT}"\n')):
-        log = plain if name == "plain" else export
-        (tmp_path / f"{name}.toml").write_text(f'[[target]]\nrobot = "{ROBOT}"\nfamily = "reduced_order"\n'
-                                               f'tune = "{log}"\n{extra}')
-        status, _, err = _run(["build", "-c", str(tmp_path / f"{name}.toml"), "--out", str(tmp_path / name)])
-        assert status == 0, err
-        tuned.append(err.split("k0 = ")[1].split()[0])
-    assert tuned[0] == tuned[1]
+    assert tuned_k0(tmp_path, "plain", plain) == tuned_k0(tmp_path, "export", export,
+                                                          f'tune_columns = "{ROS_EXPORT}"\n')
 
 
 def test_a_bag_without_rosbags_is_one_line_naming_the_extra(monkeypatch, tmp_path):
