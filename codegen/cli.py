@@ -412,6 +412,8 @@ def _remedy(e):
     if e.option == "columns":
         e.cli_message = (f"{e} (name the log's own columns: --columns 'position_*=q_*,effort_*=tau_*,time=t"
                          f"[,t_unit=ms][,joints=[a,b]]' or --columns mapping.toml)")
+    elif e.option == "t_unit" and e.choices:
+        e.cli_message = f"{e}: --columns t_unit={e.choices[0]} (with other rules, add t_unit={e.choices[0]} to them)"
     elif e.option == "topic":
         e.cli_message = f"{e}: --topic {e.choices[0] if e.choices else 'NAME'}"
     return e
@@ -733,7 +735,10 @@ def cmd_identify(args):
 
 def _log_joints(args):
     """The joints of the log of ``args`` (its q_<joint> columns after --columns; a bag's), in file order."""
+    from .logs.bag import is_bag
     from .logs.recording import RecordingError, log_joints
+    if is_bag(args.log):
+        _require("rosbags", f"reading the ROS bag {args.log}")
     try:
         return log_joints(args.log, args.columns, args.topic)
     except RecordingError as e:
@@ -804,7 +809,8 @@ def cmd_design(args):
     if entry.note:
         print(f"note: {entry.note}")
     print("build it: " + _build_line(args, entry, tuned, rec.dt))
-    print(f'or in a targets file: tune = "{args.log}" (this design, redone when the target is built)')
+    print(f'or in a targets file: tune = "{args.log}"' + "".join(f', {k} = {json.dumps(v)}' for k, v in (
+        ("tune_columns", args.columns), ("tune_topic", args.topic)) if v) + " (this design, redone when the target is built)")
     if args.json:
         write_text(args.json, json.dumps({
             "clock": clock.to_dict(), "noise": nz.to_dict(), "family": args.family, "variant": entry.variant,

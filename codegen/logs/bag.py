@@ -3,7 +3,8 @@
 package (an optional extra: ``ros``).
 
 One ``sensor_msgs/JointState`` topic is read (the only one, or the one named): each message is a
-row, its ``name`` the joints, and the columns are
+row, its ``name`` the joints (with a robot's joints given, the messages carrying all of them, by
+name: another publisher's on the same topic, a gripper's, are left out), and the columns are
 
     header.stamp        the message's header stamp (ns, from the first message's)
     bag.time            when the bag recorded it (ns, from the first message's)
@@ -71,29 +72,32 @@ def joint_state_topics(reader):
     return topics
 
 
-def read(path, topic=None):
+def read(path, topic=None, joints=None):
     """(columns, topic): {column: (N,) float64} of the bag at ``path`` (module docstring) and the
-    topic read. ``topic``: a JointState topic's name; None takes the only one.
+    topic read. ``topic``: a JointState topic's name; None takes the only one. ``joints``: the
+    joints wanted, when known (a robot's): the messages that carry every one of them are read, the
+    others (another publisher's joints on the same topic) left out; None: every message, all of
+    one joint list.
 
     Raises
     ------
     BagError
         No bag; no JointState topic, several (``option`` "topic", the candidates in ``choices``)
-        or an unknown one; fewer than two messages; messages whose joints differ, or without
-        effort.
+        or an unknown one; fewer than two messages; messages whose joints differ (no ``joints``),
+        none carrying ``joints``, or without effort.
     ImportError
         The ``rosbags`` package is not installed (name ``rosbags``).
     """
     bag = _bag_path(path)
     stat = bag.stat() if bag.is_file() else max((f.stat() for f in bag.iterdir()), key=lambda st: st.st_mtime_ns)
-    col, topic = _read(str(bag.resolve()), topic, stat.st_mtime_ns, stat.st_size)
-    return dict(col), topic
+    topic, rows = _messages(str(bag.resolve()), topic, stat.st_mtime_ns, stat.st_size)
+    return _columns(bag, topic, rows, joints), topic
 
 
 @functools.lru_cache(maxsize=2)
-def _read(bag, topic, mtime, size):
-    """``read``'s columns of the bag ``bag`` (a resolved path), read once for its ``mtime`` and
-    ``size`` (a command reads the joints, then the log)."""
+def _messages(bag, topic, mtime, size):
+    """(topic, [(record time ns, JointState message)]) of the bag ``bag`` (a resolved path), read
+    once for its ``mtime`` and ``size`` (a command reads the joints, then the log)."""
     from rosbags.highlevel import AnyReader
     bag = Path(bag)
     with AnyReader([bag]) as reader:
@@ -111,7 +115,7 @@ def _read(bag, topic, mtime, size):
         topic = topic or next(iter(topics))
         rows = [(t, reader.deserialize(raw, c.msgtype)) for c, t, raw in
                 reader.messages(connections=[c for c in reader.connections if c.topic == topic])]
-    return _columns(bag, topic, rows), topic
+    return topic, rows
 
 
 def check(col, to, where):
@@ -122,20 +126,27 @@ def check(col, to, where):
                        f"map the bag's record time instead, the rule bag.time=t")
 
 
-def _columns(bag, topic, rows):
-    """The columns of ``rows`` ((record time ns, JointState message), in the bag's order)."""
+def _columns(bag, topic, rows, want=None):
+    """The columns of ``rows`` ((record time ns, JointState message), in the bag's order): every
+    message of one joint list, or (``want``) those carrying every wanted joint."""
     where = f"{bag}, topic {topic}"
-    if len(rows) < 2:
-        raise BagError(f"{where}: {len(rows)} message{'s' * (len(rows) != 1)}, a log needs at least 2")
     names = [tuple(m.name) for _, m in rows]
     lists = {}
     for n in names:
         lists[n] = lists.get(n, 0) + 1
+    seen = "; ".join(f"[{', '.join(k)}] in {v}" for k, v in lists.items())
+    if len(lists) > 1 and not want:
+        raise BagError(f"{where}: its messages carry different joint lists ({seen}): name the robot, whose "
+                       f"joints choose the messages, or record each publisher on its own topic")
     if len(lists) > 1:
-        seen = "; ".join(f"[{', '.join(k)}] in {v}" for k, v in lists.items())
-        raise BagError(f"{where}: its messages carry different joint lists ({seen}): a log is one list "
-                       f"(record each publisher on its own topic)")
-    joints = list(names[0])
+        keep = [k for k, n in enumerate(names) if set(want) <= set(n)]
+        if not keep:
+            raise BagError(f"{where}: no message carries every joint of {', '.join(want)} (its joint lists: {seen})")
+        rows, names, joints = [rows[k] for k in keep], [names[k] for k in keep], list(want)
+    else:
+        joints = list(names[0]) if names else []
+    if len(rows) < 2:
+        raise BagError(f"{where}: {len(rows)} message{'s' * (len(rows) != 1)}, a log needs at least 2")
     if not joints:
         raise BagError(f"{where}: its messages name no joint")
     stamp = np.array([m.header.stamp.sec * 10 ** 9 + m.header.stamp.nanosec for _, m in rows], dtype=np.int64)
@@ -143,14 +154,16 @@ def _columns(bag, topic, rows):
     col = {"header.stamp": (stamp - stamp[0]).astype(float), "bag.time": (record - record[0]).astype(float)}
     if not stamp.any():
         col["header.stamp"] = np.full(len(rows), np.nan)        # unset: refused if it is the time (``check``)
+    index = [[n.index(j) for j in joints] for n in names]
     for field in ("position", "velocity", "effort"):
-        sizes = {len(getattr(m, field)) for _, m in rows}
-        if sizes == {0} and field == "velocity":
+        arrays = [getattr(m, field) for _, m in rows]
+        if field == "velocity" and not any(len(a) for a in arrays):
             continue
-        if sizes != {len(joints)}:
-            what = "no effort (the joint torques every command needs)" if sizes == {0} else \
-                f"{field} of {sorted(sizes)} values for {len(joints)} joints"
+        if any(len(a) != len(n) for a, n in zip(arrays, names)):
+            sizes = sorted({len(a) for a in arrays})
+            what = "no effort (the joint torques every command needs)" if sizes == [0] else \
+                f"{field} of {sizes} values for {sorted({len(n) for n in names})} joints"
             raise BagError(f"{where}: its messages carry {what}")
-        values = np.array([getattr(m, field) for _, m in rows], dtype=float)
+        values = np.array([np.asarray(a, dtype=float)[ix] for a, ix in zip(arrays, index)])
         col.update({f"{field}_{j}": values[:, i] for i, j in enumerate(joints)})
     return col

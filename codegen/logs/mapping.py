@@ -11,7 +11,9 @@ joint), the same part in the target; a rule without one names one column. ``t_un
 or µs, ns; default s) is the unit of the time columns; a mapped log's time counts from its first
 row, exactly (from the digits written, however large the stamps). ``joints`` renames the log's
 joints (the ``*`` parts of its q columns, in file order): a list, in that order, or a table
-``{log name = joint}``. Columns that no rule maps are not read (text columns, a frame id).
+``{log name = joint}``. Columns that no rule maps are not read (text columns, a frame id), but
+those already named as a recording's (``t``, ``q_<joint>``, ...): ``t_unit=ms`` alone reads a
+recording CSV whose time is in ms.
 """
 from __future__ import annotations
 
@@ -79,15 +81,6 @@ class ColumnMap:
         return ColumnMap({**rules, **other.rules}, other.t_unit or self.t_unit,
                          other.joints if other.joints is not None else self.joints)
 
-    def text(self):
-        """The mapping as one line of rules (what a message quotes)."""
-        parts = [f"{s}={t}" for s, t in self.rules.items()] + [f"t_unit={self.t_unit}"] * bool(self.t_unit)
-        if isinstance(self.joints, list):
-            parts.append(f"joints=[{','.join(self.joints)}]")
-        elif isinstance(self.joints, dict):
-            parts.append("joints={" + ",".join(f"{k}:{v}" for k, v in self.joints.items()) + "}")
-        return ",".join(parts)
-
     def resolve(self, header, where="log", optional=()):
         """{recording column: log column} of the log columns ``header`` (names), and the log's
         joints renamed. MappingError naming the log ``where`` and the rule that matches no column (but those of
@@ -112,6 +105,11 @@ class ColumnMap:
                         joint_of.append(part)
                 else:
                     out[target] = h
+        for h in header:                        # a column already named as a recording's is kept
+            if h not in used and h not in out and is_recording_name(h):
+                out[h] = h
+                if h.startswith("q_"):
+                    joint_of.append(h[2:])
         return self._renamed(out, joint_of, where)
 
     def _renamed(self, out, joint_of, where):
@@ -136,6 +134,12 @@ class ColumnMap:
                 name = f"{group}_{rename[joint]}"
             renamed[name] = source
         return renamed
+
+
+def is_recording_name(name):
+    """True for a recording's column name: t, t_robot, or q_, tau_, qd_, qdm_ and a joint."""
+    group, _, joint = name.partition("_")
+    return name in TIMES or (group in GROUPS and bool(joint))
 
 
 def _check_rule(source, target):

@@ -13,6 +13,7 @@ clock or when a logger received each row, is found by codegen.logs.clock).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,8 +24,8 @@ from ..core.columns import ColumnsError, read_columns, read_header, write_column
 
 class RecordingError(ColumnsError):
     """A recording that cannot be used (message names the file and what is wrong); ``option``
-    names the choice that would fix it ("columns": a column mapping, "topic": a bag's topic) and
-    ``choices`` its values, when one would."""
+    names the choice that would fix it ("columns": a column mapping, "t_unit": its time unit,
+    "topic": a bag's topic) and ``choices`` its values, when one would."""
 
     def __init__(self, message, option=None, choices=()):
         super().__init__(message)
@@ -136,25 +137,26 @@ class Recording:
         return write_columns(path, {name: data[:, i] for i, name in enumerate(names)})
 
 
-def _table(path, columns=None, topic=None):
+def _table(path, columns=None, topic=None, joints=None):
     """(path, header, {recording column: (N,) values}) of the log at ``path``: a recording CSV as it
     is (``columns`` None), a CSV whose own names the mapping ``columns`` maps (codegen.logs.mapping:
     its text, a mapping file or a ColumnMap), or a ROS bag's JointState topic (codegen.logs.bag,
-    ``topic``; its default mapping under ``columns``). ``header``: the log's own column names (a
-    message lists the unmapped ones)."""
+    ``topic``, the messages carrying the ``joints`` wanted; its default mapping under ``columns``).
+    ``header``: the log's own column names, ``read`` those read (a message lists the others).
+    Returns (path, header, columns, read)."""
     from . import bag, mapping
     path = Path(path)
     try:
         cmap = mapping.parse(columns)
         if bag.is_bag(path):
-            raw, _ = bag.read(path, topic)
+            raw, _ = bag.read(path, topic, joints if cmap is None or cmap.joints is None else None)
             rules = bag.DEFAULT.updated(cmap)
             header = list(raw)
             optional = [s for s in bag.OPTIONAL if s not in (cmap.rules if cmap else {})]
             to = rules.resolve(header, f"{path}", optional=optional)
             bag.check(raw, to, f"{path}")
             return path, header, {name: raw[src] / (rules.scale if name in mapping.TIMES else 1)
-                                  for name, src in to.items()}
+                                  for name, src in to.items()}, set(to.values())
         if path.is_dir():
             raise RecordingError(f"{path}: a folder, not a log (a CSV file, a ROS 1 .bag file or a ROS 2 bag "
                                  f"folder with its metadata.yaml)")
@@ -167,21 +169,21 @@ def _table(path, columns=None, topic=None):
                                      f"[, qdm_<joint>]; a log with other names needs a column mapping; its columns: "
                                      f"{mapping.some(header)})", option="columns")
             header, data = read_columns(path, RecordingError)
-            return path, header, {h: data[:, i] for i, h in enumerate(header)}
+            return path, header, {h: data[:, i] for i, h in enumerate(header)}, set(header)
         header = read_header(path, RecordingError)
         to = cmap.resolve(header, f"{path}")
         times = {src: cmap.scale for name, src in to.items() if name in mapping.TIMES}
         names, data = read_columns(path, RecordingError, keep=list(to.values()), origin=times)
     except (mapping.MappingError, bag.BagError) as e:
         raise RecordingError(str(e), option=getattr(e, "option", None), choices=getattr(e, "choices", ())) from None
-    return path, header, {name: data[:, names.index(src)] for name, src in to.items()}
+    return path, header, {name: data[:, names.index(src)] for name, src in to.items()}, set(to.values())
 
 
 def log_joints(path, columns=None, topic=None):
     """The joints of the log at ``path`` (its q_<joint> columns after the mapping ``columns``; the
     JointState names of a bag's ``topic``), in file order. RecordingError when there are none."""
     from . import mapping
-    path, header, col = _table(path, columns, topic)
+    path, header, col, _ = _table(path, columns, topic)
     joints = [h[2:] for h in col if h.startswith("q_")]
     if not joints:
         raise RecordingError(f"{path}: no q_<joint> columns (expected t, q_<joint>, tau_<joint>; a log with "
@@ -195,7 +197,7 @@ def _columns(path, joint_names, robot=None, columns=None, topic=None):
     every column there and finite, at least two rows, positions and torques within the ``robot``'s
     declared ranges when it is given (``check_ranges``; the stamps not yet checked): ``read_csv``
     and ``read_log``."""
-    path, header, col = _table(path, columns, topic)
+    path, header, col, read = _table(path, columns, topic, joint_names)
     need = ["t"] + [f"{g}_{j}" for g in ("q", "tau") for j in joint_names]
     missing = [c for c in need if c not in col]
     if missing:
@@ -203,8 +205,7 @@ def _columns(path, joint_names, robot=None, columns=None, topic=None):
             raise RecordingError(f"{path}: missing columns {', '.join(missing)} (expected t, q_<joint>, "
                                  f"tau_<joint>[, qd_<joint>][, qdm_<joint>] for joints {', '.join(joint_names)}; "
                                  f"a log with other names needs a column mapping)", option="columns")
-        mapped = set(_sources(path, header, columns, topic))
-        unmapped = [h for h in header if h not in mapped]
+        unmapped = [h for h in header if h not in read]
         raise RecordingError(f"{path}: no {', '.join(missing)} after the column mapping (joints "
                              f"{', '.join(joint_names)} wanted; the log's joints {', '.join(h[2:] for h in col if h.startswith('q_')) or 'none'}"
                              + (f"; columns no rule maps: {', '.join(unmapped[:12])}" if unmapped else "") + ")",
@@ -230,18 +231,6 @@ def _columns(path, joint_names, robot=None, columns=None, topic=None):
 def _is_bag(path):
     from .bag import is_bag
     return is_bag(path)
-
-
-def _sources(path, header, columns, topic):
-    """The log's column names that the mapping of ``_table`` reads (for a message)."""
-    from . import bag, mapping
-    cmap = mapping.parse(columns)
-    rules = bag.DEFAULT.updated(cmap) if bag.is_bag(path) else cmap
-    out = []
-    for h in header:
-        if any(mapping.match(s, h) is not None for s in rules.rules):
-            out.append(h)
-    return out
 
 
 def check_ranges(path, col, joint_names, robot):
@@ -360,7 +349,9 @@ def read_log(path, joint_names, clock="auto", robot=None, columns=None, topic=No
         c = clocks.rebuild(t, Q, qdm, mode=mode, period=period,
                            t_robot=col.get(clocks.ROBOT_TIME))
     except ValueError as e:
-        raise RecordingError(f"{path}: {e}") from None
+        unit = re.search(r"it looks like (\w+) \(", str(e))          # a time column in ms, us or ns
+        raise RecordingError(f"{path}: {e}", option="t_unit" if unit else None,
+                             choices=[unit.group(1)] if unit else ()) from None
     c.unwrapped = wrapped
     return _recording(col, joint_names, c.kept, c.t), c
 

@@ -144,6 +144,22 @@ def test_the_topic_is_chosen_or_asked_for(tmp_path):
         read_log(rec.write_csv(tmp_path / "x.csv"), rec.joint_names, topic="/joint_states")
 
 
+def test_a_robots_joints_choose_the_messages_of_a_shared_topic(tmp_path):
+    """Two publishers on /joint_states (the arm's joints, in either order, and a gripper's): the
+    robot's joints read the arm's messages, by name."""
+    rec = synthetic(0.6)
+    names = [["gripper"] if k % 3 == 0 else (rec.joint_names[::-1] if k % 3 == 1 else rec.joint_names)
+             for k in range(len(rec.t))]
+    flipped = Recording(t=rec.t, q=np.array([r[::-1] if k % 3 == 1 else r for k, r in enumerate(rec.q)]),
+                        tau=np.array([r[::-1] if k % 3 == 1 else r for k, r in enumerate(rec.tau)]), qd=None,
+                        joint_names=rec.joint_names)
+    bag = write_bag(tmp_path / "shared.bag", "ros1", flipped, names=names)
+    got, _ = read_log(bag, rec.joint_names, "stamps")
+    arm = np.flatnonzero(np.arange(len(rec.t)) % 3 != 0)
+    assert np.array_equal(got.q, rec.q[arm]) and np.array_equal(got.tau, rec.tau[arm])
+    assert np.array_equal(got.t, np.rint((rec.t[arm] - rec.t[arm[0]]) * 1e6) / 1e6)     # whole microseconds
+
+
 def test_refusals_name_what_the_bag_lacks(tmp_path):
     rec = synthetic(0.3)
     joints = rec.joint_names
@@ -157,7 +173,9 @@ def test_refusals_name_what_the_bag_lacks(tmp_path):
     names = [joints if k % 2 else ["gripper", "finger"] for k in range(len(rec.t))]
     bag = write_bag(tmp_path / "mixed.bag", "ros1", rec, names=names)
     with pytest.raises(RecordingError, match=r"different joint lists \(\[gripper, finger\] in 151; \[q1, q2\] in 150\)"):
-        read_log(bag, joints)
+        log_joints(bag)
+    with pytest.raises(RecordingError, match=r"no message carries every joint of q1, q3 \(its joint lists: "):
+        read_log(bag, ["q1", "q3"])
     for path, match in ((tmp_path / "none.bag", "no such bag"), (tmp_path, "a folder, not a log")):
         with pytest.raises(RecordingError, match=match):
             read_log(path, joints)
@@ -184,3 +202,34 @@ def test_compare_gives_the_csvs_table_on_the_bag(logs, tmp_path, kind):
         tables[-1].append(json.dumps(json.loads((tmp_path / name / "compare.json").read_text())["rows"]))
     assert len(tables[0]) > 5
     assert tables[0] == tables[1]
+
+
+def test_a_targets_file_tunes_on_a_bag(logs, tmp_path):
+    """``tune = "<bag folder>"`` (and ``tune_topic``) tunes as the CSV does: the same gain."""
+    from test_mapping import tuned_k0                       # tests/logs/test_mapping.py
+    folder, _ = logs
+    assert tuned_k0(tmp_path, "csv", folder / "log.csv") == tuned_k0(tmp_path, "bag", _bag_path(folder, "db3"),
+                                                                     'tune_topic = "/joint_states"\n')
+
+
+@pytest.mark.real
+@pytest.mark.slow
+def test_a_real_arms_log_as_a_bag_reads_as_its_csv(tmp_path):
+    """The Panda's log (a logger's receive times, repeated rows, its own velocity signal) written as
+    a ROS 2 bag and as a CSV of the same data (stamps in whole ns): the same recording after the
+    clock is rebuilt, to the last bit, and the same clock."""
+    from codegen.evaluate.scenarios import real_logs
+    folder = real_logs.folder()
+    if folder is None or not (folder / "panda_real_log.npz").is_file():
+        pytest.skip(real_logs.skip_reason())
+    data = np.load(folder / "panda_real_log.npz")
+    ns = np.rint((data["t"] - data["t"][0]) * 1e9).astype(np.int64)
+    joints = [f"panda_joint{i + 1}" for i in range(data["q"].shape[1])]
+    rec = Recording(t=ns / 1e9, q=data["q"], tau=data["tau"], qd=None, joint_names=joints, qdm=data["dq"])
+    rec.write_csv(tmp_path / "panda.csv")
+    write_bag(tmp_path / "panda_bag", "db3", rec)
+    a, ca = read_log(tmp_path / "panda.csv", joints)
+    b, cb = read_log(tmp_path / "panda_bag", joints)
+    assert ca.kind == cb.kind == "ticks" and ca.describe() == cb.describe()
+    for name in ("t", "q", "tau", "qdm"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name

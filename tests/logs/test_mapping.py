@@ -146,14 +146,51 @@ def test_every_log_command_takes_the_mapping(logs, tmp_path):
     assert status == 2 and "tune_columns: belongs with tune" in err
 
 
+def tuned_k0(folder, name, log, extra=""):
+    """The k0 a targets file ``folder/<name>.toml`` tunes reduced_order to on ``log`` (its text)
+    (``extra``: more lines of the target, e.g. tune_columns)."""
+    (folder / f"{name}.toml").write_text(f'[[target]]\nrobot = "{ROBOT}"\nfamily = "reduced_order"\n'
+                                         f'tune = "{log}"\n{extra}')
+    status, _, err = _run(["build", "-c", str(folder / f"{name}.toml"), "--out", str(folder / name)])
+    assert status == 0, err
+    return err.split("k0 = ")[1].split()[0]
+
+
 def test_a_targets_file_tunes_on_a_mapped_log(logs, tmp_path):
     plain, export, rec = logs
-    tuned = []
-    for name, extra in (("plain", ""), ("export", f'tune_columns = "{ROS_EXPORT}"\n')):
-        log = plain if name == "plain" else export
-        (tmp_path / f"{name}.toml").write_text(f'[[target]]\nrobot = "{ROBOT}"\nfamily = "reduced_order"\n'
-                                               f'tune = "{log}"\n{extra}')
-        status, _, err = _run(["build", "-c", str(tmp_path / f"{name}.toml"), "--out", str(tmp_path / name)])
-        assert status == 0, err
-        tuned.append(err.split("k0 = ")[1].split()[0])
-    assert tuned[0] == tuned[1]
+    assert tuned_k0(tmp_path, "plain", plain) == tuned_k0(tmp_path, "export", export,
+                                                          f'tune_columns = "{ROS_EXPORT}"\n')
+
+
+def test_a_bag_without_rosbags_is_one_line_naming_the_extra(monkeypatch, tmp_path):
+    import importlib.util
+    find = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "rosbags" else find(name, *a))
+    for robot in (["--robot", ROBOT], []):
+        status, _, err = _run(["describe", str(tmp_path / "run.bag")] + robot)
+        assert status == 2 and err == (f"error: reading the ROS bag {tmp_path / 'run.bag'} needs the optional package "
+                                       "rosbags: pip install 'observer-codegen[ros]'\n")
+
+
+def test_design_names_the_mapping_for_a_targets_file(logs):
+    plain, export, rec = logs
+    status, out, err = _run(["design", str(export), "--robot", ROBOT, "--family", "reduced_order",
+                             "--columns", ROS_EXPORT])
+    assert status == 0, err
+    assert f'or in a targets file: tune = "{export}", tune_columns = "{ROS_EXPORT}" (this design' in out
+
+
+def test_a_recording_csv_in_ms_is_read_with_t_unit_alone(logs, tmp_path):
+    """A column already named as a recording's is kept by any mapping: ``t_unit=ms`` alone reads
+    a recording CSV whose time is in ms as the one in seconds; without it the clock's refusal
+    prints the flag."""
+    plain, _, rec = logs
+    ms = Recording(t=rec.t * 1e3, q=rec.q, tau=rec.tau, qd=None, joint_names=rec.joint_names, qdm=rec.qdm)
+    path = ms.write_csv(tmp_path / "ms.csv")
+    got, _ = read_log(path, rec.joint_names, "stamps", columns="t_unit=ms")
+    assert np.allclose(got.t, rec.t, rtol=0, atol=1e-12) and np.array_equal(got.q, rec.q)
+    assert np.array_equal(got.qdm, rec.qdm)
+    status, _, err = _run(["describe", str(path)])
+    assert status == 2 and err.rstrip().endswith("--columns t_unit=ms (with other rules, add t_unit=ms to them)"), err
+    status, out, err = _run(["describe", str(path), "--columns", "t_unit=ms"])
+    assert status == 0 and "joints: q1, q2" in out, err
