@@ -234,8 +234,8 @@ def test_selects_the_plant_coulomb_width(gripper, gripper_traj, gripper_case):
     auto = idf.identify(rec, gripper)
     fixed = idf.identify(rec, gripper, coulomb_width=gripper.coulomb_width)
     assert auto.report["coulomb_width"] == 0.02 and fixed.report["coulomb_width_source"] == "given"
-    held_out = auto.report["coulomb_width_held_out_rms"]
-    assert set(held_out) == {f"{w:g}" for w in idf.WIDTHS}
+    held_out = auto.report["selection"]["held_out_rms"]
+    assert {k.split(", ")[1] for k in held_out} == {f"{w:g} rad/s" for w in idf.WIDTHS}
     for k, true in zip(idf.FRICTION[:2], friction[:2]):
         np.testing.assert_allclose(auto.friction[k], true, rtol=0.10, err_msg=k)
 

@@ -58,24 +58,19 @@ def _reorder(indep, K):
 def _tri(M):
     """An upper triangular R with R^T R = M^T M (same singular values and right singular
     vectors, k x k): the Cholesky factor of the Gram matrix (a tall M's columns are scaled, its
-    condition number small), QR where the Gram matrix is singular in double precision."""
+    condition number small); where that is singular in double precision (a column no row
+    excites) of the Gram matrix plus 1e-13 x its mean diagonal, QR where even that fails."""
     if M.shape[0] <= M.shape[1]:
         return M
+    G = M.T @ M
     try:
-        return np.linalg.cholesky(M.T @ M).T
+        return np.linalg.cholesky(G).T
+    except np.linalg.LinAlgError:
+        pass
+    try:
+        return np.linalg.cholesky(G + 1e-13 * np.trace(G) / len(G) * np.eye(len(G))).T
     except np.linalg.LinAlgError:
         return np.linalg.qr(M, mode="r")
-
-
-def _std(M, G):
-    """(std of G z where z has information M^T M (M: rows x k), inf along unexcited directions;
-    cond M)."""
-    _, sv, Vt = np.linalg.svd(_tri(M))
-    ok = sv > 1e-7 * (sv[0] if sv.size else 1.0)     # R may come from the Gram matrix: sqrt(eps)
-    C = G @ Vt.T
-    var = np.sum((C[:, ok] / sv[ok]) ** 2, axis=1)
-    lost = np.any(np.abs(C[:, ~ok]) > 1e-8 * (1.0 + np.abs(C).max(axis=1, keepdims=True)), axis=1)
-    return np.where(lost, np.inf, np.sqrt(var)), (sv[0] / sv[-1] if sv.size and sv[-1] > 0 else np.inf)
 
 
 class _Arm:
@@ -136,7 +131,7 @@ class _Arm:
         self.v_limit_known = np.isfinite(vl) & (vl > 0)
         self.v_limit = np.where(self.v_limit_known, vl, 1.0)
         self.robot_width = getattr(robot, "coulomb_width", None)
-        self.width_candidates = None         # held-out RMS per width, when identify() selects it
+        self.selection = None                # held-out RMS per (cut-off, width), when identify() selects
         if coulomb_width == "auto":          # identify() selects it; the robot's until then
             coulomb_width = None
         width = coulomb_width if coulomb_width is not None else self.robot_width

@@ -74,7 +74,7 @@ def _report(arm, fit, estimate, options):
                 "test_from_s": float(t_split), "test_fraction": tf, "v_stick": float(v_stick),
                 "stuck_fraction": per(stuck), "rms_speed": per(fit["speed"])},
         "coulomb_width": arm.width, "coulomb_width_source": arm.width_source,
-        **({"coulomb_width_held_out_rms": arm.width_candidates} if arm.width_candidates else {}),
+        **({"selection": arm.selection} if arm.selection else {}),
         "noise_std": per(sigma),
         "residual_rms": {k: per(v) for k, v in residual.items()},
         "condition_number": cond,
