@@ -109,6 +109,7 @@ def check(robot, traj, ident, plant, friction, sigma, out, check_traj):
                   < 4 * std.ravel())
     # the files: the identified URDF loads (ours and pinocchio), its inverse dynamics with the
     # side file's friction matches the plant's on another trajectory within 2x the noise
+    _inside_bounds(ident)
     paths = ident.write(out)
     assert all(Path(p).is_file() for p in paths.values())
     locked = robot.source["locked_joints"]
@@ -406,3 +407,67 @@ def test_identifies_ur5(tmp_path):
     check(robot, traj, ident, plant, friction, sigma, tmp_path / "out",
           idf.excitation(robot, T=10.0, starts=1, maxiter=0, seed=7))
     assert math.isfinite(ident.report["condition_number"])
+
+
+def _inside_bounds(ident):
+    """Every primary link of the identification within its bounds (mass, centre of mass, second
+    moments), the written inertia positive definite within the triangle inequalities."""
+    from codegen.logs.identify.parametrisation import inside
+    arm = ident.arm
+    for i, b in enumerate(arm.bounds):
+        pi = ident.x[10 * i:10 * i + 10] - arm.attached[10 * i:10 * i + 10]
+        assert inside(pi, b), (arm.links[i], idf.inertial_to_urdf(pi), b)
+        _, _, Ic = idf.inertial_to_urdf(pi)
+        lam = np.linalg.eigvalsh(Ic)
+        assert lam[0] > 0 and lam[0] + lam[1] > lam[2], (arm.links[i], lam)
+
+
+def test_a_urdf_that_is_not_physical_is_projected_first(tmp_path):
+    """A forearm whose inertia breaks the triangle inequality (I_xx > I_yy + I_zz): the prior is
+    its projection into the physical bounds, the report says so, and the identified model, fitted
+    on a log of the physical arm, is physical and loads."""
+    from urdf_chain import Joint, Link, write_chain
+    bad = {"ixx": "0.05", "ixy": "0", "ixz": "0", "iyy": "0.01", "iyz": "0", "izz": "0.01"}
+    good = dict(bad, ixx="0.015")
+
+    def arm(path, forearm):
+        p = write_chain(path, [
+            Joint("shoulder", "revolute", Link("upper", mass="2.0", com="0.15 0 0"), origin="0 0 0.1", axis="0 0 1"),
+            Joint("elbow", "revolute", Link("forearm", mass="1.0", com="0.12 0 0", inertia=forearm)),
+            Joint("wrist", "revolute", Link("hand", mass="0.5", com="0.05 0 0"), axis="1 0 0")], robot="bad_arm")
+        p.write_text(p.read_text().replace('lower="-1" upper="1"', 'lower="-2.5" upper="2.5"'))
+        return p
+    robot = load_robot(urdf=arm(tmp_path / "bad_arm.urdf", bad))
+    (tmp_path / "plant").mkdir()
+    plant = pin_model(arm(tmp_path / "plant" / "bad_arm.urdf", good))
+    traj = idf.excitation(robot, T=10.0, starts=1, maxiter=20)
+    rng = np.random.default_rng(6)
+    friction = plant_friction(robot)
+    rec, sigma = simulate(plant, traj, friction, robot.coulomb_width, rng)
+    ident = idf.identify(rec, robot)
+    assert list(ident.report["prior"]["projected"]) == ["forearm"]
+    assert "the URDF is not physical" in ident.text and "forearm: principal second moments" in ident.text
+    _inside_bounds(ident)
+    after = np.array([ident.report["residual_rms"]["after"][j] for j in robot.joint_names])
+    assert np.all(after < 2 * sigma), (after, sigma)
+    paths = ident.write(tmp_path / "out")
+    loaded = load_robot(urdf=paths["urdf"])
+    np.testing.assert_allclose(loaded.masses, [ident.x[10 * i] for i in range(3)], rtol=1e-9)
+
+
+def test_the_margin_holds_where_the_log_pulls_past_it(gripper, gripper_traj, tmp_path):
+    """A plant whose elbow body weighs 2 % of the URDF's (less than what the URDF attaches to it:
+    the forearm's own mass would be negative, outside every physical bound): every link stays
+    within its bounds, the fit still beats the URDF on the held-out tail, and the URDF written
+    loads."""
+    import pinocchio as pin
+    plant = pin_model(gripper)
+    Y = plant.inertias[3]
+    plant.inertias[3] = pin.Inertia(0.02 * Y.mass, Y.lever, 0.02 * Y.inertia)
+    rec, _ = simulate(plant, gripper_traj, plant_friction(gripper), gripper.coulomb_width, np.random.default_rng(8))
+    ident = idf.identify(rec, gripper)
+    _inside_bounds(ident)
+    r = ident.report["residual_rms"]
+    assert all(r["after"][j] < r["before"][j] for j in gripper.joint_names), r
+    paths = ident.write(tmp_path / "out")
+    assert load_robot(urdf=paths["urdf"], locked_joints=LOCK).joint_names == gripper.joint_names
