@@ -471,3 +471,18 @@ def test_the_margin_holds_where_the_log_pulls_past_it(gripper, gripper_traj, tmp
     assert all(r["after"][j] < r["before"][j] for j in gripper.joint_names), r
     paths = ident.write(tmp_path / "out")
     assert load_robot(urdf=paths["urdf"], locked_joints=LOCK).joint_names == gripper.joint_names
+
+
+def test_write_refuses_a_urdf_that_would_not_load(gripper, gripper_case, tmp_path):
+    """The written URDF is loaded back as every command loads one before it is kept: a model whose
+    link has an inertia below the loaders' snapping (1e-12 kg m^2: zero after snapping) is not
+    written, and nothing is left behind."""
+    _, _, rec, _ = gripper_case
+    ident = idf.identify(rec, gripper)
+    arm = ident.arm
+    pi = idf.urdf_to_inertial(0.5, [0.1, 0, 0], np.diag([1e-12, 1e-12, 1e-12]))
+    ident.x = ident.x.copy()
+    ident.x[10:20] = arm.attached[10:20] + pi
+    with pytest.raises(RuntimeError, match="does not load"):
+        ident.write(tmp_path / "out")
+    assert list((tmp_path / "out").iterdir()) == []
