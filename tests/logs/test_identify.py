@@ -486,3 +486,20 @@ def test_write_refuses_a_urdf_that_would_not_load(gripper, gripper_case, tmp_pat
     with pytest.raises(RuntimeError, match="does not load"):
         ident.write(tmp_path / "out")
     assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_a_torque_column_that_is_not_measured(gripper, gripper_case):
+    """Some real logs carry a joint's torque as zeros: that joint's rows are left out (its torque
+    is not known) and the report names it; what only it tells keeps the URDF's values. A log with no
+    torque at all is refused in one line."""
+    from dataclasses import replace
+    _, _, rec, _ = gripper_case
+    tau = rec.tau.copy()
+    tau[:, 2] = 0.0
+    ident = idf.identify(replace(rec, tau=tau), gripper)
+    assert ident.report["log"]["torque_not_measured"] == ["elbow"]
+    assert "torque not measured" in ident.text
+    by = {b["combination"]: b for b in ident.report["base_parameters"]}
+    assert by["elbow.viscous"]["determined_by"] == "urdf"
+    with pytest.raises(ValueError, match="every torque column is constant"):
+        idf.identify(replace(rec, tau=0 * tau), gripper)

@@ -9,7 +9,8 @@
    on every D-th training sample (a step of 1/(FIT_RATE cutoff)), weighted sqrt(D): below the
    cut-off nothing is lost, and the covariance is that of all samples. A joint's row is left
    out where its smoothed speed is at most ``v_stick``: stuck by dry friction, a joint holds any
-   torque up to its Coulomb friction, which (1) cannot say. The covariance is
+   torque up to its Coulomb friction, which (1) cannot say; and everywhere when its torque column
+   is constant (not measured: some real logs carry zeros). The covariance is
    sigma^2 (A^T A)^-1 with sigma the white noise of the unfiltered torque;
 3. a physically consistent estimate, the URDF as the prior: each body's parameters as the
    URDF's fixed extras plus the primary link's, in bounded log-Cholesky coordinates
@@ -20,7 +21,7 @@
        |W (A x - tau_f)|^2 + |(x - x_URDF) / (prior s_p)|^2,
 
    W the torque noise of each joint (from the residual), s_p each parameter's scale (friction:
-   the joint's effort limit where larger): a Gaussian prior of relative std ``prior`` on the URDF's
+   the RMS of the joint's measured torque where larger, ``_Arm.friction_prior``): a Gaussian prior of relative std ``prior`` on the URDF's
    values (as Gaz et al., RA-L 2019, keep the Panda's parameters near a feasible reference), the
    URDF projected into the bounds first where it is not inside them. What the log determines is
    identified; what it does not keeps the URDF's value. Only a log that does not move is refused;
@@ -184,6 +185,7 @@ def _prepare(arm, t, q, tau, cutoff, tf, v_stick):
     # a joint's row of a sample where its smoothed velocity is below v_stick is left out of the
     # fit: a joint at rest under dry friction holds any torque up to its Coulomb friction
     sliding = (np.abs(d.qd) > v_stick).astype(float)
+    sliding[:, np.ptp(tau, axis=0) == 0] = 0.0       # a constant torque column: no torque measured
     edge = 2.0 / cutoff + 2.0 / wide
     valid = (t >= t[0] + edge) & (t <= t[-1] - edge)
     t_split = t[0] + (1.0 - tf) * (t[-1] - t[0])
@@ -239,7 +241,8 @@ def _select(states, widths):
             x0 = st.ols(*st.compress(st.rows(w), 1.0 / arm.torque_scale))
             Y[:, i, 11 * n + i] = np.tanh(st.d.qd[idx] / w)
             held[a, b] = np.sqrt(np.mean((st.tau[idx] - Y @ x0) ** 2, axis=0))
-    score = np.sum((held / held.reshape(-1, n).min(axis=0)) ** 2, axis=2)
+    measured = np.ptp(states[0][0].tau, axis=0) > 0
+    score = np.sum((held[..., measured] / held.reshape(-1, n)[:, measured].min(axis=0)) ** 2, axis=2)
     return np.unravel_index(int(np.argmin(score)), score.shape), held
 
 
@@ -273,8 +276,8 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
         real joint's dry friction switches faster than any one width assumes). None: the
         robot's ``coulomb_width`` if it has one, else ``DEFAULT_COULOMB_WIDTH``.
     prior : float
-        Relative std of the URDF's values as a prior (in units of each parameter's scale; of the
-        joint's effort limit for friction and offset, where larger).
+        Relative std of the URDF's values as a prior (in units of each parameter's scale; for
+        friction and offset of the joint's RMS measured torque, where larger).
     v_stick : float
         rad/s: a joint's rows where its smoothed velocity is at most this are left out of the fit
         (a joint stuck by dry friction holds an unknown torque); 0 keeps every row.
@@ -297,6 +300,10 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     arm = _Arm(robot, coulomb_width)
     n, p, s = arm.n, arm.p, arm.scale
     t, q, tau = _log_arrays(recording, arm.joint_names)
+    unmeasured = [j for j, r in zip(arm.joint_names, np.ptp(tau, axis=0)) if r == 0]
+    if len(unmeasured) == arm.n:
+        raise ValueError("recording: every torque column is constant (no torque was measured): nothing "
+                         "to identify the model from")
     tf = float(test_fraction)
     if not 0.0 < tf < 1.0:
         raise ValueError(f"test_fraction: expected a number in (0, 1), got {test_fraction!r}")
@@ -364,6 +371,8 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     # f_v, f_c >= 0; the prior: the URDF (projected into the bounds where it is not inside)
     solve = _Consistent(arm)
     x_prior = arm.x_prior / s
+    rms_tau = np.sqrt(np.mean(tau[train] ** 2, axis=0))
+    arm.friction_prior(np.where(rms_tau > 0, rms_tau, arm.effort))
     wp = s / (prior * arm.prior_scale)    # 1 / the prior's std, scaled units
     z, rounds = None, []
     for rnd in range(2):                   # solve, re-estimate the noise, solve again
@@ -405,7 +414,7 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     residual = {"before": res[0], "after": res[1], "after_unconstrained": res[2], "train_after": sigma}
     fit = {"t": t, "train": train, "test": test, "t_split": log["t_split"], "cutoff": cutoff,
            "wide": log["wide"], "decimation": log["decimation"], "test_fraction": tf, "v_stick": v_stick,
-           "stuck": 1.0 - state.sliding[train].mean(axis=0), "speed": speed}
+           "stuck": 1.0 - state.sliding[train].mean(axis=0), "speed": speed, "unmeasured": unmeasured}
     estimate = {"x": x, "sigma": sigma, "std_post": std_post, "std_beta": std_beta, "prior_beta": prior_beta,
                 "effect": effect, "residual": residual, "cond": cond, "rounds": rounds}
     report = _report(arm, fit, estimate, {"prior": prior})

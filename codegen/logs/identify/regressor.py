@@ -218,16 +218,11 @@ class _Arm:
         s[11 * n:12 * n] = ts
         s[12 * n:] = ts
         self.scale = s
-        # the prior's unit: the scale, but for friction and offset the joint's effort limit where
-        # the URDF gives one (it knows nothing of a real joint's friction: at the rigid-body
-        # torque scale the prior held kinova's wrist roll's Coulomb friction at 0.03 N m against
-        # the plant's 0.51, its torque scale being 1.2e-3 N m)
         effort = np.asarray(model.effortLimit, float)[[j.idx_v for j in model.joints[1:]]]
         effort = np.where(np.isfinite(effort) & (effort > 0), effort, 0.0)
+        self.effort = effort
         self.prior_scale = s.copy()
-        for k in range(3):
-            f = slice(10 * n + k * n, 10 * n + (k + 1) * n)
-            self.prior_scale[f] = np.maximum(s[f], effort / (self.v_limit if k == 0 else 1.0))
+        self.friction_prior(effort)
         Ws = Y / ts[None, :, None] * s
         # what one unit of a scaled parameter does to each joint's torque on these states (RMS,
         # in units of the joint's torque scale): see effect()
@@ -273,6 +268,18 @@ class _Arm:
         self.prior_primary = np.concatenate(prior)
         self.x_prior = self.x_urdf.copy()
         self.x_prior[:10 * n] = self.attached + self.prior_primary
+
+    def friction_prior(self, torque):
+        """The prior's unit of the friction (``prior_scale``'s last 3 n entries): the parameter
+        scale, or where larger the torque ``torque`` (n,) N m a joint shows (the RMS of its
+        measured torque on a log; the effort limit without one), over the velocity limit for the
+        viscous one. The URDF knows nothing of a real joint's friction, and its rigid-body torque
+        scale can be far below it (a wrist roll); an effort limit far above it leaves Coulomb and
+        offset free to cancel where a joint turns one way."""
+        n, s = self.n, self.scale
+        for k in range(3):
+            f = slice(10 * n + k * n, 10 * n + (k + 1) * n)
+            self.prior_scale[f] = np.maximum(s[f], np.asarray(torque, float) / (self.v_limit if k == 0 else 1.0))
 
     def combination(self, k, terms=None):
         """Readable text of base parameter ``k`` in physical units, 'x_i + c x_j + ...' (the
