@@ -96,6 +96,7 @@ def logs(folder, tmp):
         return write_log(tmp / f"ur10e_{name}.csv", t, t, d["q"][s], d["tau"][s], joints)
     out["ur10e"] = (ur10e, ur_log("ur-20_02_12-50sec_12harm"), [ur_log("ur-20_01_17-ptp_10_points")])
     out["ur10e_loaded"] = (ur10e, ur_log("ur-20_02_19_14harm50secLoad"), [ur_log("ur-20_02_19_15harm50secLoad")])
+    out["ur10e_loaded_reverse"] = (ur10e, ur_log("ur-20_02_19_15harm50secLoad"), [ur_log("ur-20_02_19_14harm50secLoad")])
     return out
 
 

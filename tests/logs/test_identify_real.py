@@ -48,7 +48,13 @@ def _torque_is_zero(csv, robot):
     return not np.any(rec.tau)
 
 
-@pytest.mark.parametrize("case", ["panda", "gen3", "ur10e", "ur10e_loaded"])
+REVERSE = pytest.param("ur10e_loaded_reverse", marks=pytest.mark.xfail(
+    strict=True, reason="UR10e loaded, 15-harmonic -> 14-harmonic log: wrist 1 at 1.10 x the shipped URDF's "
+                        "residual (mean 0.50), measured 7 Dec 2026: the payload's mass shared between the "
+                        "wrist bodies, which the log separates poorly"))
+
+
+@pytest.mark.parametrize("case", ["panda", "gen3", "ur10e", "ur10e_loaded", REVERSE])
 def test_identified_beats_the_shipped_urdf_on_held_out_logs(cases, identified, case):
     robot, _, held_out = cases[case]
     model, report, cpu = identified(case)
