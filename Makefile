@@ -8,7 +8,7 @@ PY := $(VENV)/bin/python
 ARM_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm newlib-source
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
-.PHONY: generate test test-fast test-long sanitize c-tools bench clean check embedded arm-toolchain docs docs-figures
+.PHONY: generate test test-fast test-long test-real sanitize c-tools bench clean check embedded arm-toolchain docs docs-figures
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -27,20 +27,27 @@ $(VENV)/.installed-bench: $(VENV)/.installed
 generate: $(VENV)/.installed
 	$(PY) -m codegen generate -c targets.toml
 
-# every test but the experiment-scale ones (marked long), in parallel on every core
-# (pytest-xdist), then the sanitizers and the fuzzer: under 10 minutes on 2 cores
+# every test but the experiment-scale ones (marked long) and the real logs' (marked real), in
+# parallel on every core (pytest-xdist), then the sanitizers and the fuzzer: under 10 minutes on 2 cores
 test: $(VENV)/.installed c-tools
-	$(PY) -m pytest -n auto -m "not long"
+	$(PY) -m pytest -n auto -m "not long and not real"
 	$(PY) -m codegen sanitize
 
 # the quick set for iteration (no test marked slow or long), under 2 minutes on 2 cores
 test-fast: $(VENV)/.installed
-	$(PY) -m pytest -n auto -m "not slow and not long"
+	$(PY) -m pytest -n auto -m "not slow and not long and not real"
 
 # the experiment-scale tests (a real arm's identification and observers, the elastic
 # cross-checks, xarm7): CI runs them after `make test`
 test-long: $(VENV)/.installed
-	$(PY) -m pytest -n auto -m long
+	$(PY) -m pytest -n auto -m "long and not real"
+
+# the real arms' logs (tests/real: $$CODEGEN_REAL_LOGS or ../shared/data/real; skipped with one line
+# when neither exists): each arm's clock, identification, velocity and the user's flow judged
+# against the robot's own velocity signal; one arm's commands on one worker (--dist loadgroup).
+# CI runs it after `make test`
+test-real: $(VENV)/.installed c-tools
+	$(PY) -m pytest -n auto --dist loadgroup -m real -rs
 
 # the C under ASan/UBSan on edge-case CSVs and a libFuzzer campaign (also part of `make test`)
 sanitize: $(VENV)/.installed c-tools

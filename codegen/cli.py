@@ -1,5 +1,5 @@
 """observer-codegen (python -m codegen): list | generate | build | check | simulate | compare |
-sweep | bench | sanitize | cortex_m | excite | identify | describe | design.
+sweep | bench | sanitize | cortex_m | excite | identify | describe | design | simulate-log.
 
 `generate`, `build`, `check` and `embedded` take the same targets: catalog robots or a URDF with
 options, a targets file (-c FILE), or ./targets.toml. A mistake prints one line (--debug: the
@@ -15,7 +15,7 @@ import tomllib
 from dataclasses import replace
 from pathlib import Path
 
-from .core.atomic import WriteError
+from .core.atomic import OutputSet, WriteError, check_not_input, check_writable, write_text
 from .pipeline.compile import ToolError, work_dir
 from .pipeline.emit import FolderTaken
 from .core.target import HOLDS, METHODS, PRECISIONS, check_substeps
@@ -23,7 +23,7 @@ from .pipeline.targets_file import DEFAULT_FAMILY, TargetError, check_unique, lo
 
 TARGETS_FILE = "targets.toml"
 # optional packages -> the extra of pyproject.toml that installs them (tests/test_cli.py checks)
-EXTRAS = {"mujoco": "mujoco", "dask": "sweep", "distributed": "sweep", "pyarrow": "sweep", "pandas": "sweep"}
+EXTRAS = {"mujoco": "mujoco", "rosbags": "ros", "dask": "sweep", "distributed": "sweep", "pyarrow": "sweep", "pandas": "sweep"}
 USER_ERRORS = (TargetError, FolderTaken, ToolError, WriteError, ValueError, KeyError, FileNotFoundError)
 
 
@@ -121,6 +121,7 @@ def _targets(args):
                "design": _pairs(args.design, "--design", _value), "params": _pairs(args.param, "--param", _number),
                "lock": _pairs(args.lock, "--lock", _number), "elastic": args.elastic or None,
                "J": _numbers(args.J, "--J"), "K": _numbers(args.K, "--K")}
+    options["sources"] = _sources(args, options["params"], options["design"])
     options = {k: v for k, v in options.items() if v not in (None, {})}
     robots = [{"robot": r} for r in args.robots] + ([{"urdf": args.urdf}] if args.urdf else [])
     if robots and args.config:
@@ -131,7 +132,7 @@ def _targets(args):
         targets = [make_target({**entry, **options, **disc}) for entry in robots]
     else:
         if options:
-            given = ", ".join("--" + k for k in options)
+            given = ", ".join("--tuned-on/--source" if k == "sources" else "--" + k for k in options)
             raise TargetError(f"{given}: describe a robot given on the command line; a targets file "
                               "(-c) holds its own")
         path = Path(args.config or TARGETS_FILE)
@@ -145,25 +146,62 @@ def _targets(args):
     return targets
 
 
-def tune_target(target, log):
-    """``target`` with its sensor measured on the recording ``log`` and its gains tuned on it
-    without truth (a targets file's ``tune = "log.csv"``; codegen.evaluate.compare.design_on_log):
-    the measured design inputs under the target's own ``build``, the tuned parameters under its
-    own ``params`` (what the file states wins)."""
+def _sources(args, params, design):
+    """Where the command line's values came from (``Target.sources``): with ``--tuned-on LOG``
+    the --param values tuned on the log and the --design values measured on it, then each
+    ``--source NAME=TEXT``."""
+    out = {}
+    if getattr(args, "tuned_on", None):
+        log = Path(args.tuned_on).name
+        out.update({k: f"measured on the log {log}" for k in design})
+        out.update({k: f"tuned on the log {log}" for k in params})
+    out.update(_pairs(getattr(args, "source", None), "--source", lambda v, what: v))
+    return out
+
+
+def design_failure(entry, family):
+    """The one line refusing the design ``entry`` of ``family`` (codegen.evaluate.verdict), with
+    its remedy as a flag, or ""."""
+    from .evaluate.verdict import design_failure as failure
+    found = failure(entry, family)
+    if found is None:
+        return ""
+    why, remedy = found
+    return why + (f"; {remedy[1]} (--design {remedy[0]}=...) or choose another family" if remedy else "")
+
+
+def _check_out(path, option, inputs=()):
+    """A file output ``path`` of ``option`` checked before the work: writable, not an input."""
+    if path is not None:
+        check_writable(path, f"or choose another {option}")
+        check_not_input([path], inputs, f"choose another {option}")
+
+
+def tune_target(target, log, columns=None, topic=None):
+    """``target`` with its sensor measured on the recording ``log`` (its column mapping ``columns``,
+    a bag's ``topic``) and its gains tuned on it without truth (a targets file's
+    ``tune = "log.csv"``, with ``tune_columns`` and ``tune_topic``;
+    codegen.evaluate.compare.design_on_log): the measured design inputs under the target's own
+    ``build``, the tuned parameters under its own ``params`` (what the file states wins)."""
     from models import from_source
 
     from .evaluate.compare import design_on_log
-    from .logs.recording import read_log
     robot = from_source(target.robot)
-    rec, clock = read_log(log, robot.joint_names, robot=robot)
+    rec, clock = _read_log(log, robot.joint_names, robot=robot, columns=columns, topic=topic)
     entry, _, _ = design_on_log(rec, robot, target.family, design=dict(target.build), clock=clock)
+    failed = design_failure(entry, target.family)
+    if failed:
+        raise ValueError(failed)
     tuned = entry.tuned.params if entry.tuned is not None else {}
     print(f"{target.prefix}: tuned on {Path(log).name}: "
           + (", ".join(f"{k} = {v:.4g}" for k, v in tuned.items()) or "its designed gains (no bandwidth)")
           + (f"; variant {entry.variant}" if entry.variant else ""), file=sys.stderr)
     build = {**(entry.build or {}), **target.build}
+    sources = {**{k: f"measured on the log {Path(log).name}" for k in build if k not in target.build},
+               **{k: f"tuned on the log {Path(log).name}" for k in tuned if k not in target.params},
+               **target.sources}
     return replace(target, build=build, variant=entry.variant if "torque_uncertainty" in build else target.variant,
-                   params={**tuned, **target.params})
+                   params={**tuned, **target.params}, sources=sources)
 
 
 def _override(target, disc):
@@ -246,11 +284,33 @@ def cmd_build(args):
 
     def line(job, row):
         report = "".join(f"\n  {text}" for text in row["design"].brief(row["params"], row.get("stability")))
+        report += _assumption(row["design"], job.target)
         return (f"{row['prefix']}: {row['lib']}  ({_times(row, COMPILE)}){report}\n"
                 f"  the full design report: print(codegen.load(\"{row['folder']}\").design)")
 
     rows, failed = _report(_jobs(args, COMPILE), args, line)
     return 2 if failed else 0
+
+
+def _assumption(design, target):
+    """The line under a design whose predicted error assumes the model exact
+    (``DesignReport.assumption``): what it assumes and the `compare` command that measures it on a
+    log of the target's robot; "" otherwise."""
+    import shlex
+    a = design.assumption()
+    if not a:
+        return ""
+    src = target.robot
+    if src.get("kind") == "catalog":
+        robot = ["--robot", str(src.get("name"))]
+    elif src.get("kind") == "urdf":
+        robot = ["--urdf", str(src.get("path"))] + [w for k, v in (src.get("locked_joints") or {}).items()
+                                                    for w in ("--lock", f"{k}={v:g}")]
+    else:
+        robot = ["--robot", "ROBOT"]
+    line = shlex.join(["python", "-m", "codegen", "compare", "LOG.csv", *robot, "--observers", target.family,
+                       "--build", "DIR"])
+    return f"\n  assumes: {a['text']}; measure it on a log of the robot: {line}"
 
 
 def cmd_check(args):
@@ -304,11 +364,13 @@ def cmd_embedded(args):
           f"{'max':>7s} {'step_dt':>7s} {'max':>7s} {'vs glibc':>8s} {'vs newlib':>9s} {'vs double':>9s}")
     from tqdm import tqdm
 
+    from .core.progress import bar as progress_bar
     from .pipeline.emit import with_params
     from .pipeline.stages import resolve_substeps
     from .pipeline.targets_file import build_spec
     rows, targets = [], _targets(args)
-    for target, out in tqdm(targets, desc="embedded", unit="target", file=sys.stderr, leave=False, disable=None):
+    for target, out in progress_bar(targets, desc="embedded", unit="target", file=sys.stderr, leave=False,
+                                    disable=None):
         spec = with_params(build_spec(target), target.params)
         target = resolve_substeps(target, spec)
         for prefix, rec in cortex_m.verify_target(spec, target, out, steps=args.steps):
@@ -339,6 +401,40 @@ def cmd_simulate(args):
     return scenarios.run(args.name, reference=args.reference, out=args.out or work_dir() / "sim", **options)
 
 
+def _is_log(source):
+    """True for a recorded log: a .csv file or a ROS bag (codegen.logs.bag.is_bag)."""
+    from .logs.bag import is_bag
+    return source is not None and (str(source).endswith(".csv") or is_bag(source))
+
+
+def _remedy(e):
+    """The RecordingError ``e`` with its fix in command-line flags (--columns, --topic)."""
+    if e.option == "columns":
+        e.cli_message = (f"{e} (name the log's own columns: --columns 'position_*=q_*,effort_*=tau_*,time=t"
+                         f"[,t_unit=ms][,joints=[a,b]]' or --columns mapping.toml)")
+    elif e.option == "topic":
+        e.cli_message = f"{e}: --topic {e.choices[0] if e.choices else 'NAME'}"
+    return e
+
+
+def _read_log(path, joints, clock="auto", robot=None, columns=None, topic=None):
+    """``codegen.logs.recording.read_log`` of a command: a bag needs the ``ros`` extra (one line
+    naming it), a refusal names the flag that fixes it (``_remedy``)."""
+    from .logs.bag import is_bag
+    from .logs.recording import RecordingError, read_log
+    if is_bag(path):
+        _require("rosbags", f"reading the ROS bag {path}")
+    try:
+        return read_log(path, joints, clock, robot=robot, columns=columns, topic=topic)
+    except RecordingError as e:
+        raise _remedy(e) from None
+
+
+def _read_args(args, path, joints, robot):
+    """``_read_log`` with the command's --clock, --columns and --topic."""
+    return _read_log(path, joints, args.clock, robot=robot, columns=args.columns, topic=args.topic)
+
+
 def _compare_robot(args):
     """The robot of ``compare``: ``--robot NAME`` or ``--urdf PATH [--lock JOINT=VALUE ...]``, read
     as ``build`` reads them (``targets_file.robot_source``). ``--elastic`` is refused: compare
@@ -350,7 +446,7 @@ def _compare_robot(args):
         what = "a CSV needs" if args.source else "give a source (a CSV, mujoco-ur5, mujoco-panda) or"
         raise ValueError(f"robot: {what} --robot NAME or --urdf PATH (the robot it was recorded on)")
     elastic = bool(args.elastic or args.J or args.K)
-    if elastic and not str(args.source or "").endswith(".csv"):
+    if elastic and not _is_log(args.source):
         raise ValueError("--elastic: the MuJoCo plant has rigid joints; compare an elastic robot on its log "
                          "(a CSV of link q_<joint> and motor tau_<joint>), or run seed 004's in `simulate "
                          "seed004-sim1`")
@@ -394,7 +490,6 @@ def _compare_source(args):
     sensor and mismatch options, a MuJoCo run of the robot of ``--robot`` / ``--urdf`` (no
     source), or a recorded CSV of that robot read on its sample clock (``--clock``; the Clock, None
     for a simulation)."""
-    from .logs.recording import read_log
     from .evaluate.scenarios.mujoco import SCENARIOS
     if args.source is None:              # a MuJoCo plant from the robot's URDF
         from .evaluate.scenarios import mujoco
@@ -416,15 +511,34 @@ def _compare_source(args):
         args.quantization, args.noise = args.quantization or 0.0, args.noise or 0.0
         rec = mujoco.recording(name, args.T or mujoco.T_DEFAULT, args.quantization, args.noise, args.mismatch)
         return rec, load_robot(name), mujoco.title(name, args.quantization, args.noise, args.mismatch), None
-    if not str(args.source).endswith(".csv"):
+    if not _is_log(args.source):
         from models import names
         hint = (f"; a MuJoCo run of {args.source} is `compare --robot {args.source}`"
                 if args.source in names() else "")
-        raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}) or a .csv file, "
+        raise ValueError(f"source: expected a scenario ({', '.join(SCENARIOS)}), a .csv file or a ROS bag, "
                          f"got {args.source!r}{hint}")
     robot = _compare_robot(args)
-    rec, clock = read_log(args.source, robot.joint_names, args.clock, robot=robot)
+    rec, clock = _read_args(args, args.source, robot.joint_names, robot)
     return rec, robot, f"{Path(args.source).name} ({robot.name})", clock
+
+
+def _rigid_check(families, robot, remedy="give --elastic (with --J, --K)"):
+    """ValueError before any work when an elastic-joint family of ``families`` meets the rigid
+    ``robot``: the ``remedy``, and the robots elastic by default."""
+    from models.catalog import ELASTIC
+
+    from .evaluate.compare import parse_observer
+    from .pipeline.targets_file import family_info
+    if hasattr(robot, "rigid"):
+        return
+    for f in families:
+        family = parse_observer(f)[0]
+        if family_info(family)[3]:
+            raise ValueError(f"family {family}: needs an elastic robot (joint stiffness K, motor inertias J); "
+                             f"{robot.name} is rigid: {remedy} (J, K by default on {', '.join(ELASTIC)})")
+
+
+COMPARE_OUTPUTS = ("errors.png", "joint0.png", "estimates.csv", "compare.json")
 
 
 def cmd_compare(args):
@@ -435,10 +549,18 @@ def cmd_compare(args):
     from .evaluate.sim.blocks import stage_lines
     from .logs.recording import RecordingError
     stepping = {k: getattr(args, k) for k in ("method", "hold", "substeps") if getattr(args, k) is not None}
+    if args.build and not _is_log(args.source):
+        raise ValueError(f"--build {args.build}: builds the winner on a log (a CSV or a ROS bag), got "
+                         f"{args.source or 'a MuJoCo run'}")
+    if args.build:
+        check_writable(Path(args.build), "or choose another --build", folder=True)
+    outputs = OutputSet(args.out or work_dir() / "compare", COMPARE_OUTPUTS, ours=args.out is None,
+                        inputs=[args.source, args.torque_uncertainty, args.urdf], elsewhere="or choose another --out")
     try:
         with stage_lines():              # a line per stage on stderr (the MuJoCo run), then a bar
             rec, robot, title, clock = _compare_source(args)
             families = [f for f in args.observers.split(",") if f] if args.observers else DEFAULT_FAMILIES
+            _rigid_check(families, robot)
             bl = [b for b in args.baselines.split(",") if b] if args.baselines else None
             sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization,
                                                                                              args.noise)
@@ -452,18 +574,42 @@ def cmd_compare(args):
         print(f"error: {_message(e)}", file=sys.stderr)
         return 2
     print(cmp.table())
-    out = Path(args.out or work_dir() / "compare")
-    paths = cmp.figures(out)
-    paths.append(cmp.write_estimates(out / "estimates.csv", clock))
     ref = cmp.ref
-    (out / "compare.json").write_text(json.dumps(
-        {"title": title, "t_ss": cmp.t_ss, "level": cmp.level, "recording": cmp.info.get("recording"),
-         "clock": None if clock is None else clock.to_dict(), "noise": cmp.info.get("noise"),
-         "tune": cmp.info.get("tune"), "validation": cmp.info.get("validation"),
-         "reference": {"label": ref.label, "cutoff": ref.cutoff, "uncertainty": cmp.uncertainty},
-         "verdict": cmp.verdict(), "rows": cmp.rows()}, indent=2, default=float) + "\n")
-    print(f"figures, estimates.csv and compare.json in {out.resolve()} ({', '.join(p.name for p in paths)})")
+    with outputs.writing() as tmp:       # the set moves into --out at once (codegen.core.atomic.OutputSet)
+        paths = cmp.figures(tmp)
+        paths.append(cmp.write_estimates(tmp / "estimates.csv", clock))
+        (tmp / "compare.json").write_text(json.dumps(
+            {"title": title, "t_ss": cmp.t_ss, "level": cmp.level, "recording": cmp.info.get("recording"),
+             "clock": None if clock is None else clock.to_dict(), "noise": cmp.info.get("noise_data"),
+             "tune": cmp.info.get("tune"), "validation": cmp.info.get("validation"),
+             "reference": {"label": ref.label, "cutoff": ref.cutoff, "uncertainty": cmp.uncertainty},
+             "verdict": cmp.verdict(), "ranking": cmp.ranking(), "rows": cmp.rows()}, indent=2,
+            default=float) + "\n")
+        paths.append(tmp / "compare.json")
+    print(f"figures, estimates.csv and compare.json in {outputs.folder.resolve()} "
+          f"({', '.join(p.name for p in paths)})")
+    if args.build:
+        _build_winner(args, cmp, robot, rec, stepping)
     return 0
+
+
+def _build_winner(args, cmp, robot, rec, stepping):
+    """`compare --build DIR`: the winner's C folder (codegen.evaluate.winner) made as `build` makes
+    it, its library, gains and their sources printed."""
+    from .evaluate.winner import winner_target
+    from .pipeline.stages import make
+    stated = {k: "given by the user" for k in ("quantization", "noise") if getattr(args, k) is not None}
+    if args.torque_uncertainty is not None:
+        stated["torque_uncertainty"] = f"given by the user ({args.torque_uncertainty})"
+    stated["uncertainty"] = ("given by the user" if args.mismatch else
+                             "the default: 0 (no relative model uncertainty stated)")
+    target, e = winner_target(cmp, robot, rec.t, rec.dt, Path(args.source).name, stated=stated,
+                              stepping=stepping)
+    made = make(target, Path(args.build), force=True)
+    meta = json.loads((made.folder / f"{made.target.prefix}.json").read_text())
+    print(f"built the winner, {e.name} (the lowest truth-free error estimate of the observers that did not fail: "
+          f"{e.metrics['validation_rms']:.3g} rad/s by forward validation): {made.folder}"
+          + "".join(f"\n  {line}" for line in made.spec.design.brief(made.spec.params, meta.get("stability"))))
 
 
 def cmd_sweep(args):
@@ -515,6 +661,10 @@ def cmd_excite(args):
     print(f"{robot.name}: {traj.T:g} s, f0 = {traj.f0:g} Hz, {traj.a.shape[1]} harmonics, condition number "
           f"{traj.condition:.4g}; starts and ends at rest at q = [{', '.join(f'{v:.4g}' for v in q[0])}] "
           f"(move there first; check it for collisions)\nwrote {path}")
+    import shlex
+    src = _robot_words(args)
+    print("play it on the robot, log t, q_<joint>, tau_<joint>, then: "
+          + shlex.join(["python", "-m", "codegen", "identify", "LOG.csv", *src]))
     return 0
 
 
@@ -531,49 +681,63 @@ def _width(text):
     return w
 
 
-def _identify_remedy(e):
-    """The one line of an IdentificationError with its remedy (``e.remedy``) as flags."""
-    from models import names
+def _robot_words(args):
+    """The robot of ``args`` as command-line words: ``--urdf PATH [--lock J=V ...]`` or ``--robot NAME``."""
+    if args.urdf:
+        return ["--urdf", str(args.urdf), *[w for v in args.lock or () for w in ("--lock", v)]]
+    return ["--robot", str(args.robot)]
+
+
+def _identify_remedy(e, args):
+    """The one line of an IdentificationError with its remedy (``e.remedy``) as flags: an
+    excitation trajectory of the robot as the command line named it (``--urdf`` the user's file
+    and its locks, or ``--robot`` a catalog name)."""
     ex = e.remedy.get("excite")
     if not ex:
         return str(e)
-    src = (f"--robot {ex['robot']}" if ex["robot"] in names() else
-           f"--urdf {ex['urdf']}" + "".join(f" --lock {k}={v:g}" for k, v in ex["locked_joints"].items()))
-    return str(e).replace("(excitation())", f"(python -m codegen excite {src} --out traj.csv)")
+    import shlex
+    src = _robot_words(args)
+    line = shlex.join(["python", "-m", "codegen", "excite", *src, "--out", "traj.csv"])
+    return str(e).replace("(excitation())", f"({line})")
 
 
 def cmd_identify(args):
     """`identify`: the robot's inertial parameters and friction from a log of t, q_, tau_ per
     joint (codegen.logs.identify); writes the identified URDF, the friction side file and the
     report to --out. ``args``: the parsed namespace; returns 0."""
-    from .logs.recording import read_log
     from .logs.identify import IdentificationError, identify
     robot = _robot_of(args)
-    rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
+    names = (f"{robot.name}_identified.urdf", f"{robot.name}_identified.friction.json", "report.json", "report.txt")
+    outputs = OutputSet(args.out or work_dir() / "identify", names, inputs=[args.log, args.urdf],   # before the work
+                        elsewhere="or choose another --out", ours=args.out is None)
+    rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
     try:
         ident = identify(rec, robot, cutoff=args.cutoff,
                          test_fraction=args.test_fraction, coulomb_width=args.coulomb_width,
                          v_stick=args.v_stick, progress=True)
     except IdentificationError as e:
-        e.cli_message = _identify_remedy(e)
+        e.cli_message = _identify_remedy(e, args)
         raise
-    paths = ident.write(Path(args.out or work_dir() / "identify"))
-    print(ident.text, end="")
-    lock = "".join(f" --lock {k}={v:g}" for k, v in (robot.source.get("locked_joints") or {}).items())
-    print(f"\nthe observers with this model, on a log of the robot: python -m codegen compare LOG.csv "
-          f"--urdf {paths['urdf']}{lock} --torque-uncertainty {paths['report_json']}")
+    paths = ident.write(outputs.folder)      # its own writer (each file through a temporary one)
+    outputs.record()
+    print(ident.summary, end="")
+    print(f"the full report (links, base combinations, every parameter): {paths['report_txt']}")
+    import shlex
+    lock = [w for k, v in (robot.source.get("locked_joints") or {}).items() for w in ("--lock", f"{k}={v:g}")]
+    print("\nthe observers with this model, on a log of the robot: " + shlex.join(
+        ["python", "-m", "codegen", "compare", "LOG.csv", "--urdf", str(paths["urdf"]), *lock,
+         "--torque-uncertainty", str(paths["report_json"])]))
     return 0
 
 
-def _log_joints(path):
-    """The joints of a recording CSV's q_<joint> columns (its header), in file order."""
-    from .core.columns import read_columns
-    header, _ = read_columns(path)
-    joints = [h[2:] for h in header if h.startswith("q_")]
-    if not joints:
-        raise ValueError(f"{path}: no q_<joint> columns (expected t, q_<joint>, tau_<joint>)")
-    return joints
+def _log_joints(args):
+    """The joints of the log of ``args`` (its q_<joint> columns after --columns; a bag's), in file order."""
+    from .logs.recording import RecordingError, log_joints
+    try:
+        return log_joints(args.log, args.columns, args.topic)
+    except RecordingError as e:
+        raise _remedy(e) from None
 
 
 def cmd_describe(args):
@@ -581,10 +745,10 @@ def cmd_describe(args):
     resolution and noise, its motion's band and, with a robot, the torque against the model
     (codegen.logs.noise). ``args``: the parsed namespace; returns 0."""
     from .logs import noise as noise_of
-    from .logs.recording import read_log
     robot = _robot_of(args) if (args.robot or args.urdf) else None
-    joints = list(robot.joint_names) if robot is not None else _log_joints(args.log)
-    rec, clock = read_log(args.log, joints, args.clock, robot=robot)
+    _check_out(args.json, "--json", inputs=[args.log])
+    joints = list(robot.joint_names) if robot is not None else _log_joints(args)
+    rec, clock = _read_args(args, args.log, joints, robot)
     nz = noise_of.measure(rec.t, rec.q, rec.tau if robot is not None else None, robot)
     print(clock.describe())
     print(f"recording: {rec.describe()}")
@@ -594,8 +758,8 @@ def cmd_describe(args):
     print("zero-phase reference cut-off per joint (Hz): "
           + ", ".join(f"{c:.3g}" for c in noise_of.reference_cutoff(nz)))
     if args.json:
-        Path(args.json).write_text(json.dumps({"clock": clock.to_dict(), "recording": rec.describe(),
-                                               "noise": nz.to_dict()}, indent=2) + "\n")
+        write_text(args.json, json.dumps({"clock": clock.to_dict(), "recording": rec.describe(),
+                                          "noise": nz.to_dict()}, indent=2) + "\n", "or choose another --json")
         print(f"wrote {args.json}")
     return 0
 
@@ -605,18 +769,19 @@ def cmd_design(args):
     its gains tuned on the log without truth (codegen.evaluate.compare.design_on_log); prints the
     measured quantities, the tuned gains, the criterion and the lines that build the observer with
     them. ``args``: the parsed namespace; returns 0."""
-    from tqdm import tqdm
-
+    from .core.progress import bar as progress_bar
     from .evaluate.compare import design_inputs, design_on_log
     from .evaluate.sim.blocks import stage_lines
-    from .logs.recording import read_log
     robot = _robot_of(args)
-    rec, clock = read_log(args.log, robot.joint_names, args.clock, robot=robot)
+    _rigid_check([args.family], robot, remedy="`design` has no elastic robot; run it on the log with `compare "
+                 f"LOG.csv --robot R --elastic --observers {args.family}`")
+    _check_out(args.json, "--json", inputs=[args.log])
+    rec, clock = _read_args(args, args.log, robot.joint_names, robot)
     print(clock.describe())
     print(f"recording: {rec.describe()}")
     sensor = (None, None) if args.quantization is None and args.noise is None else (args.quantization, args.noise)
     design = design_inputs(*sensor, 0.0, _torque_uncertainty(args.torque_uncertainty, robot))
-    with stage_lines(), tqdm(desc=f"design {args.family}", unit="run", file=sys.stderr, leave=False) as bar:
+    with stage_lines(), progress_bar(desc=f"design {args.family}", unit="run", file=sys.stderr, leave=False) as bar:
         def step(text):
             bar.set_postfix_str(text)
             bar.update()
@@ -625,6 +790,10 @@ def cmd_design(args):
         print(line)
     tuned = entry.tuned
     print(f"forward validation: each estimate against the velocity the next {val.window} samples imply")
+    failed = design_failure(entry, args.family)
+    if failed:
+        print(f"error: {failed}", file=sys.stderr)
+        return 2
     if tuned is None:
         print(f"{args.family}: declares no bandwidth to tune; its designed gains")
     else:
@@ -634,29 +803,87 @@ def cmd_design(args):
     print("parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in entry.params.items() if not k.startswith(("pole_", "cq", "ca"))))
     if entry.note:
         print(f"note: {entry.note}")
-    design_args = " ".join(f"--design {k}={json.dumps(v)}" for k, v in (entry.build or {}).items()
-                           if not (k == "uncertainty" and v == 0.0))
-    param_args = " ".join(f"--param {k}={v:.6g}" for k, v in (tuned.params if tuned else {}).items())
-    src = f"--urdf {args.urdf}" if args.urdf else args.robot
-    print(f"build it: python -m codegen build {src} --family {args.family.split(':')[0]} --dt {rec.dt:.4g} "
-          f"{design_args} {param_args}".rstrip())
+    print("build it: " + _build_line(args, entry, tuned, rec.dt))
     print(f'or in a targets file: tune = "{args.log}" (this design, redone when the target is built)')
     if args.json:
-        Path(args.json).write_text(json.dumps({
+        write_text(args.json, json.dumps({
             "clock": clock.to_dict(), "noise": nz.to_dict(), "family": args.family, "variant": entry.variant,
             "build": entry.build, "params": entry.params,
             "tuned": None if tuned is None else {"params": tuned.params, "scale": tuned.scale,
                                                  "criterion": tuned.score, "rms_estimate": tuned.rms,
                                                  "tried": tuned.tried},
-            "validation": {"window": val.window, "constant": val.constant}}, indent=2, default=float) + "\n")
+            "validation": {"window": val.window, "constant": val.constant}}, indent=2, default=float) + "\n",
+                   "or choose another --json")
         print(f"wrote {args.json}")
+    return 0
+
+
+def _build_line(args, entry, tuned, dt):
+    """The `build` command (one line that pastes into a POSIX shell: every value shell-quoted, lists
+    without spaces) of the design ``entry`` of `design` ``args``: the robot, the family, the log's
+    dt, the build inputs (``--design``, measured on the log unless the user stated them:
+    ``--source NAME=TEXT``), the tuned gains (``--param``) and ``--tuned-on LOG``."""
+    import shlex
+    words = ["python", "-m", "codegen", "build", *([args.robot] if args.robot else ["--urdf", args.urdf])]
+    words += [w for v in args.lock or () for w in ("--lock", v)]
+    given = {"quantization": args.quantization, "noise": args.noise, "torque_uncertainty": args.torque_uncertainty}
+    build = {k: v for k, v in (entry.build or {}).items() if not (k == "uncertainty" and v == 0.0)}
+    words += ["--family", args.family.split(":")[0], "--dt", f"{dt:.6g}"]
+    words += [w for k, v in build.items() for w in ("--design", f"{k}={json.dumps(v, separators=(',', ':'))}")]
+    words += [w for k, v in (tuned.params if tuned else {}).items() for w in ("--param", f"{k}={v:.6g}")]
+    words += ["--tuned-on", str(args.log)]
+    words += [w for k in build if given.get(k) is not None
+              for w in ("--source", f"{k}=given by the user ({given[k]})")]
+    return shlex.join(words)
+
+
+def cmd_simulate_log(args):
+    """`simulate-log`: a realistic synthetic log of one's own URDF and its truth
+    (codegen.evaluate.scenarios.log_grid.synthetic_log). ``args``: the parsed namespace; returns 0."""
+    from .evaluate.scenarios.log_grid import synthetic_log
+    robot = _robot_of(args)
+    _require("mujoco", "simulate-log")
+    log, truth, stats = synthetic_log(robot, args.out, T=args.seconds, task=args.task, clock=args.clock,
+                                      torque=args.torque, seed=args.seed)
+    rows = stats.get("rows", stats["logged"])
+    what = (f"{rows} rows stamped when a logger received them (1 ms ticks, {stats['repeats']} repeated rows)"
+            if args.clock == "receive" else f"{rows} rows at jittered instants ({stats['dropped']} dropped)")
+    print(f"wrote {log}: {robot.name}, {stats['T']:g} s of {args.task}, {what}; t, q_<joint>, tau_<joint>")
+    print(f"its truth: {truth} (per row: the true sample time, q, qd and applied tau)")
+    print(f"the plant: the URDF perturbed (masses and inertias, a payload, friction, torque offsets; seed "
+          f"{args.seed}), a 2^20 counts/rev encoder logged to 1e-6 rad, torque noise ({args.torque})")
+    return 0
+
+
+def cmd_detect(args):
+    """`detect`: the momentum observer's external torque, alarms and collided link over a log
+    (codegen.evaluate.detect), thresholds set on a collision-free log (--calibrate) for
+    --false-alarms per hour; writes external_torque.csv, events.csv, detect.json and a figure to
+    --out. ``args``: the parsed namespace; returns 0."""
+    from .evaluate.detect import detect, write_detection
+    robot = _robot_of(args)
+    rec, clock = _read_args(args, args.log, robot.joint_names, robot)
+    clean = None
+    if args.calibrate:
+        clean, _ = _read_args(args, args.calibrate, robot.joint_names, robot)
+    build = {} if args.torque_noise is None else {"torque_noise": args.torque_noise}
+    det = detect(robot, rec, clean=clean, false_alarms=args.false_alarms, **build)
+    paths = write_detection(det, Path(args.out or work_dir() / "detect"))
+    how = (f"set on {args.calibrate} for {args.false_alarms:g} false alarm(s) per hour" if clean is not None
+           else "the design's defaults (no collision-free log given)")
+    print(f"thresholds ({how}): " + ", ".join(f"{j} {a:.3g} + {b:.3g}|qd|" for j, a, b in
+                                            zip(robot.joint_names, det.th0, det.th1)))
+    print(f"{len(det.events)} event(s) in {det.t[-1] - det.t[0]:.1f} s" + "".join(
+        f"\n  {e['start']:.3f}-{e['end']:.3f} s  link {e['link']}" for e in det.events[:20]))
+    print(f"files in {paths['json'].parent.resolve()} ({', '.join(p.name for p in paths.values())})")
     return 0
 
 
 COMMANDS = {"list": cmd_list, "generate": cmd_generate, "build": cmd_build, "check": cmd_check,
             "bench": cmd_bench, "simulate": cmd_simulate, "compare": cmd_compare, "sweep": cmd_sweep,
             "sanitize": cmd_sanitize, "embedded": cmd_embedded, "excite": cmd_excite, "identify": cmd_identify,
-            "describe": cmd_describe, "design": cmd_design}
+            "describe": cmd_describe, "design": cmd_design, "detect": cmd_detect}
+COMMANDS["simulate-log"] = cmd_simulate_log
 
 
 # ------------------------------------------------------------------------------------ parser
@@ -672,11 +899,24 @@ def _robot_options(p):
 
 
 def _clock_option(p):
-    """--clock of every command that reads a log."""
+    """--clock of every command that reads a log (and its --columns and --topic)."""
     p.add_argument("--clock", default="auto", metavar="auto|stamps|ticks[=PERIOD]",
                    help="what the log's time column is: auto (default: found from the data: a logger's "
                         "receive times are rebuilt on the robot's fixed tick, repeated rows dropped; a robot-"
                         "time column t_robot is used), stamps (as written), ticks[=PERIOD s] (rebuilt on a tick)")
+    _input_options(p)
+
+
+def _input_options(p):
+    """--columns and --topic of every command that reads a log (codegen.logs.mapping, .bag)."""
+    p.add_argument("--columns", metavar="MAP|FILE",
+                   help="the log's own column names mapped onto t, q_<joint>, tau_<joint>, qd_<joint>, qdm_<joint>: "
+                        "rules SOURCE=TARGET, * for the joint (e.g. 'position_*=q_*,effort_*=tau_*,time=t'), "
+                        "t_unit=s|ms|us|ns (the time column's unit; a mapped log's time counts from its first row), "
+                        "joints=[a,b,...] (the log's joints renamed, in file order); or a .toml/.json file of the "
+                        "same (t_unit, joints, a [columns] table). On a ROS bag, over its default "
+                        "(header.stamp=t, position_*=q_*, velocity_*=qdm_*, effort_*=tau_*)")
+    p.add_argument("--topic", metavar="NAME", help="a ROS bag's sensor_msgs/JointState topic (default: its only one)")
 
 
 def _stepping_options(p):
@@ -702,6 +942,10 @@ def _target_options(p, out_help):
       "build (e.g. noise=1e-4, eta=1, eigenvalues=[-300,-400]); repeatable")
     a("--param", action="append", metavar="NAME=VALUE", help="runtime parameter overriding the designed "
       "default (e.g. k0=50); repeatable")
+    a("--tuned-on", metavar="LOG", help="the --param values were tuned on this log and the --design values "
+      "measured on it (the line `design` prints): the folder's design report and header say so")
+    a("--source", action="append", metavar="NAME=TEXT", help="where a --param or --design value came from "
+      "(the folder's design report and header say it; default: given by the user); repeatable")
     a("--dt", type=float, help="sample time in s (default 1e-3)")
     a("--dt-min", type=float, help="shortest elapsed time between samples the step is checked for, s "
       "(default dt/4)")
@@ -759,7 +1003,7 @@ def parser():
     cp = sub.add_parser("compare", parents=[debug], help="observers against tuned baselines on a MuJoCo "
                         "run of any URDF robot, a scenario or a CSV")
     cp.add_argument("source", nargs="?", help="a CSV (t, q_<joint>, tau_<joint>[, qd_<joint>][, qdm_<joint>]; "
-                    "jittered stamps and gaps allowed), mujoco-ur5 or mujoco-panda; none: a MuJoCo run of "
+                    "other names: --columns; jittered stamps and gaps allowed), a ROS bag, mujoco-ur5 or mujoco-panda; none: a MuJoCo run of "
                     "the robot of --robot or --urdf (computed-torque tracking of sinusoids, --T s)")
     cp.add_argument("--robot", help="the robot: a catalog name (see `list`)")
     _robot_options(cp)
@@ -777,8 +1021,8 @@ def parser():
                     f"(family:name=value:...); default {','.join(DEFAULT_FAMILIES)}")
     cp.add_argument("--baselines", help="comma-separated (default: all of codegen.evaluate.baselines)")
     cp.add_argument("--quantization", type=float,
-                    help="encoder step (rad); scenario: of its sensor (default 0); both this and --noise "
-                         "unset on a CSV: the design assumes a 2^16 counts/rev encoder")
+                    help="encoder step (rad); scenario: of its sensor (default 0); a log: default its "
+                         "resolution and noise measured on it (this and --noise state them instead)")
     cp.add_argument("--noise", type=float, help="Gaussian noise std (rad; scenario default 0)")
     cp.add_argument("--mismatch", type=float, default=0.0,
                     help="scenario: plant masses and inertias x (1 + mismatch); CSV: model uncertainty")
@@ -792,6 +1036,9 @@ def parser():
     cp.add_argument("--level", type=float, default=1e-2, help="convergence threshold (rad/s)")
     cp.add_argument("--reference", action="store_true", help="run observers with the numpy reference")
     cp.add_argument("--out", metavar="DIR", help="folder of the figures and compare.json (default build/compare)")
+    cp.add_argument("--build", metavar="DIR", help="a log: also write the winner's C folder into DIR (the observer "
+                    "with the lowest truth-free error estimate, as `build` writes it: the gains tuned on the log, "
+                    "its dt range, each value's source in the header)")
     sw = sub.add_parser("sweep", parents=[debug], help="Monte-Carlo sweep of observers and baselines on Dask (resumable)")
     sw.add_argument("file", help="the sweep file (TOML; see codegen.evaluate.sweep.plan)")
     where = sw.add_mutually_exclusive_group()
@@ -805,14 +1052,14 @@ def parser():
     sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
     d = sub.add_parser("describe", parents=[debug], help="what a log is: its clock, resolution, noise, motion "
                        "band and (with a robot) torque residual, measured from it")
-    d.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    d.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder)")
     d.add_argument("--robot", help="catalog robot (the torque against its model is measured too)")
     d.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
     d.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
     _clock_option(d)
     d.add_argument("--json", metavar="FILE", help="also write the figures to this file")
     de = sub.add_parser("design", parents=[debug], help="a family's gains tuned on a log without truth")
-    de.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    de.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder)")
     de.add_argument("--robot", help="catalog robot")
     de.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
     de.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
@@ -823,14 +1070,30 @@ def parser():
     de.add_argument("--torque-uncertainty", metavar="NM|FILE",
                     help="the model's torque error (N m, or identify's report.json; default: measured on the log)")
     de.add_argument("--json", metavar="FILE", help="also write the design to this file")
+    dt_ = sub.add_parser("detect", parents=[debug], help="external torque, collisions and the collided link "
+                         "over a log (the momentum observer)")
+    dt_.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
+    dt_.add_argument("--robot", help="catalog robot")
+    dt_.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
+    dt_.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    _clock_option(dt_)
+    dt_.add_argument("--calibrate", metavar="CLEAN.csv", help="a collision-free log of the arm: the thresholds "
+                     "are set on it (default: the design's, from the torque noise)")
+    dt_.add_argument("--false-alarms", type=float, default=1.0, metavar="PER_HOUR",
+                     help="false alarms per hour the calibrated thresholds allow (default 1)")
+    dt_.add_argument("--torque-noise", type=float, metavar="NM", help="torque sensor noise std (N m) for the "
+                     "default thresholds")
+    dt_.add_argument("--out", metavar="DIR", help="folder of the outputs (default build/detect)")
+    from models.catalog import urdf_names
+
     from .logs import identify as idf
     for name, text in (("excite", "an excitation trajectory (CSV) to log for `identify`"),
                        ("identify", "inertial parameters and friction from a log of q and tau")):
         x = sub.add_parser(name, parents=[debug], help=text)
         if name == "identify":
-            x.add_argument("log", help="CSV with t, q_<joint>, tau_<joint> (jittered stamps allowed)")
+            x.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder); jittered stamps allowed")
             _clock_option(x)
-        x.add_argument("--robot", help="catalog robot (ur5, panda)")
+        x.add_argument("--robot", help=f"catalog robot with a URDF ({', '.join(urdf_names())})")
         x.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
         x.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
         if name == "excite":
@@ -854,15 +1117,52 @@ def parser():
                            help="rad/s: a joint's samples slower than this are left out of the fit (it may "
                                 f"stick under dry friction; default {idf.DEFAULT_V_STICK:g}, 0 keeps every one)")
             x.add_argument("--out", metavar="DIR", help="folder of the identified URDF and report (default build/identify)")
+    _simulate_log_parser(sub, debug)
     return ap
+
+
+def _simulate_log_parser(sub, debug):
+    """The parser of `simulate-log`."""
+    from .evaluate.scenarios.log_grid import CLOCKS, TASKS, TORQUE_SENSORS
+    sl = sub.add_parser("simulate-log", parents=[debug], help="a realistic synthetic log of your URDF (and its "
+                        "truth): a perturbed MuJoCo plant, an encoder, torque noise, a logger's clock")
+    sl.add_argument("--urdf", metavar="PATH", help="the robot's URDF")
+    sl.add_argument("--robot", help="or a catalog robot")
+    sl.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    sl.add_argument("--out", metavar="CSV", default="log.csv", help="the log (default log.csv; its truth "
+                    "beside it, <stem>_truth.csv)")
+    sl.add_argument("--seconds", type=float, default=20.0, help="length (s, default 20)")
+    sl.add_argument("--task", choices=TASKS, default="multisine", help="the motion: multisine (default), p2p "
+                    "(minimum-jerk moves with rests), bursts (slow drifts, short fast moves)")
+    sl.add_argument("--clock", choices=tuple(CLOCKS), default="receive", help="receive (default: 1 ms ticks "
+                    "stamped when a logger received them, repeated rows) or jitter (jittered instants, dropped rows)")
+    sl.add_argument("--torque", choices=tuple(TORQUE_SENSORS), default="rms", help="torque noise: rms (default: "
+                    "1 %% of each joint's RMS torque) or abs (0.05 N m); both with offsets")
+    sl.add_argument("--seed", type=int, default=0, help="seed of the plant, the motion and the sensors")
 
 
 def main(argv=None):
     """Run the command of ``argv`` (None: sys.argv[1:]); returns the exit status (2: a user error,
     printed on one line unless --debug)."""
-    args = parser().parse_args(argv)
+    try:
+        args = parser().parse_args(argv)
+    except KeyboardInterrupt:
+        print("\ninterrupted", file=sys.stderr)
+        return 130
     try:
         return COMMANDS[args.cmd](args)
+    except KeyboardInterrupt:          # Ctrl-C: one line (outputs are written as sets: none is cut)
+        if args.debug:
+            raise
+        print(f"\ninterrupted: `{args.cmd}` stopped; nothing half-written", file=sys.stderr)
+        return 130
+    except BrokenPipeError:            # `describe LOG | head`: the reader left; quiet, as a shell tool
+        import os
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # no second error at exit
+        except (OSError, ValueError):
+            pass
+        return 141
     except USER_ERRORS as e:
         if args.debug:
             raise

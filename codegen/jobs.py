@@ -143,10 +143,10 @@ def run(jobs, processes=None, debug=False):
     (Job, dict or Exception)
         In order of completion; a job that raised yields its exception (``debug``: re-raised).
     """
-    from tqdm import tqdm
+    from .core.progress import bar as progress_bar
     processes = max(1, min(processes or os.cpu_count() or 1, len(jobs)))
-    bar = tqdm(total=sum(len(j.stages) for j in jobs), desc="targets", unit="stage", file=sys.stderr,
-               leave=False, dynamic_ncols=True, disable=None)
+    bar = progress_bar(total=sum(len(j.stages) for j in jobs), desc="targets", unit="stage", file=sys.stderr,
+                       leave=False, dynamic_ncols=True, disable=None)
 
     started = set()
 

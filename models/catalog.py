@@ -63,6 +63,11 @@ def names():
     return list(_CLOSED) + list(_URDFS)
 
 
+def urdf_names():
+    """The catalog names of robots read from a URDF (identification and excitation need one)."""
+    return list(_URDFS)
+
+
 def load_robot(name=None, *, urdf=None, locked_joints=None, **kwargs):
     """A RobotModel by catalog ``name``, or from the ``urdf`` file with ``locked_joints`` (joint
     name -> fixed value, rad or m); ``kwargs`` go to the catalog entry's constructor or ``load_urdf``.

@@ -59,6 +59,16 @@ def compiled():
     return get
 
 
+@pytest.fixture(scope="session")
+def unranged():
+    """seed000_2r's default observer compiled without input ranges (``limits="none"``): a huge
+    measurement reaches the step and overflows its result (ERR_NONFINITE_RESULT), where the
+    default range (codegen.core.limits) would refuse it first."""
+    from codegen import compile_observer, observers
+    from models import load_robot
+    return compile_observer(observers.build("reduced_order", load_robot("seed000_2r"), limits="none"), dt=1e-3)
+
+
 def ur5_source(**extra):
     """The plain-data robot source of example-robot-data's ur5 (for the reference tests)."""
     import pinocchio as pin

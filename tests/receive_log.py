@@ -12,11 +12,15 @@ previous row's values and that tick's sample never reaches the log.
 import numpy as np
 
 
-def receive_time(N, tick=1e-3, seed=0, delay_std=0.4e-3, repeat=0.05, late=0.002, rounding=1e-4):
-    """(stamps (N,), tick of the sample each row carries (N,) int, repeated (N,) bool) for N ticks."""
+def receive_time(N, tick=1e-3, seed=0, delay_std=0.4e-3, repeat=0.05, late=0.002, rounding=1e-4,
+                 delay="gamma"):
+    """(stamps (N,), tick of the sample each row carries (N,) int, repeated (N,) bool) for N ticks.
+    ``delay="uniform"``: delays uniform over a width sqrt(12) delay_std (a logger polling at its
+    own rate: the stamps' phase against the tick spread over a whole tick, as on a real Panda)."""
     rng = np.random.default_rng(seed)
     k = np.arange(N)
-    d = rng.gamma(2.0, delay_std / np.sqrt(2.0), N)
+    d = (rng.uniform(0.0, np.sqrt(12.0) * delay_std, N) if delay == "uniform"
+         else rng.gamma(2.0, delay_std / np.sqrt(2.0), N))
     big = rng.random(N) < late
     d[big] += rng.uniform(1e-3, 4e-3, big.sum())
     stamps = np.maximum.accumulate(k * tick + d)

@@ -237,6 +237,21 @@ def test_build_prints_the_designed_gains_and_why(capsys, workdir):
     loaded = load(workdir / "generated" / "seed000_2r_reduced_order").design    # the folder's JSON
     assert loaded == json.loads(json.dumps(report)) and f"why: {report['why']}" in str(loaded)
     assert json.loads(json.dumps(report)) == dict(report)     # still plain JSON data
+    # what the predicted error assumes, and the command that measures it (issue 40)
+    assert ("assumes: its predicted error assumes the robot's model exact (no model or torque uncertainty "
+            "stated)") in out
+    assert "measure it on a log of the robot: python -m codegen compare LOG.csv --robot seed000_2r " \
+           "--observers reduced_order --build DIR" in out
+    assert "assumes: its predicted error assumes the robot's model exact" in text
+    header = (workdir / "generated" / "seed000_2r_reduced_order" / "seed000_2r_reduced_order.h").read_text()
+    assert "Assumes: its predicted error assumes the robot's model exact" in header
+    stated = observers.build("reduced_order", load_robot("seed000_2r"), uncertainty=0.1).design
+    assert stated.assumption() is None and "assumes:" not in str(stated)
+    assert observers.build("kalman_model", load_robot("seed000_2r")).design.assumption() is None  # no model
+    from codegen.core.spec import DesignReport
+    tuned = DesignReport({**report, "parameters": {"k0": {"value": 5.0, "designed": k0,
+                                                          "source": "tuned on the log log.csv"}}})
+    assert tuned.assumption() is None                     # its error was measured on the log
 
 
 def test_build_prints_the_stability_of_what_it_built(capsys, workdir):

@@ -111,10 +111,10 @@ def test_load_reads_the_metadata_that_was_built(spec_of, tmp_path):
 
 
 # ------------------------------------------------------------------ run() and rhs on error
-def test_run_failing_at_sample_k_rolls_the_state_back(compiled, spec_of):
+def test_run_failing_at_sample_k_rolls_the_state_back(unranged, spec_of):
     """A sample k > 0 fails: the C run restores the state it had at entry (x, last y and u),
     as docs/guide/reliability.md and ObserverError say, and reports k."""
-    obs = compiled("seed000_2r")
+    obs = unranged
     obs.reset([0.1, 0.2])
     for _ in range(3):
         obs.step([0.1, 0.2], [1.0, -1.0])
@@ -226,25 +226,36 @@ def test_a_wild_sample_is_refused_with_the_state_unchanged(robot_name, tmp_path)
     assert f"#define {P}_Y_UPPER {{{obs.limits['y_upper'][0]!r}" in header
 
 
-def test_without_declared_limits_the_clip_counter_reports_the_wild_sample():
-    """A robot without declared limits (seed000_2r's closed form) has no range to check (the issue's
-    case returns OK), but the steps at the velocity bound are counted, in C, as the Python
-    measure counts them (codegen.verify.measure.saturated_samples)."""
+def test_without_declared_limits_a_wild_sample_is_still_refused():
+    """Issue 42: a robot without declared limits (seed000_2r's closed form) accepted y = 1e200 at
+    sample 5 (the estimate -6.3e199, ruined for good). Every step now has a default range
+    (codegen.core.limits.UNDECLARED_POSITION, UNDECLARED_TORQUE): the sample is ERR_OUT_OF_RANGE
+    with the state unchanged, or SKIPPED in the skip mode, the estimate then finite and the numpy
+    reference agreeing to 1e-9."""
     from codegen import compile_observer
-    from codegen.verify.measure import saturated_samples
+    from codegen.core.limits import UNDECLARED_POSITION, UNDECLARED_TORQUE
+    from codegen.pipeline.load import OutOfRange
+    from codegen.reference import reference_observer
     from codegen.verify.trajectory import demo_trajectory
     robot = load_robot("seed000_2r")
     obs = compile_observer(observers.build("reduced_order", robot), dt=1e-3)
-    assert obs.limits["y_upper"] == [None, None] and obs.limits["u_max"] == [None, None]
+    assert obs.limits["y_upper"] == [UNDECLARED_POSITION] * 2 and obs.limits["u_max"] == [UNDECLARED_TORQUE] * 2
     t, Q, QD, TAU = demo_trajectory(robot, T=1.0, dt=1e-3)
     Y = Q.copy()
     Y[5] = 1e200
     obs.reset(Y[0])
-    est = obs.run(Y, TAU)
-    assert obs.clipped == saturated_samples(est, obs) > 100 and obs.skipped == 0
-    obs.reset(Q[0])
-    obs.run(Q, TAU)
-    assert obs.counters == {"clipped": 0, "skipped": 0}
+    obs.run(Y[:5], TAU[:5])
+    x = obs.state
+    with pytest.raises(OutOfRange, match=r"ERR_OUT_OF_RANGE: q_q1 = 1e\+200 outside \[-10000, 10000\]"):
+        obs.step(Y[5], TAU[5])
+    assert np.array_equal(obs.state, x)
+    ref = reference_observer(obs.meta)
+    for o in (obs, ref):
+        o.reset(Y[0])
+        o.skip = True
+    est, est_ref = obs.run(Y, TAU), ref.run(Y, TAU)
+    assert obs.counters == {"clipped": 0, "skipped": 1} and ref.skipped == 1
+    assert np.all(np.isfinite(est)) and np.max(np.abs(est - est_ref)) < 1e-9 * max(1.0, np.max(np.abs(est)))
 
 
 @pytest.mark.parametrize("robot_name, family", [("seed000_2r", "reduced_order"), ("ur5", "reduced_order"),

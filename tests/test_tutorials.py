@@ -1,4 +1,4 @@
-"""The three tutorials of the documentation site run as written (docs/tutorials/*.md).
+"""The tutorials of the documentation site run as written (docs/tutorials/*.md).
 
 Each page's fenced blocks are taken in order, in an empty folder: a block with a title
 (```` ```c title="main.c" ````) writes that file; a ``python`` block runs in one namespace per
@@ -23,7 +23,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIALS = ROOT / "docs" / "tutorials"
-PAGES = ("your-robot.md", "your-microcontroller.md", "your-log.md")
+PAGES = ("your-robot.md", "your-microcontroller.md", "your-log.md", "your-log-from-a-bag.md")
 FENCE = re.compile(r"^```(\w*)([^\n]*)\n(.*?)^```[ \t]*$", re.M | re.S)
 
 

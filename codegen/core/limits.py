@@ -16,8 +16,12 @@ mix-up of a factor 1000 on a revolute joint, degrees for radians beyond 1.1 x th
 TORQUE_MARGIN = 10 [ASSUMPTION]: the URDF's effort is the drive's rated (continuous) torque; its
 peak torque is 2 to 4 times that, a torque sensor's spikes and a model's offset add to it, so ten
 times the rating still passes every torque a drive can apply and refuses 1e300 N m.
-A joint without a declared limit (a continuous joint, a closed-form or DH robot) gets no position
-check, one without an effort limit no torque check. The user may declare other ranges
+A joint without a declared limit (a continuous joint, a closed-form or DH robot) still gets an
+absolute range, UNDECLARED_POSITION = 1e4 (rad or m) either side of 0, and one without an effort
+limit |tau| <= UNDECLARED_TORQUE = 1e6 N m [ASSUMPTION]: 1e4 rad is 1,600 turns of a continuous
+joint (hours at a wrist's top speed, more than any arm's cable allows), 1e4 m longer than any
+slide, 1e6 N m above the largest industrial axis (a few 1e4 N m); a reading beyond them is no
+motion but a wild sample (1e200, an overflowed counter), which would ruin every later estimate. The user may declare other ranges
 (``observers.build(..., limits=...)``, a targets file's ``design = { limits = {...} }``): taken as
 given, without a margin.
 
@@ -31,6 +35,8 @@ import numpy as np
 
 POSITION_MARGIN = 0.1
 TORQUE_MARGIN = 10.0
+UNDECLARED_POSITION = 1e4
+UNDECLARED_TORQUE = 1e6
 POSITION_PREFIXES = ("q_", "q1_")
 TORQUE_PREFIXES = ("tau_", "u_")
 KEYS = ("q_lower", "q_upper", "tau_max")
@@ -38,8 +44,8 @@ KEYS = ("q_lower", "q_upper", "tau_max")
 
 def joint_ranges(robot):
     """(lower (n,), upper (n,), tau_max (n,)): the accepted range of each joint's position (rad or
-    m; -inf, inf where none is declared) and the bound of its torque (N m or N; inf: none), with
-    the margins of the module docstring, from the declared limits of ``robot`` (its
+    m; +-UNDECLARED_POSITION where none is declared) and the bound of its torque (N m or N;
+    UNDECLARED_TORQUE where none is), with the margins of the module docstring, from the declared limits of ``robot`` (its
     ``position_limited``, ``q_lower``, ``q_upper`` and ``effort_limit``)."""
     n = robot.n
     limited = np.asarray(getattr(robot, "position_limited", np.zeros(n, bool)), dtype=bool).reshape(-1)
@@ -51,9 +57,9 @@ def joint_ranges(robot):
     if effort.size != n:
         effort = np.full(n, np.inf)
     margin = POSITION_MARGIN * (hi - lo)
-    lower = np.where(limited, lo - margin, -np.inf)
-    upper = np.where(limited, hi + margin, np.inf)
-    tau = np.where(np.isfinite(effort) & (effort > 0), TORQUE_MARGIN * effort, np.inf)
+    lower = np.where(limited, lo - margin, -UNDECLARED_POSITION)
+    upper = np.where(limited, hi + margin, UNDECLARED_POSITION)
+    tau = np.where(np.isfinite(effort) & (effort > 0), TORQUE_MARGIN * effort, UNDECLARED_TORQUE)
     return lower, upper, tau
 
 
@@ -118,7 +124,8 @@ def input_ranges(robot, y_names, u_names, given=None):
     else:
         lower, upper, tau = joint_ranges(robot)
         rule = (f"the robot's declared limits: positions {POSITION_MARGIN:g} x the range beyond either end, "
-                f"|torque| <= {TORQUE_MARGIN:g} x the effort limit; joints without one unchecked")
+                f"|torque| <= {TORQUE_MARGIN:g} x the effort limit; joints without one: |q| <= "
+                f"{UNDECLARED_POSITION:g}, |torque| <= {UNDECLARED_TORQUE:g}")
         if given:
             check_given(given, n)
             lower = _given("q_lower", given.get("q_lower"), n, lower)

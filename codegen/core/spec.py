@@ -16,6 +16,9 @@ from .options import DEFAULT_INPUTS, InputRanges, Options
 from .target import Target, default_name, discretization, sanitize  # noqa: F401  (sanitize re-exported)
 
 
+ON_A_LOG = "on the log"      # in a value's source (Target.sources): it was tuned or measured on a log
+
+
 class DesignReport(dict):
     """A family's design report: a plain dict (JSON-able; the metadata JSON records it), printed
     as text: the report's own ``summary`` when the design wrote one, its choice and why, the
@@ -23,25 +26,70 @@ class DesignReport(dict):
 
     FIRST = ("summary", "choice", "why")
     WIDTH = 12          # numbers of a longer list are elided after this many
+    STATED = ("parameters", "inputs", "sources")     # the sections of the built values' sources (source_lines)
+
+    def why(self):
+        """Why the designed defaults are what they are: the report's choice and reason, its
+        summary's first line, "given (no design)" or "the family's defaults"."""
+        return ("given (no design)" if self.get("given") else
+                ": ".join(str(self[k]) for k in ("choice", "why") if k in self) or
+                (str(self["summary"]).splitlines()[0] if "summary" in self else "the family's defaults"))
+
+    def assumption(self):
+        """What the design's predicted error takes for granted, as data, or None: a design that
+        predicts its error (``predicted_error``) from the robot's model without a model or torque
+        uncertainty stated assumes the model exact; ``{"assumes": "exact model", "text": one line,
+        "measure_on": "log"}`` (a log of the robot measures the error: codegen.evaluate.compare).
+        None too when its gains were tuned on a log (a parameter's source names ON_A_LOG)."""
+        if "predicted_error" not in self or self.get("variant") == "kinematic":
+            return None
+        if any(ON_A_LOG in str(r.get("source")) for r in (self.get("parameters") or {}).values()):
+            return None                 # its gains were scored on a log of the robot: measured there
+        stated = [v for v in (self.get("uncertainty"), self.get("torque_uncertainty")) if v is not None]
+        if any(np.any(np.asarray(v, dtype=float) > 0) for v in stated):
+            return None
+        return {"assumes": "exact model", "measure_on": "log",
+                "text": "its predicted error assumes the robot's model exact (no model or torque uncertainty "
+                        "stated); on a real arm the error can be far larger"}
+
+    def source_lines(self):
+        """One line per value whose source the report states (codegen.pipeline.emit.with_params):
+        ``name = value: source (designed D)`` per parameter, ``input name = value: source`` per
+        build argument, ``name: source`` per other value (the discretisation's)."""
+        lines = []
+        for k, r in (self.get("parameters") or {}).items():
+            designed = "" if r["designed"] == r["value"] else f" (designed {_report_value(r['designed'])})"
+            lines.append(f"{k} = {_report_value(r['value'])}: {r['source']}{designed}")
+        for k, r in (self.get("inputs") or {}).items():
+            lines.append(f"input {k} = {_report_value(r['value'])}: {r['source']}")
+        lines += [f"{k}: {text}" for k, text in (self.get("sources") or {}).items()]
+        return lines
 
     def __str__(self):
         lines = [*str(self["summary"]).splitlines()] if "summary" in self else []
         for k in self.FIRST[1:]:
             if k in self:
                 lines.append(f"{k}: {self[k]}")
-        lines += report_lines({k: v for k, v in self.items() if k not in self.FIRST}, "")
+        a = self.assumption()
+        if a:
+            lines.append(f"assumes: {a['text']}: measure it on a log of the robot (codegen.evaluate.compare)")
+        stated = self.source_lines()
+        if stated:
+            lines += ["built with (the design's own values below are its defaults):"] + [f"  {t}" for t in stated]
+        lines += report_lines({k: v for k, v in self.items() if k not in (*self.FIRST, *self.STATED)}, "")
         return "\n".join(lines)
 
     def brief(self, params, stability=None):
         """A few lines for ``build``: the gains ``params`` (name -> value) and why (the design's
-        choice and reason, or that they were given), then what the stability check found: the
-        report ``stability`` of the built target (its metadata's, after substeps "auto" was
-        resolved) when given, else the design's own check."""
-        why = ("given (no design)" if self.get("given") else
-               ": ".join(str(self[k]) for k in ("choice", "why") if k in self) or
-               (str(self["summary"]).splitlines()[0] if "summary" in self else "the family's defaults"))
-        gains = ", ".join(f"{k} = {_report_value(v)}" for k, v in params.items()) or "no parameters"
-        lines = [f"{gains}: {why}"]
+        choice and reason, or that they were given; a value whose source the report states,
+        ``source_lines``, with its source), then what the stability check found: the report
+        ``stability`` of the built target (its metadata's, after substeps "auto" was resolved)
+        when given, else the design's own check."""
+        stated = self.get("parameters") or {}
+        rest = {k: v for k, v in params.items() if k not in stated}
+        gains = ", ".join(f"{k} = {_report_value(v)}" for k, v in rest.items()) or "no parameters"
+        lines = [f"{gains}: {self.why()}"] if rest or not stated else []
+        lines += self.source_lines()
         st = stability if stability is not None else self.get("stability")
         if isinstance(st, dict) and "stable" in st:
             top = "; ".join(f"{g} stable up to {_report_value(r['max_stable'])}"
@@ -50,7 +98,9 @@ class DesignReport(dict):
             lines.append(f"discrete stability at dt {_report_value(st.get('dt'))} s ({st.get('method')}, "
                          f"{st.get('hold')}, {st.get('substeps')} substeps): "
                          f"{'stable' if st['stable'] else 'UNSTABLE'}, spectral radius "
-                         f"{_report_value(st.get('spectral_radius'))}" + (f"; {top}" if top else ""))
+                         f"{_report_value(st.get('spectral_radius'))} (the largest |eigenvalue| of the linearised "
+                         f"step; at most 1: no mode grows, 1: its slowest mode barely decays in a step)"
+                         + (f"; {top}" if top else ""))
         if "lowered_to_stable" in self:
             lines.append(f"lowered into the stable region: {_report_value(self['lowered_to_stable'])}")
         return lines

@@ -258,6 +258,10 @@ class Target:
     inline : "auto", bool
         Code shape of the step: one flat expression (True), calls to one RHS routine (False),
         or by size ("auto", see codegen.discrete.discretize).
+    sources : dict
+        Where a value of ``params`` or ``build`` came from, name -> text (e.g. "tuned on the log
+        log.csv", "measured on the log log.csv"); a value without one was given by the user. The
+        folder's design report and header state it.
     """
 
     robot: dict
@@ -269,6 +273,7 @@ class Target:
     precision: str = "double"
     name: str | None = None
     inline: object = "auto"
+    sources: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if not isinstance(self.family, str) or not self.family:
@@ -280,6 +285,11 @@ class Target:
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise ValueError(f"params[{k!r}] must be a number, got {v!r}")
         object.__setattr__(self, "params", params)
+        sources = _jsonable(dict(self.sources), "sources")
+        bad = [k for k, v in sources.items() if not isinstance(v, str)]
+        if bad:
+            raise ValueError(f"sources[{bad[0]!r}] must be a text, got {sources[bad[0]]!r}")
+        object.__setattr__(self, "sources", sources)
         object.__setattr__(self, "discretization", discretization(self.discretization))
         if self.precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {PRECISIONS}, got {self.precision!r}")

@@ -54,6 +54,8 @@ UNRANKED = "within the reference's uncertainty: cannot be ranked"
 # worst method that tracks, the untuned backward difference, is 43 x the median of the others on
 # seed000_2r's 4 s test log (a 2^16 encoder at 1 kHz: its noise, 0.064 rad/s against 1.5e-3).
 FAIL_AT_BOUND = 0.01
+SAME_ESTIMATE = 1e-3       # two estimates closer than this x the RMS error are the same (one verdict)
+CAUTION = 0.9              # a gain tuned above this part of its stable bound is flagged (little margin)
 FAIL_RATIO = 100.0
 PARAMS_SHOWN = 8           # a row with more parameters shows only those a user sets (``shown_params``)
 
@@ -112,7 +114,20 @@ class Comparison:
         it did not: a non-finite estimate, diverged (metrics.diverged), at the velocity bound on
         more than FAIL_AT_BOUND of the samples, or an RMS error above FAIL_RATIO x the median of
         the others' (finite ones) and above the convergence level (an error below it is converged
-        by the table's own measure)."""
+        by the table's own measure); or its estimate that of a method which failed (within
+        SAME_ESTIMATE of its RMS error): the same estimate, the same verdict."""
+        own = self._own_failure(e)
+        if own or not np.isfinite(e.metrics["rms"]):
+            return own
+        for o in self.entries:
+            if o is not e and np.isfinite(o.metrics["rms"]) and self._own_failure(o):
+                gap = np.sqrt(np.nanmean(np.sum((o.est - e.est) ** 2, axis=1)))
+                if gap <= SAME_ESTIMATE * e.metrics["rms"]:
+                    return f"its estimate is {o.name}'s, which failed: {self._own_failure(o)}"
+        return ""
+
+    def _own_failure(self, e):
+        """``failure``'s rules on ``e`` alone."""
         rms = e.metrics["rms"]
         if not (np.isfinite(rms) and np.all(np.isfinite(e.est))):
             return "non-finite estimate"
@@ -183,8 +198,20 @@ class Comparison:
             return (f"use {obs.name}: {b / a:.3g} x better than the best tuned filter ({bl.name}) "
                     f"against the reference; at least {low:.3g} x if the reference is off by its "
                     f"uncertainty {u:.3g} rad/s")
-        return (f"no observer beats the best tuned filter here beyond the reference's uncertainty "
-                f"({obs.name} {a:.3g}, {bl.name} {b:.3g}, uncertainty {u:.3g} rad/s)")
+        return (f"{obs.name} ({a:.3g} rad/s) and {bl.name} ({b:.3g}) cannot be ranked: the reference may be "
+                f"off by its uncertainty {u:.3g} rad/s, which leaves the ratio at least {low:.3g} (not above 1)")
+
+    def ranking(self):
+        """The verdict as data: the best observer and filter (not failed), their RMS errors, the
+        reference's uncertainty u, the ratio's lower bound (b - u) / (a + u) (``verdict``) and
+        ``within_uncertainty``: the two cannot be ranked (the bound not above 1; False when u is 0)."""
+        obs, bl, u = self.best_observer(), self.best_baseline(), self.uncertainty
+        if obs is None or bl is None:
+            return {"observer": obs and obs.name, "baseline": bl and bl.name, "within_uncertainty": False}
+        a, b = obs.metrics["rms"], bl.metrics["rms"]
+        low = (b - u) / (a + u) if a + u > 0 else float("inf")
+        return {"observer": obs.name, "baseline": bl.name, "rms_observer": a, "rms_baseline": b,
+                "uncertainty": u, "ratio_at_least": low, "within_uncertainty": bool(u > 0 and a < b and low <= 1)}
 
     def rows(self):
         """Plain-data rows (JSON-able): name, kind, params (every runtime parameter), the variant,
@@ -608,8 +635,11 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
         other = [c for c in candidates if c[1] is not spec][0]
         notes.append(f"variant {spec.variant} (forward-validation error {math.sqrt(J):.3g} rad/s; "
                      f"{other[1].variant}: {math.sqrt(other[0]):.3g})")
-    if tuned is not None:
+    if tuned is not None and tuned.params:
         notes.append("tuned on the log: " + ", ".join(f"{k} = {v:.4g}" for k, v in tuned.params.items()))
+        notes += _margin(obs, tuned)
+    elif tuned is not None:
+        notes.append(f"not tuned, its designed gains: {tuned.note or 'no candidate scored'}")
     est = full[:, slots]
     hits = saturated_samples(full, spec)        # samples with q̇̂ beyond the model's bound
     note = "; ".join(filter(None, notes + [hits and f"{hits} samples at the velocity bound"]))
@@ -618,6 +648,23 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
     m["at_bound"] = hits
     m["validation_rms"] = val.rms(est, t_ss)
     return Entry(item, "observer", params, est, m, note, variant=spec.variant, tuned=tuned, build=used)
+
+
+def _margin(obs, tuned):
+    """A caution per tuned gain at more than CAUTION of its recorded stable bound (the observer's
+    metadata, codegen.discrete.stability: the largest value stable with the others at their
+    defaults), or tuned onto the bound by the stability check: little margin for a longer dt."""
+    gains = ((getattr(obs, "meta", None) or {}).get("stability") or {}).get("gains") or {}
+    out = []
+    for k, v in tuned.params.items():
+        top = [g["max_stable"] for g in gains.values() if list(g.get("slots", [])) == [k]
+               and g.get("max_stable") and g.get("limit_found")]
+        if top and v > CAUTION * top[0]:
+            out.append(f"caution: {k} = {v:.4g} is {100 * v / top[0]:.0f} % of its stable bound {top[0]:.4g}: "
+                       "little margin for a longer dt")
+        elif "at the stability bound" in (tuned.note or ""):
+            out.append(f"caution: {k} = {v:.4g} tuned onto its stability bound: little margin for a longer dt")
+    return out
 
 
 def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level=1e-2,
@@ -657,7 +704,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
         Cut-off (Hz) of the zero-phase reference used when ``rec`` has no true velocity; default
         each joint's measured motion band (codegen.logs.noise).
     progress : bool
-        A progress bar over the methods on stderr (tqdm).
+        A progress bar over the methods on stderr (codegen.core.progress: lines off a terminal).
     stepping : dict, optional
         ``method``, ``hold``, ``substeps`` the observers step with (``run_observer``).
     tune : {"log", "none", "reference"}
@@ -678,7 +725,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     -------
     Comparison
     """
-    from tqdm import tqdm
+    from ..core.progress import bar as progress_bar
 
     from ..families import observers
     from ..logs import noise as noise_of
@@ -710,8 +757,8 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
     ref = reference_of(rec, noise_of.reference_cutoff(noise) if ref_cutoff is None else ref_cutoff)
     val = tuning.validation(t, Y, noise.sigma, psd=noise_of.motion_psd(noise, noise.spectrum))
     entries = []
-    bar = tqdm(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
-               file=sys.stderr, disable=not progress, leave=False)
+    bar = progress_bar(total=len(parsed) + len(names) + (rec.qdm is not None), desc="compare", unit="method",
+                       file=sys.stderr, disable=not progress, leave=False)
     with bar:
         work = [(_observer_entry, item, fam, given, robot, rec, design, noise, val, tune == "log", reference,
                  stepping, ref, t_ss, level) for item, fam, given in parsed]
@@ -725,6 +772,7 @@ def compare(rec, robot, families=DEFAULT_FAMILIES, design=None, t_ss=None, level
             entries.append(Entry(SIGNAL, "signal", {"columns": "qdm_<joint>"}, rec.qdm, m))
             bar.update()
     info = {"recording": rec.describe(), "joint_names": list(robot.joint_names), "noise": noise.lines(),
+            "noise_data": noise.to_dict(),
             "tune": tune, "validation": {"window": val.window, "constant": val.constant, **val.details}}
     if clock is not None:
         info["clock"] = clock.describe()

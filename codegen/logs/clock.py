@@ -9,9 +9,14 @@ stamps as if they were sample times turns their jitter into velocity noise (a 0.
 1 rad/s is 4e-4 rad, forty times a 1e-5 encoder noise). This module finds out which kind of log it
 is and, for a fixed-rate sampler, rebuilds the sample clock from q itself.
 
-**Repeated rows.** A row whose every value but the stamp equals the previous row's (q, tau and
-the other columns, bit for bit) carries no new sample: with receive-time stamps it is dropped (a
-fixed-rate sampler of a noisy or moving arm does not repeat itself to the last bit).
+**Repeated rows.** A row whose positions equal the previous row's bit for bit carries no new
+sample, whatever its other columns say (a torque sensor read apart from the encoders, a counter or
+a temperature change every row): with receive-time stamps it is dropped (a fixed-rate sampler of a
+noisy or moving arm does not repeat itself to the last bit).
+
+**A velocity signal.** When the log carries the robot's own velocity (``qdm``), it measures each
+interval (codegen.logs.intervals): on a lattice of whole ticks the tick fit below takes over; a
+counter that is not the sample clock gets each row's interval; sample-time stamps are kept.
 
 **The tick model.** The kept rows j (stamps s_j) carry samples at ticks n_j (integers, strictly
 increasing): s_j = c + n_j T + d_j with a delay d_j >= 0. Unknown: the period T, the offset c, the
@@ -36,6 +41,10 @@ the residuals' mean squares beyond 1 + 4 sqrt(2 / rows)) and most rows are certa
 stamps are kept (a sampler that really jitters, or a log without motion to tell). A log whose
 stamps are already uniform keeps them. A log with a robot-time column (``t_robot``) is read on it.
 
+**The period** comes from q's whole-tick runs; the stamps' phase only sharpens it within that
+estimate's own standard error (a logger polling at its own rate spreads the phase over a whole tick,
+and a chance peak of it elsewhere is no period).
+
 ``rebuild(t, Q, ...)`` returns a ``Clock``: which rows are kept, their times, the ticks, and the
 lines `describe` and `compare` print.
 """
@@ -45,6 +54,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from . import intervals
 
 MODES = ("auto", "stamps", "ticks")
 ROBOT_TIME = "t_robot"          # a log's own sample-time column, when it has one
@@ -98,6 +109,8 @@ class Clock:
     rows: int = 0
     reason: str = ""
     stamps: np.ndarray | None = None        # the log's time column, every row
+    glitches: list = field(default_factory=list)    # rows dropped as bad samples (``glitches``)
+    unwrapped: list = field(default_factory=list)   # joints whose turns were unwrapped (recording)
 
     def row_of(self):
         """(rows,) int: for every row of the log, the kept row (index into ``kept``) whose sample
@@ -111,6 +124,13 @@ class Clock:
 
     def describe(self):
         """One line: what the time column is and what was done with it."""
+        wrap = f"; joint{'s' * (len(self.unwrapped) > 1)} {', '.join(self.unwrapped)} unwrapped (jumps of whole turns)"
+        return self._describe() + wrap * bool(self.unwrapped) + (f"; {len(self.glitches)} row{'s' * (len(self.glitches) != 1)} dropped as "
+                                   f"glitches (a jump off the neighbours and back: row "
+                                   f"{', '.join(str(j + 1) for j in self.glitches[:5])}"
+                                   f"{' ...' * (len(self.glitches) > 5)} of the data)" if self.glitches else "")
+
+    def _describe(self):
         rep = (f"{self.repeated} repeated row{'s' * (self.repeated != 1)} "
                f"({100 * self.repeated / max(self.rows, 1):.1f} %) dropped, " if self.repeated else "")
         if self.kind == "ticks":
@@ -121,6 +141,12 @@ class Clock:
                     f"on the tick (ticks certain on {100 * self.certain:.1f} % of the rows; q's leave-one-out "
                     f"residual {self.residual.get('stamps', float('nan')):.3g} rad on the stamps, "
                     f"{self.residual.get('ticks', float('nan')):.3g} on the ticks)")
+        if self.kind == "velocity":
+            d = self.delay
+            return (f"clock: the intervals the velocity signal qdm measures: the stamps' steps "
+                    f"{1e6 * d['stamps_error']:.3g} us std off them; {rep}{d['corrected']} of "
+                    f"{len(self.kept) - 1} intervals corrected ({1e6 * d['rms_change']:.3g} us RMS), "
+                    f"{d['gross']} of them samples the stamps skipped or bunched")
         if self.kind == "robot":
             return f"clock: the robot-time column {ROBOT_TIME}; {rep}its stamps are the sample times"
         return f"clock: the stamps as written ({self.reason})"
@@ -129,7 +155,8 @@ class Clock:
         """JSON-ready summary (no per-row arrays)."""
         return {"kind": self.kind, "period": self.period, "certain": self.certain, "delay": self.delay,
                 "residual": self.residual, "repeated": self.repeated, "rows": self.rows,
-                "kept": len(self.kept), "reason": self.reason, "text": self.describe()}
+                "kept": len(self.kept), "reason": self.reason, "glitches": self.glitches, "unwrapped": self.unwrapped,
+                "text": self.describe()}
 
 
 def parse_mode(text):
@@ -162,7 +189,7 @@ def repeated_rows(values):
     return out
 
 
-def rebuild(t, Q, others=None, mode="auto", period=None, t_robot=None):
+def rebuild(t, Q, qdm=None, mode="auto", period=None, t_robot=None):
     """The sample clock of a log (module docstring).
 
     Parameters
@@ -171,8 +198,11 @@ def rebuild(t, Q, others=None, mode="auto", period=None, t_robot=None):
         The time column (s), non-decreasing (stamps may tie).
     Q : (N, n) array
         Positions (rad or m).
-    others : (N, k) array, optional
-        The other columns (torques, ...): a repeated row repeats them too.
+    qdm : (N, n) array, optional
+        The robot's own velocity signal (rad/s): it measures each interval (codegen.logs.intervals),
+        and a repeated row repeats it too. The other columns (torques, counters, temperatures) say
+        nothing of whether a row carries a new sample: a torque sensor is read apart from the
+        encoders, a counter changes every row.
     mode : {"auto", "stamps", "ticks"}
         auto: find out; stamps: the time column as written (stamps must increase strictly);
         ticks: rebuild on a fixed tick (``period`` given, or estimated).
@@ -198,28 +228,84 @@ def rebuild(t, Q, others=None, mode="auto", period=None, t_robot=None):
     back = np.flatnonzero(np.diff(t) < 0)
     if len(back):
         k = back[0]
-        raise ValueError(f"t: time stamps go back at row {k + 1}: {t[k + 1]:.9g} after {t[k]:.9g} s")
-    clock = _rebuild(t, Q, others, mode, period, t_robot, N)
+        raise ValueError(f"t: time stamps go back at sample {k + 1} (row {k + 3} of a file with a header): "
+                         f"{t[k + 1]:.9g} after {t[k]:.9g} s")
+    _check_unit(t)
+    if qdm is not None:
+        qdm = np.asarray(qdm, dtype=float).reshape(N, -1)
+        if qdm.shape != Q.shape or not np.all(np.isfinite(qdm)):
+            raise ValueError(f"qdm: expected {Q.shape} finite velocities, got {qdm.shape}")
+    clock = _rebuild(t, Q, qdm, mode, period, t_robot, N)
     clock.stamps = t
     return clock
 
 
-def _rebuild(t, Q, others, mode, period, t_robot, N):
+SLOWEST = 0.1           # s: a joint-state log's step is below this (a log at 10 Hz or less is not one)
+
+
+def _check_unit(t):
+    """ValueError when the time column's median step is SLOWEST or more: seconds it is not (a log in
+    ms read as seconds is "a 1 Hz log", and every rate after it 1000 x off); the message names the
+    unit that gives a rate between 10 Hz and 100 kHz."""
+    steps = np.diff(t)
+    step = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.0
+    if step < SLOWEST:
+        return
+    units = [(u, f) for u, f in (("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9)) if 1e-5 <= step * f <= 0.1]
+    looks = (f"it looks like {units[0][0]} (a {1.0 / (step * units[0][1]):.4g} Hz log)" if units
+             else "no unit gives a joint-state log's rate")
+    raise ValueError(f"t: the median step is {step:.6g}, a {1.0 / step:.3g} Hz log if the time column is in "
+                     f"seconds; {looks}: state the time column's unit (t_unit in the column mapping) or "
+                     f"write it in seconds")
+
+
+def _rebuild(t, Q, qdm, mode, period, t_robot, N):
     if t_robot is not None:
         return _robot_clock(np.asarray(t_robot, dtype=float).ravel(), N)
-    values = Q if others is None else np.column_stack([Q, np.asarray(others, dtype=float).reshape(N, -1)])
-    rep = repeated_rows(values)
+    bad = glitches(Q)
+    clock = _clock(t, Q, qdm, mode, period, N, repeated_rows(Q), bad)
+    clock.glitches = [int(j) for j in np.flatnonzero(bad)]
+    return clock
+
+
+def glitches(Q):
+    """(N,) bool: rows of the positions ``Q`` (N, n) whose position jumps off their neighbours' and back, by more than ten times
+    the log's own fastest step (the 99th percentile of |dq| a row, the largest over the joints: a
+    still joint's is no scale) and twenty robust standard deviations: a bad sample no motion produces, dropped as one row (the rest of the log
+    read as if it were not there). The neighbours' estimate is the median of the two rows on each
+    side (a one-row glitch does not move it)."""
+    N = len(Q)
+    out = np.zeros(N, bool)
+    if N < 5:
+        return out
+    nb = np.stack([Q[:-4], Q[1:-3], Q[3:-1], Q[4:]])                 # rows j-2, j-1, j+1, j+2
+    r = np.zeros_like(Q)
+    r[2:-2] = Q[2:-2] - np.median(nb, axis=0)
+    fastest = float(np.max(np.quantile(np.abs(np.diff(Q, axis=0)), 0.99, axis=0)))
+    sigma = 1.4826 * np.median(np.abs(r[2:-2]), axis=0)
+    out = np.any((np.abs(r) > 10.0 * fastest) & (np.abs(r) > 20.0 * sigma), axis=1)
+    return out
+
+
+def _clock(t, Q, qdm, mode, period, N, rep, bad):
     if mode == "stamps":
-        return _stamps(t, np.arange(N), "asked for (--clock stamps)", N)
+        return _stamps(t, np.flatnonzero(~bad), "asked for (--clock stamps)", N)
     steps = np.diff(t)
-    if mode == "auto" and steps.min() > 0 and np.all(np.abs(steps - np.median(steps)) <= 1e-6 * np.median(steps)):
-        return _stamps(t, np.arange(N), "uniform: every step the median step to 1e-6", N)
-    kept = np.flatnonzero(~rep)
+    rep = rep & ~bad
+    kept = np.flatnonzero(~rep & ~bad)
+    lattice = False
+    if mode == "auto" and qdm is not None and len(kept) >= 4 * _WINDOW and np.all(np.diff(t[kept]) > 0):
+        clock, lattice = _velocity_clock(t, Q, qdm, kept, N, rep)
+        if clock is not None:
+            return clock
+    if (mode == "auto" and not lattice and steps.min() > 0
+            and np.all(np.abs(steps - np.median(steps)) <= 1e-6 * np.median(steps))):
+        return _stamps(t, np.flatnonzero(~bad), "uniform: every step the median step to 1e-6", N)
     if len(kept) < 4 * _WINDOW:
         if mode == "ticks":
             raise ValueError(f"clock: {len(kept)} distinct rows are too few to rebuild a tick clock "
                              f"(at least {4 * _WINDOW})")
-        return _stamps(t, np.arange(N), f"too few distinct rows ({len(kept)}) to rebuild a tick", N)
+        return _stamps(t, np.flatnonzero(~bad), f"too few distinct rows ({len(kept)}) to rebuild a tick", N)
     fit = _fit_ticks(t[kept], Q[kept], period, np.diff(kept) - 1)
     clock = Clock("ticks", kept, fit["c"] + fit["ticks"] * fit["T"], period=fit["T"],
                   ticks=fit["ticks"] - fit["ticks"][0], certain=fit["certain"], delay=fit["delay"],
@@ -236,7 +322,42 @@ def _rebuild(t, Q, others, mode, period, t_robot, N):
         return clock
     why = (f"q is no smoother on a fixed tick than on the stamps (mean-square ratio {ratio:.3g}, "
            f"chance allows {needed:.3g}): a sampler that jitters, or too little motion to tell")
-    return _stamps(t, np.arange(N), why, N)
+    return _stamps(t, np.flatnonzero(~bad), why, N)
+
+
+def _velocity_clock(t, Q, V, kept, N, rep):
+    """(Clock or None, lattice): the intervals the velocity signal measures between the kept rows
+    (codegen.logs.intervals), taken when q is smoother on them than on the stamps by more than
+    chance (as for the ticks). On a lattice of whole ticks (9 in 10 of them within 3 standard errors
+    of one, and twice as close as to the stamps' steps) the tick fit does better: (None, True). A signal whose intervals are not the stamps' scale
+    (another unit), too few measured, or q no smoother: (None, False), the log read as without it."""
+    s = t[kept]
+    step = np.diff(s)
+    h, se = intervals.measured(Q[kept], V[kept])
+    T, z_lattice, z_stamps = intervals.lattice(h, se, step)
+    if T is None or not 0.5 <= T / float(np.median(step)) <= 2.0:
+        return None, False
+    if z_lattice < min(3.0, 0.5 * z_stamps):
+        return None, True
+    dt, S, corrected, gross = intervals.combine(h, se, step)
+    if not np.all(dt > 0):
+        return None, False
+    times = s[0] + np.concatenate([[0.0], np.cumsum(dt)])
+    span = 4 * _WINDOW * float(np.median(step))
+    res = {"stamps": _loo_residual(s, Q[kept], span)[0], "velocity": _loo_residual(times, Q[kept], span)[0]}
+    ratio = res["stamps"] ** 2 / max(res["velocity"] ** 2, 1e-300)
+    if S > 1e-6 * float(np.median(step)) and ratio <= 1.0 + 4.0 * math.sqrt(2.0 / len(kept)):
+        return None, False              # q no smoother on them: a signal that lags or leads q
+    rms = float(np.sqrt(np.mean((dt - step) ** 2)))
+    clock = Clock("velocity", kept, times, repeated=int(rep.sum()), rows=N, residual=res,
+                  delay={"stamps_error": S, "corrected": int(corrected.sum()), "gross": int(gross.sum()),
+                         "rms_change": rms},
+                  reason=(f"the velocity signal qdm measures the intervals: the stamps' steps are "
+                          f"{1e6 * S:.3g} us off (std) where it tells"))
+    if S <= 1e-6 * float(np.median(step)):
+        return _stamps(t, np.union1d(kept, np.flatnonzero(rep)),
+                       f"they agree with the intervals the velocity signal qdm measures", N), False
+    return clock, False
 
 
 def _stamps(t, kept, reason, N):
@@ -362,6 +483,7 @@ def _period(s, Q, T0, span):
     dt = np.sum(v * np.diff(Q, axis=0), axis=1) / np.where(vv > 0, vv, np.inf)
     fast = ok & (vv > 0) & (vv >= np.median(vv[ok])) if np.any(ok) else ok
     T = T0
+    width = None
     if np.count_nonzero(fast) >= 16:
         h, edges = np.histogram(dt[fast], bins=np.arange(0.2 * T0, 2.5 * T0, T0 / 50))
         peak = 0.5 * (edges[np.argmax(h)] + edges[np.argmax(h) + 1])
@@ -371,6 +493,7 @@ def _period(s, Q, T0, span):
         inc = np.rint(dt / T)
         sure = fast & (inc >= 1) & (np.abs(dt / T - inc) < 0.25)
         num = den = 0.0
+        runs = []
         j = 0
         while j < len(sure):
             if not sure[j]:
@@ -385,15 +508,22 @@ def _period(s, Q, T0, span):
                 nc = n - n.mean()
                 num += float(nc @ (y - y.mean()))
                 den += float(nc @ nc)
+                runs.append((nc, y - y.mean()))
             j = k
         if den > 0:
             T = num / den
+            # its standard error, from the stamps' scatter about each run's line
+            res = np.concatenate([y - T * nc for nc, y in runs])
+            width = 4.0 * float(np.std(res)) / math.sqrt(den)
     x = s - s[0]
     rows = min(len(x), 4000)
     lo, hi = 0.97 * T, 1.03 * T
+    if width is not None:               # the stamps' phase only sharpens what q's ticks say
+        lo, hi = T - width, T + width
+        rows = len(x)
     while True:
         step = T * T / max(x[rows - 1], T) / 4
-        grid = np.arange(lo, hi + step, step)
+        grid = np.arange(lo, hi + step, step) if hi - lo > step else np.array([T])
         c = _coherence(x[:rows], grid)
         k = int(np.argmax(c))
         if c[k] <= 4.0 / np.sqrt(rows):

@@ -18,11 +18,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.columns import ColumnsError, read_columns, write_columns
+from ..core.columns import ColumnsError, read_columns, read_header, write_columns
 
 
 class RecordingError(ColumnsError):
-    """A recording that cannot be used (message names the file and what is wrong)."""
+    """A recording that cannot be used (message names the file and what is wrong); ``option``
+    names the choice that would fix it ("columns": a column mapping, "topic": a bag's topic) and
+    ``choices`` its values, when one would."""
+
+    def __init__(self, message, option=None, choices=()):
+        super().__init__(message)
+        self.option, self.choices = option, list(choices)
 
 
 @dataclass
@@ -130,32 +136,112 @@ class Recording:
         return write_columns(path, {name: data[:, i] for i, name in enumerate(names)})
 
 
-def _columns(path, joint_names, robot=None):
-    """(path, {column: (N,) values}) of a recording CSV, every column there and finite, at least
-    two rows, positions and torques within the ``robot``'s declared ranges when it is given
-    (``check_ranges``; the stamps not yet checked): ``read_csv`` and ``read_log``."""
+def _table(path, columns=None, topic=None):
+    """(path, header, {recording column: (N,) values}) of the log at ``path``: a recording CSV as it
+    is (``columns`` None), a CSV whose own names the mapping ``columns`` maps (codegen.logs.mapping:
+    its text, a mapping file or a ColumnMap), or a ROS bag's JointState topic (codegen.logs.bag,
+    ``topic``; its default mapping under ``columns``). ``header``: the log's own column names (a
+    message lists the unmapped ones)."""
+    from . import bag, mapping
     path = Path(path)
-    header, data = read_columns(path, RecordingError)
+    try:
+        cmap = mapping.parse(columns)
+        if bag.is_bag(path):
+            raw, _ = bag.read(path, topic)
+            rules = bag.DEFAULT.updated(cmap)
+            header = list(raw)
+            optional = [s for s in bag.OPTIONAL if s not in (cmap.rules if cmap else {})]
+            to = rules.resolve(header, f"{path}", optional=optional)
+            bag.check(raw, to, f"{path}")
+            return path, header, {name: raw[src] / (rules.scale if name in mapping.TIMES else 1)
+                                  for name, src in to.items()}
+        if path.is_dir():
+            raise RecordingError(f"{path}: a folder, not a log (a CSV file, a ROS 1 .bag file or a ROS 2 bag "
+                                 f"folder with its metadata.yaml)")
+        if topic is not None:
+            raise RecordingError(f"{path}: a topic is read from a ROS bag; this is a CSV")
+        if cmap is None:
+            header = read_header(path, RecordingError)
+            if not any(h.startswith("q_") for h in header):
+                raise RecordingError(f"{path}: no q_<joint> column (expected t, q_<joint>, tau_<joint>[, qd_<joint>]"
+                                     f"[, qdm_<joint>]; a log with other names needs a column mapping; its columns: "
+                                     f"{mapping.some(header)})", option="columns")
+            header, data = read_columns(path, RecordingError)
+            return path, header, {h: data[:, i] for i, h in enumerate(header)}
+        header = read_header(path, RecordingError)
+        to = cmap.resolve(header, f"{path}")
+        times = {src: cmap.scale for name, src in to.items() if name in mapping.TIMES}
+        names, data = read_columns(path, RecordingError, keep=list(to.values()), origin=times)
+    except (mapping.MappingError, bag.BagError) as e:
+        raise RecordingError(str(e), option=getattr(e, "option", None), choices=getattr(e, "choices", ())) from None
+    return path, header, {name: data[:, names.index(src)] for name, src in to.items()}
+
+
+def log_joints(path, columns=None, topic=None):
+    """The joints of the log at ``path`` (its q_<joint> columns after the mapping ``columns``; the
+    JointState names of a bag's ``topic``), in file order. RecordingError when there are none."""
+    from . import mapping
+    path, header, col = _table(path, columns, topic)
+    joints = [h[2:] for h in col if h.startswith("q_")]
+    if not joints:
+        raise RecordingError(f"{path}: no q_<joint> columns (expected t, q_<joint>, tau_<joint>; a log with "
+                             f"other names needs a column mapping; its columns: {mapping.some(header)})",
+                             option="columns")
+    return joints
+
+
+def _columns(path, joint_names, robot=None, columns=None, topic=None):
+    """(path, {column: (N,) values}) of a recording (``_table``: a CSV, mapped or not, or a bag),
+    every column there and finite, at least two rows, positions and torques within the ``robot``'s
+    declared ranges when it is given (``check_ranges``; the stamps not yet checked): ``read_csv``
+    and ``read_log``."""
+    path, header, col = _table(path, columns, topic)
     need = ["t"] + [f"{g}_{j}" for g in ("q", "tau") for j in joint_names]
-    missing = [c for c in need if c not in header]
+    missing = [c for c in need if c not in col]
     if missing:
-        raise RecordingError(f"{path}: missing columns {', '.join(missing)} (expected t, q_<joint>, "
-                             f"tau_<joint>[, qd_<joint>][, qdm_<joint>] for joints {', '.join(joint_names)})")
+        if columns is None and not _is_bag(path):
+            raise RecordingError(f"{path}: missing columns {', '.join(missing)} (expected t, q_<joint>, "
+                                 f"tau_<joint>[, qd_<joint>][, qdm_<joint>] for joints {', '.join(joint_names)}; "
+                                 f"a log with other names needs a column mapping)", option="columns")
+        mapped = set(_sources(path, header, columns, topic))
+        unmapped = [h for h in header if h not in mapped]
+        raise RecordingError(f"{path}: no {', '.join(missing)} after the column mapping (joints "
+                             f"{', '.join(joint_names)} wanted; the log's joints {', '.join(h[2:] for h in col if h.startswith('q_')) or 'none'}"
+                             + (f"; columns no rule maps: {', '.join(unmapped[:12])}" if unmapped else "") + ")",
+                             option="columns")
     for g in ("qd", "qdm"):
-        have = [f"{g}_{j}" for j in joint_names if f"{g}_{j}" in header]
+        have = [f"{g}_{j}" for j in joint_names if f"{g}_{j}" in col]
         if have and len(have) < len(joint_names):
-            lack = [f"{g}_{j}" for j in joint_names if f"{g}_{j}" not in header]
+            lack = [f"{g}_{j}" for j in joint_names if f"{g}_{j}" not in col]
             raise RecordingError(f"{path}: has {', '.join(have)} but not {', '.join(lack)} "
                                  f"({g}_<joint> for every joint or none)")
-    if data.ndim != 2 or len(data) < 2 or data.shape[1] != len(header):
-        raise RecordingError(f"{path}: need at least 2 rows of {len(header)} values")
+    data = np.column_stack(list(col.values())) if col else np.zeros((0, 0))
+    names = list(col)
+    if len(data) < 2:
+        raise RecordingError(f"{path}: need at least 2 rows of {len(names)} values")
     if not np.all(np.isfinite(data)):
         r, c = np.argwhere(~np.isfinite(data))[0]
-        raise RecordingError(f"{path}: NaN or Inf in column {header[c]!r}, row {r + 2}")
-    col = {h: data[:, i] for i, h in enumerate(header)}
+        raise RecordingError(f"{path}: NaN or Inf in column {names[c]!r}, row {r + 2}")
     if robot is not None:
         check_ranges(path, col, joint_names, robot)
     return path, col
+
+
+def _is_bag(path):
+    from .bag import is_bag
+    return is_bag(path)
+
+
+def _sources(path, header, columns, topic):
+    """The log's column names that the mapping of ``_table`` reads (for a message)."""
+    from . import bag, mapping
+    cmap = mapping.parse(columns)
+    rules = bag.DEFAULT.updated(cmap) if bag.is_bag(path) else cmap
+    out = []
+    for h in header:
+        if any(mapping.match(s, h) is not None for s in rules.rules):
+            out.append(h)
+    return out
 
 
 def check_ranges(path, col, joint_names, robot):
@@ -168,11 +254,20 @@ def check_ranges(path, col, joint_names, robot):
     the log's joints, in the robot's order."""
     from ..core.limits import POSITION_MARGIN, TORQUE_MARGIN, joint_ranges
     lower, upper, tau = joint_ranges(robot)
+    limited = np.asarray(getattr(robot, "position_limited", np.zeros(robot.n, bool)), dtype=bool).reshape(-1)
+    effort = np.asarray(getattr(robot, "effort_limit", np.full(robot.n, np.inf)), dtype=float).reshape(-1)
+    if limited.size != robot.n:
+        limited = np.zeros(robot.n, bool)
+    if effort.size != robot.n:
+        effort = np.full(robot.n, np.inf)
     bad = []
     for j, name in enumerate(joint_names):
-        for column, lo, hi, what in ((f"q_{name}", lower[j], upper[j],
-                                      f"joint {name!r}'s limits and {POSITION_MARGIN:g} x its range beyond either end"),
-                                     (f"tau_{name}", -tau[j], tau[j], f"{TORQUE_MARGIN:g} x joint {name!r}'s effort limit")):
+        q_what = (f"joint {name!r}'s limits and {POSITION_MARGIN:g} x its range beyond either end" if limited[j]
+                  else f"joint {name!r} declares no limits: the range of a reading any motion gives")
+        tau_what = (f"{TORQUE_MARGIN:g} x joint {name!r}'s effort limit" if np.isfinite(effort[j]) and effort[j] > 0
+                    else f"joint {name!r} declares no effort limit: the bound of any drive's torque")
+        for column, lo, hi, what in ((f"q_{name}", lower[j], upper[j], q_what),
+                                     (f"tau_{name}", -tau[j], tau[j], tau_what)):
             v = col[column]
             out = np.flatnonzero((v < lo) | (v > hi))
             if len(out):
@@ -193,7 +288,7 @@ def _recording(col, joint_names, rows=slice(None), t=None):
                      qdm=stack("qdm") if has["qdm"] else None)
 
 
-def read_csv(path, joint_names, robot=None):
+def read_csv(path, joint_names, robot=None, columns=None, topic=None):
     """A Recording from a CSV with the header of the module docstring, its stamps taken as the
     sample times (``read_log`` finds out what they are).
 
@@ -206,6 +301,10 @@ def read_csv(path, joint_names, robot=None):
         qd_<joint> and qdm_<joint> for all joints or none).
     robot : models.RobotModel, optional
         Its declared ranges are checked (``check_ranges``); None: not checked.
+    columns : str, path or codegen.logs.mapping.ColumnMap, optional
+        The log's own column names mapped onto these (codegen.logs.mapping).
+    topic : str, optional
+        A ROS bag's JointState topic (codegen.logs.bag; None: its only one).
 
     Raises
     ------
@@ -214,7 +313,7 @@ def read_csv(path, joint_names, robot=None):
         2 rows, time stamps that repeat or go back, a position or torque outside the robot's
         declared ranges (the message names the file's rows).
     """
-    path, col = _columns(path, joint_names, robot)
+    path, col = _columns(path, joint_names, robot, columns, topic)
     t = col["t"]
     steps = np.diff(t)
     bad = np.nonzero(steps <= 0)[0]
@@ -228,7 +327,7 @@ def read_csv(path, joint_names, robot=None):
     return _recording(col, joint_names)
 
 
-def read_log(path, joint_names, clock="auto", robot=None):
+def read_log(path, joint_names, clock="auto", robot=None, columns=None, topic=None):
     """(Recording on the log's sample clock, Clock): a recording CSV read as a measurement
     (codegen.logs.clock): a logger's receive-time stamps rebuilt on the robot's fixed tick and its
     repeated rows dropped, a robot-time column ``t_robot`` used when the log has one, the stamps
@@ -241,7 +340,7 @@ def read_log(path, joint_names, clock="auto", robot=None):
         As ``read_csv``.
     clock : str
         "auto" (default), "stamps", "ticks" or "ticks=PERIOD" (s) (``codegen.logs.clock.parse_mode``).
-    robot : models.RobotModel, optional
+    robot, columns, topic : optional
         As ``read_csv``.
 
     Raises
@@ -251,13 +350,30 @@ def read_log(path, joint_names, clock="auto", robot=None):
     """
     from . import clock as clocks
     mode, period = clocks.parse_mode(clock)
-    path, col = _columns(path, joint_names, robot)
+    path, col = _columns(path, joint_names, robot, columns, topic)
     t = col["t"]
-    others = [col[h] for h in col if h not in ("t", clocks.ROBOT_TIME) and not h.startswith("q_")]
+    qdm = (np.column_stack([col[f"qdm_{j}"] for j in joint_names])
+           if all(f"qdm_{j}" in col for j in joint_names) else None)
+    wrapped = [j for j in joint_names if unwrap(col, f"q_{j}")]
     Q = np.column_stack([col[f"q_{j}"] for j in joint_names])
     try:
-        c = clocks.rebuild(t, Q, np.column_stack(others) if others else None, mode=mode, period=period,
+        c = clocks.rebuild(t, Q, qdm, mode=mode, period=period,
                            t_robot=col.get(clocks.ROBOT_TIME))
     except ValueError as e:
         raise RecordingError(f"{path}: {e}") from None
+    c.unwrapped = wrapped
     return _recording(col, joint_names, c.kept, c.t), c
+
+
+def unwrap(col, name):
+    """Unwrap the column ``col[name]`` in place where it jumps by a whole number of turns (2 pi k,
+    to within an eighth of a turn) between consecutive rows: a continuous joint reported in
+    [-pi, pi) (no arm moves half a turn in one sample). True when it did."""
+    q = col[name]
+    d = np.diff(q)
+    turns = np.rint(d / (2 * np.pi))
+    jump = (turns != 0) & (np.abs(d - 2 * np.pi * turns) < np.pi / 4)
+    if not jump.any():
+        return False
+    col[name] = q - 2 * np.pi * np.concatenate([[0.0], np.cumsum(np.where(jump, turns, 0.0))])
+    return True

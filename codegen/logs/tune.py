@@ -295,6 +295,23 @@ def start_of_steady(spec, p, t):
     return float(t[0] + max(start, 0.05 * (t[-1] - t[0])))
 
 
+def too_short(val, t, t_from, spec, p):
+    """Why the log of times ``t`` (N,) (s) is too short to score from ``t_from`` (s) with the
+    Validation ``val`` (a scored row needs its ``val.window`` following samples), or "" when it is
+    not: the log must score at least as long as it skips, T >= 2 (t_from - t_0) + m h. ``spec``
+    and its parameters ``p`` (np,) say why scoring starts late (a ``t_switch``)."""
+    t0, T = float(t[0]), float(t[-1] - t[0])
+    h = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    need = 2.0 * (t_from - t0) + val.window * h
+    if T >= need and np.any(val.valid & (t >= t_from)):
+        return ""
+    names = list(spec.p_names)
+    why = (f"twice its start-up t_switch = {float(p[names.index('t_switch')]):.3g} s"
+           if "t_switch" in names else "after the first 5 % of the log")
+    return (f"the log is too short: {T:.3g} s, and scoring starts at {t_from - t0:.3g} s ({why}) with "
+            f"{val.window} samples ahead of each scored one; record at least {need:.3g} s")
+
+
 def _with_params(obs, p):
     """Set ``p`` on a freshly reset observer: the C's set_params without the stability check
     (a candidate; the chosen one is checked), or the reference's own setter."""
@@ -372,7 +389,14 @@ def tune_observer(obs, spec, family, Y, U, t, val, limit, slots, progress=None, 
     tune = bandwidth(family, spec.p_names)
     if not tune:
         return None, p0
-    t_from = max(start_of_steady(spec, p0, t), t_from if t_from is not None else -math.inf)
+    start = start_of_steady(spec, p0, t)
+    t_from = max(start, t_from if t_from is not None else -math.inf)
+    # the log scores at least as long as the start-up skips (a window the caller chose later, such
+    # as compare's t_ss in the middle, only needs scored rows)
+    short = too_short(val, t, start, spec, p0) or ("" if np.any(val.valid & (t >= t_from)) else
+                                                   too_short(val, t, t_from, spec, p0))
+    if short:
+        return Tuned(family, {}, 1.0, math.inf, math.inf, [], short), p0
 
     def score(s):
         p = scaled(spec.p_names, p0, tune, s)

@@ -229,8 +229,8 @@ def emit(target, out_dir, spec=None, force=True, check=True):
     if spec is None:
         from .targets_file import build_spec
         spec = build_spec(target)
-    if target.params:
-        spec = with_params(spec, target.params)
+    if target.params or target.build:
+        spec = with_params(spec, target.params, target.sources, target.build)
     target = resolve_substeps(target, spec)        # substeps "auto": the fewest stable ones
     stability = (require_stable(spec, target.discretization, precision=target.precision).as_dict() if check
                  else {"checked": False, "gains": {}, "reason": "emit(check=False)"})
@@ -403,16 +403,38 @@ def retune_function(spec):
     return ca.Function("retune", [x, y, p_old, p_new], [x])
 
 
-def with_params(spec, params):
-    """A copy of ``spec`` whose default parameters are overridden by ``params`` (name -> value)."""
+def with_params(spec, params, sources=None, build=None):
+    """A copy of ``spec`` whose default parameters are overridden by ``params`` (name -> value).
+
+    Its design report then states where each value came from: under "parameters" each
+    overridden value, its designed default and its source, under "inputs" each build argument
+    of ``build`` (the Target's) and its source, under "sources" the other values' (the
+    discretisation's); ``sources`` (name -> text, ``Target.sources``) names them, GIVEN where it
+    has none. Applied twice, the first designed default is kept."""
     unknown = set(params) - set(spec.p_names)
     if unknown:
         raise ValueError(f"params: unknown parameter(s) {sorted(unknown)} of {spec.family}; "
                          f"known: {spec.p_names}")
     p = spec.p_default.copy()
+    sources, design = sources or {}, dict(spec.design)
+    stated = dict(design.get("parameters") or {})
     for k, v in params.items():
-        p[spec.p_names.index(k)] = real_number(f"params[{k!r}]", v)
-    return dataclasses.replace(spec, p_default=p)
+        i = spec.p_names.index(k)
+        p[i] = real_number(f"params[{k!r}]", v)
+        before = stated.get(k) or {}
+        stated[k] = {"value": float(p[i]), "designed": before.get("designed", float(spec.p_default[i])),
+                     "source": sources.get(k) or before.get("source") or GIVEN}
+    if stated:
+        design["parameters"] = stated
+    if build:
+        design["inputs"] = {k: {"value": v, "source": sources.get(k) or GIVEN} for k, v in build.items()}
+    other = {k: v for k, v in sources.items() if k not in params and k not in (build or {})}
+    if other:                          # the discretisation's (dt, dt_min, dt_max: the header has the values)
+        design["sources"] = other
+    return dataclasses.replace(spec, p_default=p, design=design)
+
+
+GIVEN = "given by the user"      # the source of a value without one in Target.sources
 
 
 # --------------------------------------------------------------------------- templates
@@ -470,7 +492,21 @@ def template_values(meta):
         "stability_macros": "\n".join(_stability_macros(P, meta["stability"])),
         **_range_values(P, meta, precision),
         "p_default": ", ".join(_num(v, precision) for v in meta["p_default"]) or "0",
+        "sources_text": _sources_text(meta.get("design") or {}),
     }
+
+
+def _sources_text(design):
+    """The header's lines on where the default parameters came from (the design report's
+    ``source_lines``, else its choice and why)."""
+    from ..core.spec import DesignReport
+    report = DesignReport(design)
+    lines = report.source_lines()
+    lines.append(f"{'the other parameters' if lines else 'Default parameters'}: {report.why()}")
+    a = report.assumption()
+    if a:
+        lines.append(f"Assumes: {a['text']}: measure it on a log of the robot (codegen.evaluate.compare).")
+    return "\n * ".join(_comment(t) for t in ["Where the default parameters come from:", *lines])
 
 
 def _range_values(P, meta, precision):

@@ -453,7 +453,7 @@ class CompiledObserver:
             from .targets_file import build_spec
             try:
                 target = Target.from_dict(self.meta["target"])
-                spec = with_params(build_spec(target), target.params)
+                spec = with_params(build_spec(target), target.params, target.sources, target.build)
             except Exception as e:      # any failure to rebuild: refuse, naming it
                 raise ValueError(
                     f"{self.prefix}: p = {p.tolist()} moves more than one gain (or a parameter that is not a "

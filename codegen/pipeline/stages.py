@@ -69,7 +69,8 @@ def make(target, out_dir, *, spec=None, force=True, native=False, cflags=(), che
     folder = Path(out_dir) / target.prefix
     check_folder(folder, _as_recorded(folder, target), force=force)
     report("design")
-    spec = with_params(spec if spec is not None else build_spec(target), target.params)
+    spec = with_params(spec if spec is not None else build_spec(target), target.params,
+                       target.sources, target.build)
     target = resolve_substeps(target, spec)
     report("emit")
     emit(target, out_dir, spec=spec, force=force, check=check)

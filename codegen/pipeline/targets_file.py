@@ -13,6 +13,8 @@ One ``[[target]]`` table per generated observer; the CLI's options are the same 
     variant = "O2"                 # of families that have variants (default: the family's)
     design = { eigenvalues = [] }  # keyword arguments of the family's build: design inputs, gains
     params = { rcond_min = 1e-9 }  # runtime parameters overriding the designed defaults
+    # sources = { k0 = "tuned on the log log.csv" }   # where a params, design or dt value came from
+                                   #   (the folder's design report and header state it; default: given by the user)
     dt = 1e-3                      # discretisation: dt (s), method, hold, substeps (a number, or
     substeps = "auto"              #   "auto", the default: the fewest that are stable), and the
     # dt_min = 2.5e-4              #   range of the elapsed time between samples (default [dt/4,
@@ -22,7 +24,9 @@ One ``[[target]]`` table per generated observer; the CLI's options are the same 
     out = "generated"              # parent folder, relative to this file (default ./generated)
     # tune = "log.csv"             # a log of the robot (relative to this file): the sensor measured
                                    #   on it and the gains tuned on it without truth (the command
-                                   #   line does it when it builds the target: `design LOG.csv`)
+                                   #   line does it when it builds the target: `design LOG.csv`);
+                                   #   a CSV of other column names or a ROS bag: tune_columns (a
+                                   #   mapping, codegen.logs.mapping) and tune_topic (a bag's topic)
 
 Catalog robots are recorded as ``{"kind": "catalog", "name": ...}`` (resolved by
 ``models.from_source``), so a targets file and the Target in a metadata JSON name no
@@ -38,12 +42,14 @@ from pathlib import Path
 
 from ..core.target import AUTO, Discretization, Target
 
-KEYS = ("robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design", "params",
-        "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision", "name", "out", "tune")
+KEYS = ("robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design", "params", "sources",
+        "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision", "name", "out", "tune",
+        "tune_columns", "tune_topic")
 DISCRETIZATION_KEYS = ("dt", "dt_min", "dt_max", "method", "hold", "substeps")
 # the TOML type of each key checked here (elastic, lock, design, params, J, K and substeps are
 # checked where they are read); a value of another type is refused, never converted
-STRING_KEYS = ("robot", "urdf", "family", "variant", "method", "hold", "precision", "name", "out", "tune")
+STRING_KEYS = ("robot", "urdf", "family", "variant", "method", "hold", "precision", "name", "out", "tune",
+               "tune_columns", "tune_topic")
 NUMBER_KEYS = ("dt", "dt_min", "dt_max")
 DEFAULT_OUT = "generated"
 DEFAULT_FAMILY = "reduced_order"
@@ -215,24 +221,37 @@ def make_target(entry, base=".", where="", tuner=None):
     if bad:
         _fail(where, f"unknown design input{'s' * (len(bad) > 1)} {', '.join(bad)} of {family}; "
               f"valid: {', '.join(design_names) or '(none)'}")
+    params, sources = _table(entry, "params", where), _table(entry, "sources", where)
+    stray = sorted(set(sources) - set(params) - set(design) - set(DISCRETIZATION_KEYS))
+    if stray:
+        _fail(where, f"sources: {', '.join(stray)} {'is' if len(stray) == 1 else 'are'} neither a parameter, a "
+              f"design input nor {', '.join(DISCRETIZATION_KEYS)} of this target (sources say where a value of "
+              "params, design or the discretisation came from)")
     try:
         # unstated substeps: the fewest stable ones (resolved when the target is made)
         disc = Discretization(**{"substeps": AUTO, **{k: entry[k] for k in DISCRETIZATION_KEYS if k in entry}})
         target = Target(robot=source, family=family, variant=variant, build=design,
-                        params=_table(entry, "params", where), discretization=disc,
+                        params=params, discretization=disc, sources=sources,
                         precision=entry.get("precision", "double"), name=entry.get("name"))
     except (TypeError, ValueError) as e:
         _fail(where, str(e))
     out = Path(base) / entry["out"] if "out" in entry else Path(DEFAULT_OUT)
+    lone = [k for k in ("tune_columns", "tune_topic") if k in entry and "tune" not in entry]
+    if lone:
+        _fail(where, f"{lone[0]}: belongs with tune = \"LOG\" (the log it reads)")
     if "tune" in entry:
         log = (Path(base) / Path(entry["tune"]).expanduser()).resolve()
-        if not log.is_file():
+        if not log.exists():
             _fail(where, f"tune: log not found: {log}")
         if tuner is None:
             _fail(where, "tune: a log's gains are tuned by the command line (python -m codegen build/generate "
                   "-c FILE), or in Python by codegen.evaluate.compare.design_on_log")
         try:
-            target = tuner(target, log)
+            columns = entry.get("tune_columns")
+            if columns is not None and columns.endswith((".toml", ".json")):
+                columns = str((Path(base) / Path(columns).expanduser()).resolve())   # relative to this file
+            extra = {k: v for k, v in (("columns", columns), ("topic", entry.get("tune_topic"))) if v is not None}
+            target = tuner(target, log, **extra)
         except (TypeError, ValueError) as e:
             _fail(where, f"tune {log.name}: {e}")
     return target, out.resolve()

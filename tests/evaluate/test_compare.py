@@ -148,8 +148,10 @@ def test_verdict_line_names_the_best(cli_run):
     assert verdict == data["verdict"]
     a, b = best["observer"]["rms"], best["baseline"]["rms"]
     u = data["reference"]["uncertainty"]
-    if a < b and (b - u) / (a + u) <= 1:
-        assert verdict.startswith("no observer beats the best tuned filter here beyond the reference's uncertainty")
+    undecided = a < b and (b - u) / (a + u) <= 1
+    assert data["ranking"]["within_uncertainty"] == undecided      # the verdict and the JSON agree
+    if undecided:
+        assert verdict.startswith(f"{best['observer']['name']} (") and "cannot be ranked" in verdict
     elif a < b:
         m = re.fullmatch(r"use (\S+): ([0-9.e+]+) x better than the best tuned filter \((\w+)\).*", verdict)
         assert m and m[1] == best["observer"]["name"] and m[3] == best["baseline"]["name"]
@@ -239,8 +241,39 @@ def test_verdict_against_a_reference_allows_for_its_uncertainty():
     assert [line.split()[0] for line in rows if UNRANKED in line] == ["observer0", "signal2"]
     # 2 x better as measured, but (2e-3 - 1e-3) / (1e-3 + 1e-3) = 0.5: not beyond the uncertainty
     cmp = _comparison([1e-3, 2e-3], 1e-3, ["observer", "baseline"])
-    assert cmp.verdict().startswith("no observer beats the best tuned filter here beyond the reference's "
-                                    "uncertainty")
+    assert cmp.verdict().startswith("observer0 (0.001 rad/s) and baseline1 (0.002) cannot be ranked: the "
+                                    "reference may be off by its uncertainty 0.001 rad/s")
+    # the verdict as data says the same (issue 40: the verdict against within_uncertainty: false)
+    assert cmp.ranking()["within_uncertainty"] and cmp.ranking()["ratio_at_least"] == pytest.approx(0.5)
+    assert not any(r["within_uncertainty"] for r in cmp.rows())     # each error above u: measured
+    assert not _comparison([5e-4, 1e-2], 1e-3, ["observer", "baseline"]).ranking()["within_uncertainty"]
+    assert not _comparison([1e-3, 2e-3], 0.0, ["observer", "baseline"]).ranking()["within_uncertainty"]
+
+
+def test_methods_with_one_estimate_fail_together():
+    """Issue 40: reduced_order and reduced_order_switched with identical errors, only one marked
+    FAILED (its own velocity bound counted, the other's not). The same estimate, the same verdict."""
+    from codegen.evaluate.compare import FAIL_AT_BOUND
+    cmp = _comparison([1e-3, 1e-3, 2e-3, 4e-3], 0.0, ["observer", "observer", "observer", "baseline"])
+    cmp.entries[0].metrics["at_bound"] = int(2 * FAIL_AT_BOUND * len(cmp.t))
+    assert cmp.failure(cmp.entries[0]).startswith("at the velocity bound")
+    assert cmp.failure(cmp.entries[1]).startswith("its estimate is observer0's, which failed: at the velocity bound")
+    assert not cmp.failure(cmp.entries[2]) and cmp.best_observer().name == "observer2"
+    lines = [r for r in cmp.table().splitlines() if r.startswith(("observer0", "observer1"))]
+    assert len(lines) == 2 and all("FAILED" in r for r in lines)
+
+
+def test_a_gain_tuned_at_its_stability_bound_is_cautioned():
+    """Issue 40: extended_state tuned to omega = 524 at its stable bound 528, no caution."""
+    from types import SimpleNamespace
+
+    from codegen.evaluate.compare import _margin
+    from codegen.logs.tune import Tuned
+    obs = SimpleNamespace(meta={"stability": {"gains": {"omega": {"slots": ["omega"], "max_stable": 528.0,
+                                                                  "limit_found": True}}}})
+    near = _margin(obs, Tuned("extended_state", {"omega": 524.0}, 2.0, 1.0, 1.0, []))
+    assert near == ["caution: omega = 524 is 99 % of its stable bound 528: little margin for a longer dt"]
+    assert _margin(obs, Tuned("extended_state", {"omega": 200.0}, 2.0, 1.0, 1.0, [])) == []
 
 
 def test_a_baseline_with_no_error_leaves_the_ratios_undefined():

@@ -133,7 +133,7 @@ def test_compare_cli_errors(tmp_path, capsys):
     assert main(["compare", str(tmp_path / "ur5.csv")]) == 2
     assert "a CSV needs --robot" in capsys.readouterr().err
     assert main(["compare", "mujoco-kuka"]) == 2
-    assert "expected a scenario (mujoco-ur5, mujoco-panda) or a .csv file" in capsys.readouterr().err
+    assert "expected a scenario (mujoco-ur5, mujoco-panda), a .csv file or a ROS bag" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------------------ the comparison

@@ -348,6 +348,9 @@ def test_cli_identify(gripper_case, tmp_path, capsys):
             f"{tmp_path / 'out' / 'report.json'}") in out
     assert "left out of the fit where a joint sticks (|qd| <= 0.05 rad/s)" in out
     assert (tmp_path / "out" / "gripper_arm_identified.friction.json").is_file()
+    listed = json.loads((tmp_path / "out" / ".codegen-outputs.json").read_text())["files"]
+    assert sorted(listed) == sorted(["gripper_arm_identified.urdf", "gripper_arm_identified.friction.json",
+                                     "report.json", "report.txt"])        # its own: the next run replaces them
     # a file without torques: one line, status 2
     (tmp_path / "q.csv").write_text("t,q_shoulder_yaw,q_shoulder_pitch,q_elbow\n0,0,0,0\n0.001,0,0,0\n")
     assert main(["identify", str(tmp_path / "q.csv"), "--urdf", str(GRIPPER), *lock]) == 2

@@ -138,14 +138,21 @@ def test_a_wild_value_is_refused_naming_row_column_and_range(tmp_path, column, v
     assert read_csv(path, robot.joint_names).q.shape == rec.q.shape      # no robot: not checked
 
 
-def test_a_robot_without_declared_limits_reads_any_finite_value(tmp_path):
-    """seed000_2r's closed form declares no limits: nothing to refuse a value against."""
+def test_a_robot_without_declared_limits_reads_any_value_a_motion_gives(tmp_path):
+    """seed000_2r's closed form declares no limits: the default range (codegen.core.limits,
+    |q| <= 1e4, |tau| <= 1e6) takes positions x 1e3 and torques x 1e3 and refuses x 1e6 (issue
+    42: a 1e200 sample otherwise ran), naming the row and the column."""
     from models import load_robot
     robot = load_robot("seed000_2r")
     rec, _ = _log()
-    rec = Recording(t=rec.t, q=rec.q * 1e6, tau=rec.tau * 1e9, qd=None, joint_names=list(robot.joint_names))
-    path = rec.write_csv(tmp_path / "big.csv")
-    assert np.array_equal(read_csv(path, robot.joint_names, robot=robot).q, rec.q)
+    big = Recording(t=rec.t, q=rec.q * 1e3, tau=rec.tau * 1e3, qd=None, joint_names=list(robot.joint_names))
+    path = big.write_csv(tmp_path / "big.csv")
+    assert np.array_equal(read_csv(path, robot.joint_names, robot=robot).q, big.q)
+    wild = Recording(t=rec.t, q=rec.q * 1e6, tau=rec.tau, qd=None, joint_names=list(robot.joint_names))
+    path = wild.write_csv(tmp_path / "wild.csv")
+    with pytest.raises(RecordingError, match=r"row \d+, column 'q_q\d': .* outside \[-10000, 10000\] "
+                                             r"\(joint 'q\d' declares no limits"):
+        read_csv(path, robot.joint_names, robot=robot)
 
 
 def test_a_log_larger_than_the_limit_is_refused_by_its_size(tmp_path, monkeypatch):

@@ -109,9 +109,10 @@ def test_the_tuned_gains_reach_the_stability_bound():
                 raise ValueError(f"kd = {p[0]:.6g} is unstable")
 
     asked = []      # a refused candidate's message is cut short: its stable ranges are not searched
-    val = SimpleNamespace(score=lambda est, t_from: 1.0 / est[0, 0], rms=lambda est, t_from: 1.0 / est[0, 0])
-    spec = SimpleNamespace(p_names=["kd", "kp"], p_default=[10.0, 100.0])
     t = np.arange(100) * 1e-3
+    val = SimpleNamespace(score=lambda est, t_from: 1.0 / est[0, 0], rms=lambda est, t_from: 1.0 / est[0, 0],
+                          window=4, valid=np.ones(len(t), bool))
+    spec = SimpleNamespace(p_names=["kd", "kp"], p_default=[10.0, 100.0])
     tuned, p = tune_observer(Obs(), spec, "nicosia_tomei", np.zeros((100, 1)), np.zeros((100, 1)), t, val,
                              1.0, [0])
     assert 98.0 <= tuned.params["kd"] <= 100.0 and p[0] == tuned.params["kd"], tuned

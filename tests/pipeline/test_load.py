@@ -27,9 +27,9 @@ def test_bad_input_raises_clear_errors(compiled):
         obs.reset([0.0])
 
 
-def test_c_step_status_and_state_unchanged(compiled):
+def test_c_step_status_and_state_unchanged(unranged):
     """The C step returns its documented status and leaves the state untouched on error."""
-    obs = compiled("seed000_2r")
+    obs = unranged
     st = obs.meta["status"]
     obs.reset([0.1, 0.2])
     obs.step([0.1, 0.2], [1.0, 2.0])
@@ -57,8 +57,8 @@ def test_c_step_status_and_state_unchanged(compiled):
         obs.state = [np.nan, 0.0]
 
 
-def test_run_stops_at_first_bad_result_and_reports_it(compiled):
-    obs = compiled("seed000_2r")
+def test_run_stops_at_first_bad_result_and_reports_it(unranged):
+    obs = unranged
     obs.reset([0.0, 0.0])
     Y = np.zeros((5, 2))
     Y[3] = 1e306   # x2hat = z + k0 y overflows

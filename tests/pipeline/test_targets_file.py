@@ -56,6 +56,7 @@ family = "ciccarella_germani"
 variant = "O2"
 design = { rcond_min = 1e-10 }
 params = { rcond_min = 1e-9 }
+sources = { rcond_min = "the vendor's sheet" }
 dt = 5e-4
 dt_min = 1e-4
 dt_max = 5e-3
@@ -73,12 +74,18 @@ out = "c/out"
                                  "locked_joints": {"finger_left": 0.01, "finger_right": 0.02}}}
     assert (t.family, t.variant, t.build, t.params) == ("ciccarella_germani", "O2", {"rcond_min": 1e-10},
                                                        {"rcond_min": 1e-9})
+    assert t.sources == {"rcond_min": "the vendor's sheet"}
     assert t.discretization.to_dict() == {"dt": 5e-4, "method": "euler", "hold": "zoh", "substeps": 2,
                                           "dt_min": 1e-4, "dt_max": 5e-3}
     assert (t.precision, t.name, t.prefix) == ("double", "arm_cg", "arm_cg")
     assert set(KEYS) == {"robot", "urdf", "lock", "elastic", "J", "K", "family", "variant", "design",
-                         "params", "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision",
-                         "name", "out", "tune"}      # tune: tests/logs/test_log_commands.py
+                         "params", "sources", "dt", "dt_min", "dt_max", "method", "hold", "substeps", "precision",
+                         "name", "out", "tune", "tune_columns", "tune_topic"}   # tune: tests/logs/test_log_commands.py,
+    # tune_columns: tests/logs/test_mapping.py
+    # sources name values of params or design only
+    path.write_text('[[target]]\nrobot = "seed000_2r"\nsources = { k9 = "a log" }\n')
+    with pytest.raises(TargetError, match="sources: k9 is neither a parameter, a design input nor dt"):
+        load_targets(path)
 
 
 def test_a_tune_key_needs_the_command_line_and_a_log(tmp_path):

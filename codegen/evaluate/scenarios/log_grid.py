@@ -337,14 +337,14 @@ def grid(out, names=None, seed=0, T=T_TASK, T_excitation=T_EXCITATION, jobs=1, p
     """
     import sys
 
-    from tqdm import tqdm
+    from ...core.progress import bar as progress_bar
     names = list(cells() if names is None else names)
     for name in names:
         _parse(name)
     if not (isinstance(jobs, int) and jobs >= 1):
         raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     work = [(name, str(out), seed, float(T), float(T_excitation)) for name in names]
-    bar = tqdm(total=len(work), desc="log-grid", unit="cell", file=sys.stderr, disable=None if progress else True)
+    bar = progress_bar(total=len(work), desc="log-grid", unit="cell", file=sys.stderr, disable=None if progress else True)
     rows = {}
     try:
         if jobs == 1:
@@ -392,3 +392,46 @@ _scenario.__doc__ = ("Synthetic real-arm logs with their truth: ur5, panda, kino
                      "(``T``), a 10 s excitation log and cell.json in ``out``; ``jobs`` processes "
                      "(``reference`` unused).")
 SCENARIOS = {"log-grid": _scenario}
+
+
+# ------------------------------------------------------------------------------ one log of a user's robot
+def synthetic_log(robot, path, T=T_TASK, task="multisine", clock="receive", torque="rms", seed=0):
+    """A realistic log of ``robot`` (a URDF robot: one's own arm) and its truth, as one cell of
+    the grid writes them: the real plant (its URDF perturbed: masses, inertias, a payload,
+    friction, torque offsets, drawn with ``seed``) tracking ``task`` for ``T`` s, logged with the
+    grid's encoder, the torque sensor ``torque`` and the clock ``clock``.
+
+    Parameters
+    ----------
+    robot : models.RobotModel
+        A URDF robot (its locked joints held).
+    path : path-like
+        The log (a CSV: t, q_<joint>, tau_<joint>); its truth is written beside it as
+        ``<stem>_truth.csv`` (per row: t, t_sample, tick, repeat, true q, qd, tau).
+    T : float
+        Length (s) of the run (> 0).
+    task, clock, torque : str
+        One of TASKS, of CLOCKS and of TORQUE_SENSORS.
+    seed : int
+        Seed of the plant, the task and the run.
+
+    Returns
+    -------
+    (pathlib.Path, pathlib.Path, dict)
+        The log, its truth and the run's statistics (``RealRun.stats``).
+    """
+    from ..sim.real_plant import RealPlant, draw_perturbation
+    for name, value, known in (("task", task, TASKS), ("clock", clock, CLOCKS), ("torque", torque, TORQUE_SENSORS)):
+        if value not in known:
+            raise ValueError(f"{name}: expected one of {', '.join(known)}, got {value!r}")
+    if not (np.isfinite(T) and T > 0):
+        raise ValueError(f"T: expected a positive length in seconds, got {T!r}")
+    path = Path(path)
+    if path.suffix != ".csv":
+        raise ValueError(f"out: expected a .csv path, got {str(path)!r}")
+    wrist = min(3, robot.n // 2)                      # the wrist's friction ranges: up to 3 joints, half an arm
+    plant = RealPlant(robot, draw_perturbation(robot, seed, wrist=wrist), **TORQUE_SENSORS[torque], **CLOCKS[clock],
+                      **POSITION)
+    run = plant.run(task_reference(robot, task, T=T, seed=seed), T, seed=(seed, zlib.crc32(path.stem.encode()), 2))
+    log, truth = run.write(path.parent, path.stem, truth="rows")
+    return log, truth, run.stats()

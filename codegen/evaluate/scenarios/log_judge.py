@@ -157,14 +157,14 @@ def judge_all(out, model="urdf", names=None, progress=True):
     criterion over the cells."""
     import sys
 
-    from tqdm import tqdm
+    from ...core.progress import bar
     out = Path(out)
     if names is None:
         folders = sorted(p for p in out.iterdir() if not p.name.startswith(".") and (p / "task_truth.csv").is_file())
     else:
         folders = [out / n for n in names]
     cells = {}
-    for folder in tqdm(folders, desc="log-judge", unit="cell", file=sys.stderr, disable=not progress):
+    for folder in bar(folders, desc="log-judge", unit="cell", file=sys.stderr, disable=not progress):
         cells[folder.name] = judge(folder, model)
         (out / f"judged-{model}.json").write_text(json.dumps(cells, indent=1, default=float) + "\n")
     return summary(cells)

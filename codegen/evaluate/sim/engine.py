@@ -126,7 +126,7 @@ def simulate(plant, q0, qd0, T, dt, controller, observers=None, sensor=None, est
     est0        dict name -> initial estimate of that observer (default: zeros)
     log_states  names of observers whose state is recorded each sample (before its step);
                 the state after the last step is in ``extra[name + "_state_final"]``
-    progress    show a tqdm progress bar on stderr (if tqdm is installed); also inside
+    progress    show a progress bar on stderr (codegen.core.progress: lines off a terminal); also inside
                 blocks.stage_lines (`simulate`)
 
     ``est`` passed to the controller holds buffers that are overwritten at the next sample.
@@ -161,9 +161,9 @@ def simulate(plant, q0, qd0, T, dt, controller, observers=None, sensor=None, est
     stage(f"simulating {T:g} s at dt {dt:g} s ({N} samples, {len(observers)} observers)")
     if progress or staged():
         try:
-            from tqdm import tqdm
-            steps = tqdm(steps, desc="simulate", unit="step", file=sys.stderr, leave=False,
-                         miniters=max(1, N // 100), disable=None if not progress else False)
+            from ...core.progress import bar
+            steps = bar(steps, desc="simulate", unit="step", file=sys.stderr, leave=False,
+                        miniters=max(1, N // 100), disable=None if not progress else False)
         except ImportError:  # pragma: no cover
             pass
     measure = sensor.measure

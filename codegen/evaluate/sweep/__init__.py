@@ -145,8 +145,8 @@ def _cluster(workers, scheduler):
 
 
 def _bar(total, show):
-    from tqdm import tqdm
-    return tqdm(total=total, desc="sweep", unit="cell", file=sys.stderr, disable=not show)
+    from ...core.progress import bar
+    return bar(total=total, desc="sweep", unit="cell", file=sys.stderr, disable=not show)
 
 
 def run(source, workers=None, scheduler=None, out=None, progress=True, client=None):

@@ -38,7 +38,13 @@ def build(family, robot, **gains):
         raise KeyError(f"unknown observer family {family!r}; known: {', '.join(FAMILIES)}")
     own = {k: v for k, v in gains.items() if k != "limits"}
     limits = check_given(gains.get("limits"), robot.n)
-    spec = importlib.import_module(f"{__name__}.{family}").build(robot, **checked_args(own))
+    module = importlib.import_module(f"{__name__}.{family}")
+    if getattr(module, "ROBOT", "") == "elastic" and not hasattr(robot, "rigid"):
+        from models.catalog import ELASTIC
+        raise ValueError(f"{family} needs an elastic robot (link and motor sides, joint stiffness K, motor "
+                         f"inertias J); {getattr(robot, 'name', 'the robot')} is rigid. Elastic robots: a rigid one "
+                         f"with J and K given, or the catalog's with default J, K ({', '.join(ELASTIC)})")
+    spec = module.build(robot, **checked_args(own))
     spec.limits = limits
     spec.build_args = {k: plain(v) for k, v in gains.items()}
     return spec

@@ -92,9 +92,8 @@ def _log_arrays(recording, joint_names):
 
 
 def _progress(progress, desc, total=None):
-    from tqdm import tqdm
-    return tqdm(total=total, desc=desc, file=sys.stderr, disable=not progress, leave=False,
-                dynamic_ncols=True)
+    from ...core.progress import bar
+    return bar(total=total, desc=desc, file=sys.stderr, disable=not progress, leave=False, dynamic_ncols=True)
 
 
 class _TooShort(ValueError):

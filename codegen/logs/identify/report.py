@@ -164,6 +164,20 @@ def report_text(report):
     return "\n".join(lines) + "\n"
 
 
+SCREEN_SECTIONS = 3             # the summary: the header, the held-out residual, the friction
+
+
+def summary_text(report):
+    """The first sections of ``report_text`` (what was identified, on which log, the held-out
+    residual per joint, the friction), the base combinations' one-line count and the files: a
+    screen; the links, combinations and parameters stay in the report file."""
+    blocks = report_text(report).rstrip("\n").split("\n\n")
+    keep = blocks[:SCREEN_SECTIONS]
+    keep += [b.splitlines()[0] for b in blocks if b.startswith("base combinations:")]
+    keep += [b for b in blocks if b.startswith("files:")]
+    return "\n\n".join(keep) + "\n"
+
+
 def _jsonable(v):
     if isinstance(v, dict):
         return {k: _jsonable(x) for k, x in v.items()}

@@ -15,7 +15,7 @@ import numpy as np
 
 from .parametrisation import inertial_to_urdf
 from .regressor import FRICTION
-from .report import _jsonable, report_text
+from .report import _jsonable, report_text, summary_text
 
 
 class Identification:
@@ -46,6 +46,11 @@ class Identification:
     def text(self):
         """The readable report (:func:`report_text`)."""
         return report_text(self.report)
+
+    @property
+    def summary(self):
+        """Its first screen (:func:`summary_text`): the residual and the friction per joint."""
+        return summary_text(self.report)
 
     def urdf(self):
         """The original URDF text with each primary link's identified <inertial> (mass, origin

@@ -1,0 +1,104 @@
+"""Generalized-momentum observer with detection and isolation (codegen.families.observers.momentum),
+numpy, written from the equations (De Luca & Mattone, ICRA 2005; Haddadin et al., T-RO 2017 §IV).
+
+    x2hat  = z + k0 q,   v = sat(x2hat)                               [S000 (9)]
+    z'     = M(q)^{-1} [tau - C(q, v) v - tau_f(v) - g(q)] - k0 x2hat  [S000 (6)]
+    p_hat' = tau + C(q, v)^T v - g(q) - tau_f(v) + r
+    r      = K_O (M(q) v - p_hat),   p_hat(0) = M(q0) v(0)
+    alarm_j = |r_j| > th0_j + th1_j |x2hat_j|,  link = the last j in alarm (1-based, 0: none)
+
+x = [z (n, rad/s); p_hat (n, N m s)], y = q (n, rad), u = tau (n, N m),
+p = [k0 (1/s); K_O (n, 1/s); th0 (n, N m); th1 (n, N m s/rad)],
+est = [x2hat (n, rad/s); r (n, N m); alarm (n, 0/1); link].
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import reduced_order
+from ._family import bound
+from ._saturation import saturate, velocity_bound
+
+
+def configure(robot, options):
+    """This family with the declared velocity bound bound (``robot`` the reference robot,
+    ``options`` its VelocityBoundOptions or plain Options: no saturation)."""
+    return bound(__name__, v_bound=velocity_bound(robot, options))
+
+
+def _parts(robot, x, p):
+    n = robot.n
+    x, p = np.asarray(x, float), np.asarray(p, float)
+    return x[:n], x[n:], float(p[0]), p[1:1 + n], p[1 + n:1 + 2 * n], p[1 + 2 * n:1 + 3 * n]
+
+
+def output(robot, x, y, u, p, v_bound=None):
+    """[x2hat; r; alarm; link] (3n + 1,) of the module docstring; x (2n,), y = q (n,), u = tau (n,),
+    p (1 + 3n,) as there, the velocity saturated to ``v_bound`` ((n,) rad/s or None)."""
+    z, ph, k0, K, th0, th1 = _parts(robot, x, p)
+    x2hat = z + k0 * np.asarray(y, float)
+    r = K * (robot.M(y) @ saturate(x2hat, v_bound) - ph)
+    alarm = (np.abs(r) > th0 + th1 * np.abs(x2hat)).astype(float)
+    on = np.flatnonzero(alarm)
+    link = float(on[-1] + 1) if len(on) else 0.0
+    return np.concatenate([x2hat, r, alarm, [link]])
+
+
+def model(robot, x, y_cfg, y, u, p, v_bound=None):
+    """[FD(y_cfg, v, tau); tau + C(y_cfg, v)^T v - g(y_cfg) - tau_f(v) + K_O M(y_cfg) v] (2n,),
+    v = sat(z + k0 y): the model's part of the flow at the configuration y_cfg."""
+    z, ph, k0, K, _, _ = _parts(robot, x, p)
+    v = saturate(z + k0 * np.asarray(y, float), v_bound)
+    u = np.asarray(u, float)
+    mom = u + robot.C(y_cfg, v).T @ v - robot.g(y_cfg) - robot.friction_torque(v) + K * (robot.M(y_cfg) @ v)
+    return np.concatenate([robot.forward_dynamics(y_cfg, v, u), mom])
+
+
+def rhs_model(robot, x, y, u, p, m):
+    """[m_1 - k0 x2hat; m_2 - K_O p_hat] (2n,) with the model's part m (2n,) given."""
+    z, ph, k0, K, _, _ = _parts(robot, x, p)
+    m = np.asarray(m, float)
+    n = robot.n
+    return np.concatenate([m[:n] - k0 * (z + k0 * np.asarray(y, float)), m[n:] - K * ph])
+
+
+def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
+    """The flow with the model at y_cfg (``model``) and the injection at y."""
+    return rhs_model(robot, x, y, u, p, model(robot, x, y_cfg, y, u, p, v_bound))
+
+
+def rhs(robot, x, y, u, p, v_bound=None):
+    """The flow: ``rhs_split`` with the model at y itself."""
+    return rhs_split(robot, x, y, y, u, p, v_bound)
+
+
+def rate(robot, x, p):
+    """The velocity observer's gain rate k0 on z (integrated exactly by etdrk4)."""
+    return float(p[0])
+
+
+def rate_states(robot):
+    """0/1 per state (2n,): the rate acts on z only."""
+    return np.concatenate([np.ones(robot.n), np.zeros(robot.n)])
+
+
+def retune(robot, x, y, p_old, p_new):
+    """z+ = z + (k0_old - k0_new) y (x2hat continuous), p_hat kept."""
+    n = robot.n
+    x = np.asarray(x, float).copy()
+    x[:n] = reduced_order.retune(robot, x[:n], y, p_old[:1], p_new[:1])
+    return x
+
+
+def init(robot, y0, est0, p, v_bound=None):
+    """x(0) = [x2hat(0) - k0 q0; M(q0) sat(x2hat(0))] (r(0) = 0); est0's first n slots x2hat(0)."""
+    n = robot.n
+    est0 = np.asarray(est0, float)
+    z0 = reduced_order.init(robot, y0, est0[:n], p[:1])
+    return np.concatenate([z0, robot.M(y0) @ saturate(est0[:n], v_bound)])
+
+
+def sizes(robot):
+    """{"nx": 2n, "ny": n, "nu": n, "nest": 3n + 1}."""
+    n = robot.n
+    return {"nx": 2 * n, "ny": n, "nu": n, "nest": 3 * n + 1}
