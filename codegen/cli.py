@@ -1111,8 +1111,8 @@ def parser():
             x.add_argument("--out", metavar="CSV", default="traj.csv", help="the trajectory (default traj.csv)")
         else:
             x.add_argument("--cutoff", type=float,
-                           help="zero-phase low-pass (Hz; default chosen on the log: its acceleration's least "
-                                "predicted error on the measured spectrum)")
+                           help="zero-phase low-pass (Hz; default selected with the Coulomb width: the one whose "
+                                "fit predicts the held-out tail best)")
             x.add_argument("--test-fraction", type=float, default=idf.DEFAULT_TEST_FRACTION,
                            help=f"held-out tail of the log (default {idf.DEFAULT_TEST_FRACTION:g})")
             x.add_argument("--coulomb-width", type=_width, default="auto",

@@ -381,9 +381,8 @@ def test_observe_ur5(tmp_path):
 
 @pytest.mark.long
 def test_identifies_kinova_friction(tmp_path):
-    """kinova's 10 s excitation on the real plant: the default refusal names its wrist's inertial
-    combinations (its velocity limits, 0.63-0.84 rad/s, leave them at a relative std of ~0.4);
-    accepted anyway, every joint's viscous and Coulomb friction is within three of its own stated
+    """kinova's 10 s excitation on the real plant (its velocity limits, 0.63-0.84 rad/s, leave the
+    wrist's inertial combinations poorly determined: they lean on the URDF's prior): every joint's viscous and Coulomb friction is within three of its own stated
     standard deviations of the plant's, and within 10 % wherever those three are (48-170 % off on
     five joints when the prior held friction at the joint's rigid-body torque scale and stuck rows
     were fitted), and the held-out residual within 2x the sensor's noise. Measured: 0.2-6.8 %,
@@ -392,16 +391,14 @@ def test_identifies_kinova_friction(tmp_path):
     and where in that valley the bounded solver stops follows the last bits of its sums)."""
     from dataclasses import replace
 
-    from codegen.logs.identify import IdentificationError, excitation, identify
+    from codegen.logs.identify import excitation, identify
     from codegen.evaluate.scenarios.mujoco_real import experiment, truth_recording
     robot = _kinova()
     ex = excitation(robot, T=10.0, seed=0)
     experiment("kinova", out=tmp_path, seed=0, T=1.0, excitation=lambda t: tuple(a[0] for a in ex.at(t)))
     truth = json.loads((tmp_path / "perturbation.json").read_text())
     rec = replace(truth_recording(tmp_path, "excitation", robot.joint_names), qd=None)
-    with pytest.raises(IdentificationError, match="j2s6s200_link_4"):
-        identify(rec, robot)
-    report = identify(rec, robot, max_rel_std=1.0).report
+    report = identify(rec, robot).report
     for k in ("viscous", "coulomb"):
         found = np.array([report["friction"][j][k] for j in robot.joint_names])
         std = np.array([report["friction"][j][f"{k}_std"] for j in robot.joint_names])

@@ -109,6 +109,7 @@ def check(robot, traj, ident, plant, friction, sigma, out, check_traj):
                   < 4 * std.ravel())
     # the files: the identified URDF loads (ours and pinocchio), its inverse dynamics with the
     # side file's friction matches the plant's on another trajectory within 2x the noise
+    _inside_bounds(ident)
     paths = ident.write(out)
     assert all(Path(p).is_file() for p in paths.values())
     locked = robot.source["locked_joints"]
@@ -234,8 +235,8 @@ def test_selects_the_plant_coulomb_width(gripper, gripper_traj, gripper_case):
     auto = idf.identify(rec, gripper)
     fixed = idf.identify(rec, gripper, coulomb_width=gripper.coulomb_width)
     assert auto.report["coulomb_width"] == 0.02 and fixed.report["coulomb_width_source"] == "given"
-    held_out = auto.report["coulomb_width_held_out_rms"]
-    assert set(held_out) == {f"{w:g}" for w in idf.WIDTHS}
+    held_out = auto.report["selection"]["held_out_rms"]
+    assert {k.split(", ")[1] for k in held_out} == {f"{w:g} rad/s" for w in idf.WIDTHS}
     for k, true in zip(idf.FRICTION[:2], friction[:2]):
         np.testing.assert_allclose(auto.friction[k], true, rtol=0.10, err_msg=k)
 
@@ -409,3 +410,99 @@ def test_identifies_ur5(tmp_path):
     check(robot, traj, ident, plant, friction, sigma, tmp_path / "out",
           idf.excitation(robot, T=10.0, starts=1, maxiter=0, seed=7))
     assert math.isfinite(ident.report["condition_number"])
+
+
+def _inside_bounds(ident):
+    """Every primary link of the identification within its bounds (mass, centre of mass, second
+    moments), the written inertia positive definite within the triangle inequalities."""
+    from codegen.logs.identify.parametrisation import inside
+    arm = ident.arm
+    for i, b in enumerate(arm.bounds):
+        pi = ident.x[10 * i:10 * i + 10] - arm.attached[10 * i:10 * i + 10]
+        assert inside(pi, b), (arm.links[i], idf.inertial_to_urdf(pi), b)
+        _, _, Ic = idf.inertial_to_urdf(pi)
+        lam = np.linalg.eigvalsh(Ic)
+        assert lam[0] > 0 and lam[0] + lam[1] > lam[2], (arm.links[i], lam)
+
+
+def test_a_urdf_that_is_not_physical_is_projected_first(tmp_path):
+    """A forearm whose inertia breaks the triangle inequality (I_xx > I_yy + I_zz): the prior is
+    its projection into the physical bounds, the report says so, and the identified model, fitted
+    on a log of the physical arm, is physical and loads."""
+    from urdf_chain import Joint, Link, write_chain
+    bad = {"ixx": "0.05", "ixy": "0", "ixz": "0", "iyy": "0.01", "iyz": "0", "izz": "0.01"}
+    good = dict(bad, ixx="0.015")
+
+    def arm(path, forearm):
+        p = write_chain(path, [
+            Joint("shoulder", "revolute", Link("upper", mass="2.0", com="0.15 0 0"), origin="0 0 0.1", axis="0 0 1"),
+            Joint("elbow", "revolute", Link("forearm", mass="1.0", com="0.12 0 0", inertia=forearm)),
+            Joint("wrist", "revolute", Link("hand", mass="0.5", com="0.05 0 0"), axis="1 0 0")], robot="bad_arm")
+        p.write_text(p.read_text().replace('lower="-1" upper="1"', 'lower="-2.5" upper="2.5"'))
+        return p
+    robot = load_robot(urdf=arm(tmp_path / "bad_arm.urdf", bad))
+    (tmp_path / "plant").mkdir()
+    plant = pin_model(arm(tmp_path / "plant" / "bad_arm.urdf", good))
+    traj = idf.excitation(robot, T=10.0, starts=1, maxiter=20)
+    rng = np.random.default_rng(6)
+    friction = plant_friction(robot)
+    rec, sigma = simulate(plant, traj, friction, robot.coulomb_width, rng)
+    ident = idf.identify(rec, robot)
+    assert list(ident.report["prior"]["projected"]) == ["forearm"]
+    assert "the URDF is not physical" in ident.text and "forearm: principal second moments" in ident.text
+    _inside_bounds(ident)
+    after = np.array([ident.report["residual_rms"]["after"][j] for j in robot.joint_names])
+    assert np.all(after < 2 * sigma), (after, sigma)
+    paths = ident.write(tmp_path / "out")
+    loaded = load_robot(urdf=paths["urdf"])
+    np.testing.assert_allclose(loaded.masses, [ident.x[10 * i] for i in range(3)], rtol=1e-9)
+
+
+def test_the_margin_holds_where_the_log_pulls_past_it(gripper, gripper_traj, tmp_path):
+    """A plant whose elbow body weighs 2 % of the URDF's (less than what the URDF attaches to it:
+    the forearm's own mass would be negative, outside every physical bound): every link stays
+    within its bounds, the fit still beats the URDF on the held-out tail, and the URDF written
+    loads."""
+    import pinocchio as pin
+    plant = pin_model(gripper)
+    Y = plant.inertias[3]
+    plant.inertias[3] = pin.Inertia(0.02 * Y.mass, Y.lever, 0.02 * Y.inertia)
+    rec, _ = simulate(plant, gripper_traj, plant_friction(gripper), gripper.coulomb_width, np.random.default_rng(8))
+    ident = idf.identify(rec, gripper)
+    _inside_bounds(ident)
+    r = ident.report["residual_rms"]
+    assert all(r["after"][j] < r["before"][j] for j in gripper.joint_names), r
+    paths = ident.write(tmp_path / "out")
+    assert load_robot(urdf=paths["urdf"], locked_joints=LOCK).joint_names == gripper.joint_names
+
+
+def test_write_refuses_a_urdf_that_would_not_load(gripper, gripper_case, tmp_path):
+    """The written URDF is loaded back as every command loads one before it is kept: a model whose
+    link has an inertia below the loaders' snapping (1e-12 kg m^2: zero after snapping) is not
+    written, and nothing is left behind."""
+    _, _, rec, _ = gripper_case
+    ident = idf.identify(rec, gripper)
+    arm = ident.arm
+    pi = idf.urdf_to_inertial(0.5, [0.1, 0, 0], np.diag([1e-12, 1e-12, 1e-12]))
+    ident.x = ident.x.copy()
+    ident.x[10:20] = arm.attached[10:20] + pi
+    with pytest.raises(RuntimeError, match="does not load"):
+        ident.write(tmp_path / "out")
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_a_torque_column_that_is_not_measured(gripper, gripper_case):
+    """Some real logs carry a joint's torque as zeros: that joint's rows are left out (its torque
+    is not known) and the report names it; what only it tells keeps the URDF's values. A log with no
+    torque at all is refused in one line."""
+    from dataclasses import replace
+    _, _, rec, _ = gripper_case
+    tau = rec.tau.copy()
+    tau[:, 2] = 0.0
+    ident = idf.identify(replace(rec, tau=tau), gripper)
+    assert ident.report["log"]["torque_not_measured"] == ["elbow"]
+    assert "torque not measured" in ident.text
+    by = {b["combination"]: b for b in ident.report["base_parameters"]}
+    assert by["elbow.viscous"]["determined_by"] == "urdf"
+    with pytest.raises(ValueError, match="every torque column is constant"):
+        idf.identify(replace(rec, tau=0 * tau), gripper)

@@ -14,8 +14,8 @@ from .real_params import params
 
 pytestmark = pytest.mark.real
 PAIRS = real_judge.PAIRS
-REFUSED = {p: "identify refuses the log (parameter combinations' relative std above 0.05)"
-           for p in PAIRS if p[0] != "panda-first-half"}
+# gen3's RecordTrajectory_quadratic logs no torque (its tau column is all zeros): nothing to judge
+REFUSED = {("gen3-testing1", "gen3-quadratic"): "the held-out log's torque column is all zeros"}
 _cache = {}
 
 
@@ -25,14 +25,13 @@ def judged(bed, pair):
     return _cache[pair]
 
 
-@pytest.mark.parametrize("pair", params(PAIRS, REFUSED))
+@pytest.mark.parametrize("pair", params(PAIRS))
 def test_identify_accepts_a_log_that_moves(pair, bed):
     r = judged(bed, pair)
     assert r["ok"], r["error"]
 
 
-@pytest.mark.parametrize("pair", params(PAIRS, {**REFUSED, ("panda-first-half", "panda-second-half"):
-                                                "panda_link4's inertia not positive definite, refused by load_robot"}))
+@pytest.mark.parametrize("pair", params(PAIRS))
 def test_identified_urdf_loads_and_is_physical(pair, bed):
     r = judged(bed, pair)
     assert r["ok"], r["error"]
@@ -40,23 +39,20 @@ def test_identified_urdf_loads_and_is_physical(pair, bed):
     assert not r["physical"], r["physical"]
 
 
-@pytest.mark.parametrize("pair", params(PAIRS, {**REFUSED, ("panda-first-half", "panda-second-half"):
-                                                "2.7, 3.2, 4.1, 1.2, 1.15 x the shipped URDF's on joints 1-5"}))
+@pytest.mark.parametrize("pair", params(PAIRS, REFUSED))
 def test_residual_at_most_the_shipped_urdfs_on_every_joint(pair, bed):
     r = judged(bed, pair)
     assert r["ok"], r["error"]
     assert np.all(np.array(r["identified"]) <= np.array(r["shipped"])), r["ratio"]
 
 
-@pytest.mark.parametrize("pair", params(PAIRS, {**REFUSED, ("panda-first-half", "panda-second-half"):
-                                                "2.30 x the shipped URDF's"}))
+@pytest.mark.parametrize("pair", params(PAIRS, REFUSED))
 def test_residual_at_most_0_7_of_the_shipped_urdfs_on_average(pair, bed):
     r = judged(bed, pair)
     assert r["ok"], r["error"]
     assert r["mean_ratio"] <= 0.7, r["mean_ratio"]
 
 
-@pytest.mark.xfail(strict=False, reason="measured today: identify refuses the loaded log")
 def test_the_payload_is_identified(bed):
     """The loaded model against the one identified on the same trajectory without the payload,
     both held out on the 15-harmonic loaded log: at most 0.6 x its residual on joints 2 and 3."""

@@ -9,7 +9,8 @@
    on every D-th training sample (a step of 1/(FIT_RATE cutoff)), weighted sqrt(D): below the
    cut-off nothing is lost, and the covariance is that of all samples. A joint's row is left
    out where its smoothed speed is at most ``v_stick``: stuck by dry friction, a joint holds any
-   torque up to its Coulomb friction, which (1) cannot say. The covariance is
+   torque up to its Coulomb friction, which (1) cannot say; and everywhere when its torque column
+   is constant (not measured: some real logs carry zeros). The covariance is
    sigma^2 (A^T A)^-1 with sigma the white noise of the unfiltered torque;
 3. a physically consistent estimate, the URDF as the prior: each body's parameters as the
    URDF's fixed extras plus the primary link's, in bounded log-Cholesky coordinates
@@ -20,7 +21,7 @@
        |W (A x - tau_f)|^2 + |(x - x_URDF) / (prior s_p)|^2,
 
    W the torque noise of each joint (from the residual), s_p each parameter's scale (friction:
-   the joint's effort limit where larger): a Gaussian prior of relative std ``prior`` on the URDF's
+   the RMS of the joint's measured torque where larger, ``_Arm.friction_prior``): a Gaussian prior of relative std ``prior`` on the URDF's
    values (as Gaz et al., RA-L 2019, keep the Panda's parameters near a feasible reference), the
    URDF projected into the bounds first where it is not inside them. What the log determines is
    identified; what it does not keeps the URDF's value. Only a log that does not move is refused;
@@ -47,6 +48,10 @@ from .report import STILL, _report, _still
 from .result import Identification
 
 WIDTHS = (0.2, 0.1, 0.05, 0.02, 0.01)   # rad/s: the Coulomb widths coulomb_width="auto" chooses from
+CUTOFFS = (2.0, 5.0, 10.0, 20.0, 50.0, 100.0)   # Hz: the cut-offs cutoff=None chooses from (with the
+                                # measured identification_cutoff), below 0.45 x the Nyquist frequency
+THIN = 1e-2                    # D's diagonal at least this x rho (the second moment's own margin)
+SELECT_SAMPLES = 4000           # held-out samples at most that score a (cut-off, width) pair
 BAND_MARGIN = 4.0              # the cut-off over the motion's band (identification_cutoff)
 DEFAULT_TEST_FRACTION = 0.2
 DEFAULT_PRIOR = 1.0             # relative std of the URDF's values (units of each parameter's scale)
@@ -89,6 +94,10 @@ def _log_arrays(recording, joint_names):
 def _progress(progress, desc, total=None):
     from ...core.progress import bar
     return bar(total=total, desc=desc, file=sys.stderr, disable=not progress, leave=False, dynamic_ncols=True)
+
+
+class _TooShort(ValueError):
+    """A log too short for a cut-off's filter edges."""
 
 
 @dataclass
@@ -175,13 +184,14 @@ def _prepare(arm, t, q, tau, cutoff, tf, v_stick):
     # a joint's row of a sample where its smoothed velocity is below v_stick is left out of the
     # fit: a joint at rest under dry friction holds any torque up to its Coulomb friction
     sliding = (np.abs(d.qd) > v_stick).astype(float)
+    sliding[:, np.ptp(tau, axis=0) == 0] = 0.0       # a constant torque column: no torque measured
     edge = 2.0 / cutoff + 2.0 / wide
     valid = (t >= t[0] + edge) & (t <= t[-1] - edge)
     t_split = t[0] + (1.0 - tf) * (t[-1] - t[0])
     train = valid & (t < t_split)
     test = valid & (t >= t_split)
     if train.sum() < 2 * p or test.sum() < 10:
-        raise ValueError(f"recording: too short: {train.sum()} training and {test.sum()} test samples "
+        raise _TooShort(f"recording: too short: {train.sum()} training and {test.sum()} test samples "
                          f"away from the filter's edges (need {2 * p} and 10)")
     # the least squares on every D-th training sample: below the cut-off nothing is lost at a
     # step of 1/(FIT_RATE cutoff); weights x sqrt(D) keep the covariance that of all samples
@@ -212,16 +222,27 @@ def _long_run_std(r):
     return np.sqrt(ac[0] * kappa)
 
 
-def _select_width(state, widths):
-    """(index of the best of ``widths``, held-out RMS (k, n)): each width's unconstrained fit on
-    the training samples, scored by sum over joints of (RMS / the smallest RMS any width leaves)^2."""
-    held_out = []
-    for w in widths:
-        x0 = state.ols(*state.compress(state.rows(w), 1.0 / state.arm.torque_scale))
-        held_out.append(state.residual(x0[:, None], state.test, w)[0])
-    held_out = np.array(held_out)
-    score = np.sum((held_out / held_out.min(axis=0)) ** 2, axis=1)
-    return int(np.argmin(score)), held_out
+def _select(states, widths):
+    """((index of the best state, of the best width), held-out RMS (states, widths, n)): each
+    pair's unconstrained fit on the training samples, its residual on the held-out samples that
+    every state keeps (at most SELECT_SAMPLES of them, evenly spaced), scored by the sum over the
+    joints of (RMS / the smallest RMS any pair leaves)^2."""
+    arm = states[0][0].arm
+    n = arm.n
+    common = np.logical_and.reduce([st.test for st, _ in states])
+    idx = np.nonzero(common)[0]
+    idx = idx[::max(1, len(idx) // SELECT_SAMPLES)]
+    i = np.arange(n)
+    held = np.empty((len(states), len(widths), n))
+    for a, (st, _) in enumerate(states):
+        Y = arm.regressor(st.d.q[idx], st.d.qd[idx], st.d.qdd[idx])
+        for b, w in enumerate(widths):
+            x0 = st.ols(*st.compress(st.rows(w), 1.0 / arm.torque_scale))
+            Y[:, i, 11 * n + i] = np.tanh(st.d.qd[idx] / w)
+            held[a, b] = np.sqrt(np.mean((st.tau[idx] - Y @ x0) ** 2, axis=0))
+    measured = np.ptp(states[0][0].tau, axis=0) > 0
+    score = np.sum((held[..., measured] / held.reshape(-1, n)[:, measured].min(axis=0)) ** 2, axis=2)
+    return np.unravel_index(int(np.argmin(score)), score.shape), held
 
 
 def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTION,
@@ -239,21 +260,23 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
         A URDF robot (``load_robot(urdf=..., locked_joints=...)``, ``ur5``, ``panda``): the
         starting point and prior; its ``source`` says how pinocchio rebuilds it.
     cutoff : float, optional
-        Hz, of the zero-phase low-pass that gives qd, qdd and the filtered tau; default chosen on
-        the log (``identification_cutoff``).
+        Hz, of the zero-phase low-pass that gives qd, qdd and the filtered tau; default selected
+        with the Coulomb width: of ``CUTOFFS`` below 0.45 x the Nyquist frequency and the one
+        measured on the log's spectrum (``identification_cutoff``), the one whose unconstrained
+        fit leaves the smallest held-out residual (as for ``coulomb_width``): on a real arm's log
+        the measured spectrum's band can lie far above the rigid-body motion's (vibration, the
+        sensors), where the acceleration's noise biases the inertial parameters.
     test_fraction : float
         The last fraction of the log's duration, held out for the residual (0 < f < 1).
     coulomb_width : float or "auto" or None
         w of tanh(qd/w) (rad/s). "auto" (default): of ``WIDTHS`` and the robot's own, the one
         whose least-squares fit (unconstrained, on the training samples) leaves the smallest
-        held-out residual, sum over joints of (RMS / the smallest RMS any width leaves)^2: a
-        real joint's dry friction switches faster than any one width assumes (MuJoCo's
-        frictionloss on the real ur5: 0.01 rad/s is chosen and the friction found is within
-        3.6 % of the plant's; at the models' 0.2 it was 2-52 % off). None: the robot's
-        ``coulomb_width`` if it has one, else ``DEFAULT_COULOMB_WIDTH``.
+        held-out residual, sum over joints of (RMS / the smallest RMS any width leaves)^2 (a
+        real joint's dry friction switches faster than any one width assumes). None: the
+        robot's ``coulomb_width`` if it has one, else ``DEFAULT_COULOMB_WIDTH``.
     prior : float
-        Relative std of the URDF's values as a prior (in units of each parameter's scale; of the
-        joint's effort limit for friction and offset, where larger).
+        Relative std of the URDF's values as a prior (in units of each parameter's scale; for
+        friction and offset of the joint's RMS measured torque, where larger).
     v_stick : float
         rad/s: a joint's rows where its smoothed velocity is at most this are left out of the fit
         (a joint stuck by dry friction holds an unknown torque); 0 keeps every row.
@@ -276,12 +299,14 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     arm = _Arm(robot, coulomb_width)
     n, p, s = arm.n, arm.p, arm.scale
     t, q, tau = _log_arrays(recording, arm.joint_names)
-    if cutoff is None:
-        cutoff = identification_cutoff(t, q)
+    unmeasured = [j for j, r in zip(arm.joint_names, np.ptp(tau, axis=0)) if r == 0]
+    if len(unmeasured) == arm.n:
+        raise ValueError("recording: every torque column is constant (no torque was measured): nothing "
+                         "to identify the model from")
     tf = float(test_fraction)
     if not 0.0 < tf < 1.0:
         raise ValueError(f"test_fraction: expected a number in (0, 1), got {test_fraction!r}")
-    for name, v in (("prior", prior), ("cutoff", cutoff)):
+    for name, v in (("prior", prior), ("cutoff", 1.0 if cutoff is None else cutoff)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise ValueError(f"{name}: expected a positive number, got {v!r}")
     if not (isinstance(v_stick, (int, float)) and math.isfinite(v_stick) and v_stick >= 0):
@@ -289,19 +314,44 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     if isinstance(coulomb_width, str) and coulomb_width != "auto":
         raise ValueError(f"coulomb_width: expected a positive number (rad/s) or 'auto', got {coulomb_width!r}")
     bar = _progress(progress, f"identify {arm.name}")
-    bar.set_postfix_str("smoothing")
-    state, log = _prepare(arm, t, q, tau, cutoff, tf, v_stick)
+    bar.set_postfix_str("cut-off and Coulomb width")
+    if cutoff is None:
+        nyquist = 0.5 / float(np.median(np.diff(t)))
+        cutoffs = sorted({*(c for c in CUTOFFS if c < 0.45 * nyquist), identification_cutoff(t, q)})
+    else:
+        cutoffs = [float(cutoff)]
+    widths = (sorted({*WIDTHS, *([float(arm.robot_width)] if arm.robot_width else [])}, reverse=True)
+              if coulomb_width == "auto" else [arm.width])
+    states, short = [], None
+    for c in list(cutoffs):                # a cut-off whose filter edges leave no held-out part is skipped
+        try:
+            states.append(_prepare(arm, t, q, tau, c, tf, v_stick))
+        except _TooShort as e:
+            cutoffs.remove(c)
+            short = e
+    if not states:
+        raise short
+    # a log that does not move determines nothing: the only refusal
+    first = states[0][0]
+    speed = np.sqrt(np.mean(first.d.qd[first.train] ** 2, axis=0))
+    if not np.any(speed >= STILL * arm.v_limit):
+        raise IdentificationError(*_still(arm, speed))
+    if len(cutoffs) * len(widths) > 1:
+        best, held_out = _select(states, widths)
+        (state, log), cutoff, arm.width = states[best[0]], cutoffs[best[0]], widths[best[1]]
+        held = {(f"{c:g} Hz", f"{w:g} rad/s"): held_out[i, k] for i, c in enumerate(cutoffs)
+                for k, w in enumerate(widths)}
+        arm.selection = {"cutoff": "selected" if len(cutoffs) > 1 else "given",
+                         "held_out_rms": {f"{c}, {w}": {j: float(r) for j, r in zip(arm.joint_names, v)}
+                                          for (c, w), v in held.items()}}
+        if coulomb_width == "auto":
+            arm.width_source = (f"selected by the held-out residual of the unconstrained fit (with the "
+                                f"cut-off) from {', '.join(f'{w:g}' for w in widths)} rad/s")
+    else:
+        state, log = states[0]
+    cutoff = float(cutoff)
     train, test = state.train, state.test
 
-    if coulomb_width == "auto":
-        bar.set_postfix_str("Coulomb width")
-        widths = sorted({*WIDTHS, *([float(arm.robot_width)] if arm.robot_width else [])}, reverse=True)
-        best, held_out = _select_width(state, widths)
-        arm.width = widths[best]
-        arm.width_source = (f"selected by the held-out residual of the unconstrained fit from "
-                            f"{', '.join(f'{w:g}' for w in widths)} rad/s")
-        arm.width_candidates = {f"{w:g}": {j: float(r) for j, r in zip(arm.joint_names, res)}
-                                for w, res in zip(widths, held_out)}
     width = arm.width
     rows = state.rows(width)
 
@@ -311,10 +361,7 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     x0 = state.ols(R0, c0)
     sigma = state.noise(x0, width)
 
-    # a log that does not move determines nothing: the only refusal
     speed = np.sqrt(np.mean(state.d.qd[train] ** 2, axis=0))
-    if not np.any(speed >= STILL * arm.v_limit):
-        raise IdentificationError(*_still(arm, speed))
     R, c = state.compress(rows, 1.0 / state.long_run(x0, width))
 
     # physically consistent estimate, in scaled units x~ = x / s: each primary link's scaled
@@ -323,6 +370,8 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     # f_v, f_c >= 0; the prior: the URDF (projected into the bounds where it is not inside)
     solve = _Consistent(arm)
     x_prior = arm.x_prior / s
+    rms_tau = np.sqrt(np.mean(tau[train] ** 2, axis=0))
+    arm.friction_prior(np.where(rms_tau > 0, rms_tau, arm.effort))
     wp = s / (prior * arm.prior_scale)    # 1 / the prior's std, scaled units
     z, rounds = None, []
     for rnd in range(2):                   # solve, re-estimate the noise, solve again
@@ -364,7 +413,7 @@ def identify(recording, robot, *, cutoff=None, test_fraction=DEFAULT_TEST_FRACTI
     residual = {"before": res[0], "after": res[1], "after_unconstrained": res[2], "train_after": sigma}
     fit = {"t": t, "train": train, "test": test, "t_split": log["t_split"], "cutoff": cutoff,
            "wide": log["wide"], "decimation": log["decimation"], "test_fraction": tf, "v_stick": v_stick,
-           "stuck": 1.0 - state.sliding[train].mean(axis=0), "speed": speed}
+           "stuck": 1.0 - state.sliding[train].mean(axis=0), "speed": speed, "unmeasured": unmeasured}
     estimate = {"x": x, "sigma": sigma, "std_post": std_post, "std_beta": std_beta, "prior_beta": prior_beta,
                 "effect": effect, "residual": residual, "cond": cond, "rounds": rounds}
     report = _report(arm, fit, estimate, {"prior": prior})
@@ -393,6 +442,7 @@ class _Consistent:
         for i, b in enumerate(self.arm.bounds_scaled):
             lo[10 * i] = 0.5 * math.log(b.mass)
             lo[10 * i + 7:10 * i + 10], hi[10 * i + 7:10 * i + 10] = -b.reach, b.reach
+            lo[10 * i + 1:10 * i + 4] = math.log(THIN * b.rho)    # D's diagonal: no thinner than this
         lo[10 * n:12 * n] = 0.0
         return lo, hi
 
@@ -404,6 +454,7 @@ class _Consistent:
         for i, b in enumerate(self.arm.bounds_scaled):
             pi, _ = project(x[10 * i:10 * i + 10] - self.att[10 * i:10 * i + 10], b)
             z[10 * i:10 * i + 10] = to_bounded(pi, b.rho)
+            z[10 * i + 1:10 * i + 4] = np.maximum(z[10 * i + 1:10 * i + 4], math.log(2 * THIN * b.rho))
         z[10 * n:12 * n] = np.maximum(z[10 * n:12 * n], 0.0)
         return z
 

@@ -58,24 +58,19 @@ def _reorder(indep, K):
 def _tri(M):
     """An upper triangular R with R^T R = M^T M (same singular values and right singular
     vectors, k x k): the Cholesky factor of the Gram matrix (a tall M's columns are scaled, its
-    condition number small), QR where the Gram matrix is singular in double precision."""
+    condition number small); where that is singular in double precision (a column no row
+    excites) of the Gram matrix plus 1e-13 x its mean diagonal, QR where even that fails."""
     if M.shape[0] <= M.shape[1]:
         return M
+    G = M.T @ M
     try:
-        return np.linalg.cholesky(M.T @ M).T
+        return np.linalg.cholesky(G).T
+    except np.linalg.LinAlgError:
+        pass
+    try:
+        return np.linalg.cholesky(G + 1e-13 * np.trace(G) / len(G) * np.eye(len(G))).T
     except np.linalg.LinAlgError:
         return np.linalg.qr(M, mode="r")
-
-
-def _std(M, G):
-    """(std of G z where z has information M^T M (M: rows x k), inf along unexcited directions;
-    cond M)."""
-    _, sv, Vt = np.linalg.svd(_tri(M))
-    ok = sv > 1e-7 * (sv[0] if sv.size else 1.0)     # R may come from the Gram matrix: sqrt(eps)
-    C = G @ Vt.T
-    var = np.sum((C[:, ok] / sv[ok]) ** 2, axis=1)
-    lost = np.any(np.abs(C[:, ~ok]) > 1e-8 * (1.0 + np.abs(C).max(axis=1, keepdims=True)), axis=1)
-    return np.where(lost, np.inf, np.sqrt(var)), (sv[0] / sv[-1] if sv.size and sv[-1] > 0 else np.inf)
 
 
 class _Arm:
@@ -136,7 +131,7 @@ class _Arm:
         self.v_limit_known = np.isfinite(vl) & (vl > 0)
         self.v_limit = np.where(self.v_limit_known, vl, 1.0)
         self.robot_width = getattr(robot, "coulomb_width", None)
-        self.width_candidates = None         # held-out RMS per width, when identify() selects it
+        self.selection = None                # held-out RMS per (cut-off, width), when identify() selects
         if coulomb_width == "auto":          # identify() selects it; the robot's until then
             coulomb_width = None
         width = coulomb_width if coulomb_width is not None else self.robot_width
@@ -223,16 +218,11 @@ class _Arm:
         s[11 * n:12 * n] = ts
         s[12 * n:] = ts
         self.scale = s
-        # the prior's unit: the scale, but for friction and offset the joint's effort limit where
-        # the URDF gives one (it knows nothing of a real joint's friction: at the rigid-body
-        # torque scale the prior held kinova's wrist roll's Coulomb friction at 0.03 N m against
-        # the plant's 0.51, its torque scale being 1.2e-3 N m)
         effort = np.asarray(model.effortLimit, float)[[j.idx_v for j in model.joints[1:]]]
         effort = np.where(np.isfinite(effort) & (effort > 0), effort, 0.0)
+        self.effort = effort
         self.prior_scale = s.copy()
-        for k in range(3):
-            f = slice(10 * n + k * n, 10 * n + (k + 1) * n)
-            self.prior_scale[f] = np.maximum(s[f], effort / (self.v_limit if k == 0 else 1.0))
+        self.friction_prior(effort)
         Ws = Y / ts[None, :, None] * s
         # what one unit of a scaled parameter does to each joint's torque on these states (RMS,
         # in units of the joint's torque scale): see effect()
@@ -278,6 +268,18 @@ class _Arm:
         self.prior_primary = np.concatenate(prior)
         self.x_prior = self.x_urdf.copy()
         self.x_prior[:10 * n] = self.attached + self.prior_primary
+
+    def friction_prior(self, torque):
+        """The prior's unit of the friction (``prior_scale``'s last 3 n entries): the parameter
+        scale, or where larger the torque ``torque`` (n,) N m a joint shows (the RMS of its
+        measured torque on a log; the effort limit without one), over the velocity limit for the
+        viscous one. The URDF knows nothing of a real joint's friction, and its rigid-body torque
+        scale can be far below it (a wrist roll); an effort limit far above it leaves Coulomb and
+        offset free to cancel where a joint turns one way."""
+        n, s = self.n, self.scale
+        for k in range(3):
+            f = slice(10 * n + k * n, 10 * n + (k + 1) * n)
+            self.prior_scale[f] = np.maximum(s[f], np.asarray(torque, float) / (self.v_limit if k == 0 else 1.0))
 
     def combination(self, k, terms=None):
         """Readable text of base parameter ``k`` in physical units, 'x_i + c x_j + ...' (the

@@ -72,17 +72,18 @@ def _report(arm, fit, estimate, options):
                 "coulomb_column_cutoff_hz": float(wide), "fit_every": int(decimation),
                 "train_samples": int(train.sum()), "test_samples": int(test.sum()),
                 "test_from_s": float(t_split), "test_fraction": tf, "v_stick": float(v_stick),
-                "stuck_fraction": per(stuck), "rms_speed": per(fit["speed"])},
+                "stuck_fraction": per(stuck), "rms_speed": per(fit["speed"]),
+                "torque_not_measured": list(fit["unmeasured"])},
         "coulomb_width": arm.width, "coulomb_width_source": arm.width_source,
-        **({"coulomb_width_held_out_rms": arm.width_candidates} if arm.width_candidates else {}),
+        **({"selection": arm.selection} if arm.selection else {}),
         "noise_std": per(sigma),
         "residual_rms": {k: per(v) for k, v in residual.items()},
         "condition_number": cond,
         "condition_number_definition": "base regressor on the training samples, columns in units of "
                                        "the parameter scales, rows in units of the joint torque scales",
         "prior": {"relative_std": options["prior"],
-                  "rule": "the URDF's values, each with a std of relative_std x its scale (friction: of the "
-                          "joint's effort limit where larger); links outside the physical bounds projected "
+                  "rule": "the URDF's values, each with a std of relative_std x its scale (friction: of the RMS of the "
+                          "joint's measured torque where larger); links outside the physical bounds projected "
                           "into them first",
                   "projected": arm.projected},
         "bounds_rule": "mass >= max(0.1 x the URDF link's, 1e-3 x the robot's moving mass); each coordinate "
@@ -121,6 +122,8 @@ def report_text(report):
               f"{lg['test_samples']} from t = {lg['test_from_s']:.3f} s",
               f"left out of the fit where a joint sticks (|qd| <= {lg['v_stick']:g} rad/s): "
               + ", ".join(f"{j} {100 * lg['stuck_fraction'][j]:.1f} %" for j in J),
+              *([f"torque not measured (a constant column; its rows left out, its residual meaningless): "
+                  + ", ".join(lg["torque_not_measured"])] if lg.get("torque_not_measured") else []),
               f"condition number of the base regressor: {report['condition_number']:.4g} "
               f"({len(report['base_parameters'])} base parameters)", "",
               "held-out torque residual RMS (N m or N):",
