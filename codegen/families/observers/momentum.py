@@ -11,10 +11,13 @@ The momentum p = M(q) qd obeys p' = tau + tau_ext + C(q, qd)^T qd - g(q) - tau_f
 i.e. r = K_O (M v - int (tau + C^T v - g - tau_f + r) dt - p(0)): r' = K_O (tau_ext - r), a
 first-order filter of the external torque with per-joint bandwidths K_O = diag(K_O_<j>).
 The velocity v is the reduced-order observer's estimate (codegen.families.observers.reduced_order)
+with the estimated external torque added to its model's torque, so that a contact biases it no
+more than the model's own error does
 
-    x2hat = z + k0 q,   z' = FD(q, sat(x2hat), tau) - k0 x2hat,        v = sat(x2hat)
+    x2hat = z + k0 q,   z' = FD(q, sat(x2hat), tau + r) - k0 x2hat,    v = sat(x2hat)
 
-sat the velocity bound. Detection and isolation at each sample (Haddadin et al. §IV-B, §V):
+sat the velocity bound. Together r = K_O k0 / (s^2 + k0 s + K_O k0) tau_ext per joint (a linear
+picture; codegen.families.design.momentum). Detection and isolation at each sample (Haddadin et al. §IV-B, §V):
 
     alarm_j = |r_j| > th0_j + th1_j |x2hat_j|        (a constant and a term for the model's
                                                       error growing with speed)
@@ -65,7 +68,7 @@ def detection(r, x2hat, th0, th1):
 
 
 def build(robot, k0=None, K_O=None, th0=None, th1=None, torque_noise=None, t_detect=T_DETECT,
-          false_alarms=FALSE_ALARMS, v_max=2.0, v_bound=None, dt=None):
+          false_alarms=FALSE_ALARMS, noise=None, quantization=None, v_max=2.0, v_bound=None, dt=None):
     """Momentum observer for ``robot`` (module docstring).
 
     Parameters
@@ -84,6 +87,9 @@ def build(robot, k0=None, K_O=None, th0=None, th1=None, torque_noise=None, t_det
         Time (s) in which a contact three times the threshold is to be detected (default gains).
     false_alarms : float
         False alarms per hour the default thresholds allow.
+    noise, quantization : float, optional
+        The encoder's noise std and step (rad) for the default thresholds; both None: a 2^16
+        counts/rev encoder.
     v_max, v_bound
         The velocity bound of the model's velocity argument (codegen.families.observers._bound).
     dt : float, optional
@@ -91,7 +97,8 @@ def build(robot, k0=None, K_O=None, th0=None, th1=None, torque_noise=None, t_det
     """
     n = robot.n
     disc = design_discretization(dt)
-    report = design_momentum(robot, disc.dt, torque_noise, t_detect, false_alarms)
+    report = design_momentum(robot, disc.dt, torque_noise, t_detect, false_alarms, noise=noise,
+                             quantization=quantization)
     given = {"k0": k0 is not None, "K_O": K_O is not None, "th0": th0 is not None, "th1": th1 is not None}
     k0 = report["k0"] if k0 is None else float(k0)
     values = {}
@@ -121,7 +128,8 @@ def _spec(robot, k0, values, bound, report):
     m = ca.SX.sym("m", 2 * n)
     x2hat = z + k * y                                                   # [S000 (9)]
     v_cfg = _bound.saturate(x2hat, bound)
-    model = ca.vertcat(reduced_order.model(robot, z, y_cfg, y, tau, k, bound),
+    r_cfg = K * (ca.mtimes(robot.mass_matrix(y_cfg), v_cfg) - ph)       # the residual at y_cfg
+    model = ca.vertcat(reduced_order.model(robot, z, y_cfg, y, tau + r_cfg, k, bound),
                        momentum_model(robot, y_cfg, v_cfg, tau, K))
     xdot = ca.vertcat(m[:n] - k * x2hat, m[n:] - K * ph)
     rhs, rhs_split, fd, rhs_model = split_model(x, y_cfg, y, tau, p, m, model, xdot)

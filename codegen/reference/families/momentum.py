@@ -2,7 +2,7 @@
 numpy, written from the equations (De Luca & Mattone, ICRA 2005; Haddadin et al., T-RO 2017 §IV).
 
     x2hat  = z + k0 q,   v = sat(x2hat)                               [S000 (9)]
-    z'     = M(q)^{-1} [tau - C(q, v) v - tau_f(v) - g(q)] - k0 x2hat  [S000 (6)]
+    z'     = M(q)^{-1} [tau + r - C(q, v) v - tau_f(v) - g(q)] - k0 x2hat  [S000 (6)] with tau + r
     p_hat' = tau + C(q, v)^T v - g(q) - tau_f(v) + r
     r      = K_O (M(q) v - p_hat),   p_hat(0) = M(q0) v(0)
     alarm_j = |r_j| > th0_j + th1_j |x2hat_j|,  link = the last j in alarm (1-based, 0: none)
@@ -45,13 +45,16 @@ def output(robot, x, y, u, p, v_bound=None):
 
 
 def model(robot, x, y_cfg, y, u, p, v_bound=None):
-    """[FD(y_cfg, v, tau); tau + C(y_cfg, v)^T v - g(y_cfg) - tau_f(v) + K_O M(y_cfg) v] (2n,),
-    v = sat(z + k0 y): the model's part of the flow at the configuration y_cfg."""
+    """[FD(y_cfg, v, tau + r); tau + C(y_cfg, v)^T v - g(y_cfg) - tau_f(v) + K_O M(y_cfg) v] (2n,),
+    v = sat(z + k0 y), r = K_O (M(y_cfg) v - p_hat): the model's part of the flow at the
+    configuration y_cfg."""
     z, ph, k0, K, _, _ = _parts(robot, x, p)
     v = saturate(z + k0 * np.asarray(y, float), v_bound)
     u = np.asarray(u, float)
-    mom = u + robot.C(y_cfg, v).T @ v - robot.g(y_cfg) - robot.friction_torque(v) + K * (robot.M(y_cfg) @ v)
-    return np.concatenate([robot.forward_dynamics(y_cfg, v, u), mom])
+    M = robot.M(y_cfg)
+    mom = u + robot.C(y_cfg, v).T @ v - robot.g(y_cfg) - robot.friction_torque(v) + K * (M @ v)
+    r = K * (M @ v - ph)                                   # the residual at y_cfg
+    return np.concatenate([robot.forward_dynamics(y_cfg, v, u + r), mom])
 
 
 def rhs_model(robot, x, y, u, p, m):
