@@ -17,6 +17,8 @@ import numpy as np
 
 from ..logs.detect import FALSE_ALARMS, MERGE, calibrate, episodes
 
+SLOW_LOG_SAMPLES = 10
+
 __all__ = ["Detection", "run_momentum", "detect", "events_of", "write_detection"]
 
 
@@ -54,7 +56,7 @@ def run_momentum(robot, recording, p=None, spec=None, **build):
     t = np.asarray(recording.t, float)
     dt = _dt(t)
     if spec is None:
-        spec = observers.build("momentum", robot, dt=dt, **build)
+        spec = observers.build("momentum", robot, dt=dt, **detection_time(dt, build))
     est, note = run_observer(spec, recording.q, recording.tau, dt, t=t, p=p)
     return spec, est, note
 
@@ -121,7 +123,17 @@ def detect(robot, recording, clean=None, false_alarms=FALSE_ALARMS, th0=None, th
 
 def _build(robot, recording, build):
     from codegen import observers
-    return observers.build("momentum", robot, dt=_dt(np.asarray(recording.t, float)), **build)
+    dt = _dt(np.asarray(recording.t, float))
+    return observers.build("momentum", robot, dt=dt, **detection_time(dt, build))
+
+
+def detection_time(dt, build):
+    """``build`` with the detection time a log's sample time dt (s) allows when none is given:
+    the design's T_DETECT, or SLOW_LOG_SAMPLES samples on a slower log (a 100 Hz logger)."""
+    from ..families.design.momentum import T_DETECT
+    if "t_detect" in build:
+        return build
+    return {**build, "t_detect": max(T_DETECT, SLOW_LOG_SAMPLES * dt)}
 
 
 def write_detection(det, out):

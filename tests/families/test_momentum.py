@@ -102,7 +102,7 @@ def test_the_design_rule():
     robot = load_robot("seed000_2r")
     d = design_momentum(robot, 1e-3, torque_noise=[1.0, 1.0], noise=0.0, quantization=0.0)
     w, dt = d["omega"], 1e-3
-    assert w * (d["t_detect"] - 3 * dt) == pytest.approx(x)
+    assert w * (d["t_detect"] - 3 * dt - d["t_rise"] / 2) == pytest.approx(x)
     Ad, Bd, Cd, Dd, _ = cont2discrete((np.array([[0.0, 1.0], [-w * w, -math.sqrt(2) * w]]),
                                        np.array([[0.0], [w * w]]), C, np.zeros((1, 1))), dt)
     e = np.random.default_rng(0).standard_normal(200_000)

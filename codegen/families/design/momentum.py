@@ -11,9 +11,10 @@ with natural frequency sqrt(K_O k0) and damping sqrt(k0 / K_O) / 2. The design t
 contact of ``ratio`` times the threshold crosses it at omega t = x, the root of the step response
 1 - e^(-x/sqrt 2) (cos(x/sqrt 2) + sin(x/sqrt 2)) = 1 / ratio (x = 1.03 at ratio 3). Every noise
 grows with omega, so omega is the smallest that meets the detection time t_detect less SAMPLES
-samples (the contact shows in the next sample, the alarm in the one after, one to spare):
+samples (the contact shows in the next sample, the alarm in the one after, one to spare) and
+half the contact's own rise t_rise (a force rising linearly acts as a step half-way up):
 
-    omega = x / (t_detect - SAMPLES dt)
+    omega = x / (t_detect - SAMPLES dt - t_rise / 2)
 
 Threshold: two noises reach r. The torque noise (std sigma_tau per sample at dt) passes through
 the same filter, whose noise bandwidth is omega / (2 sqrt 2): sigma_tau^2 dt omega / (2 sqrt 2); the encoder's (std
@@ -43,6 +44,7 @@ T_DETECT = 0.02          # s, the detection time asked for
 FALSE_ALARMS = 1.0       # per hour of motion, all joints together
 NOISE_SHARE = 0.01       # the default torque noise: 1 % of the joint's torque scale
 SAMPLES = 3              # samples of the detection time the response does not get
+T_RISE = 0.005           # s, a contact's rise to its full force
 
 __all__ = ["design_momentum", "crossing_time", "step_response", "threshold_level", "torque_scale", "largest_inertia"]
 
@@ -95,7 +97,7 @@ def largest_inertia(robot, count=64):
 
 
 def design_momentum(robot, dt, torque_noise=None, t_detect=T_DETECT, false_alarms=FALSE_ALARMS, ratio=RATIO,
-                    noise=None, quantization=None):
+                    noise=None, quantization=None, t_rise=T_RISE):
     """The default gains and thresholds of the momentum observer (module docstring).
 
     Parameters
@@ -112,6 +114,8 @@ def design_momentum(robot, dt, torque_noise=None, t_detect=T_DETECT, false_alarm
     noise, quantization : float, optional
         The encoder's noise std and step (rad); both None: the default encoder
         (codegen.families.design.noise.sensor_sigma).
+    t_rise : float
+        A contact's rise to its full force (s).
 
     Returns
     -------
@@ -120,14 +124,15 @@ def design_momentum(robot, dt, torque_noise=None, t_detect=T_DETECT, false_alarm
         until a log measures one), sigma_r (n,) N m, level u, nu0 (1/s), and the inputs.
     """
     n = robot.n
-    if not (isinstance(t_detect, (int, float)) and t_detect > 2 * SAMPLES * dt):
-        raise ValueError(f"t_detect must be a time (s) above {2 * SAMPLES} samples ({2 * SAMPLES * dt:g} s), "
-                         f"got {t_detect!r}")
+    budget = t_detect - SAMPLES * dt - t_rise / 2 if isinstance(t_detect, (int, float)) else 0.0
+    if not budget > SAMPLES * dt:
+        raise ValueError(f"t_detect must be a time (s) above {2 * SAMPLES} samples and half the contact's rise "
+                         f"({2 * SAMPLES * dt + t_rise / 2:g} s), got {t_detect!r}")
     stated = torque_noise is not None
     sigma = (NOISE_SHARE * torque_scale(robot) if not stated else
              check_torque_uncertainty(torque_noise, n, robot.joint_names))
     x = crossing_time(ratio)
-    omega = x / (t_detect - SAMPLES * dt)
+    omega = x / budget
     sigma_q, M = sensor_sigma(noise, quantization), largest_inertia(robot)
     sigma_r = np.sqrt(sigma ** 2 * dt * omega / (4.0 * ZETA) + (omega ** 2 * M * sigma_q) ** 2)
     nu0 = omega / (2.0 * math.pi)
@@ -137,6 +142,7 @@ def design_momentum(robot, dt, torque_noise=None, t_detect=T_DETECT, false_alarm
             "level": float(u), "nu0": float(nu0), "crossing": float(x),
             "torque_noise": sigma.tolist(), "torque_noise_rule": "stated" if stated else
             f"{NOISE_SHARE:g} x the torque scale (effort limit, else the largest |g|)",
-            "sigma_q": float(sigma_q), "M_jj": M.tolist(), "t_detect": float(t_detect), "ratio": float(ratio), "false_alarms_per_hour": float(false_alarms),
+            "sigma_q": float(sigma_q), "M_jj": M.tolist(), "t_detect": float(t_detect), "t_rise": float(t_rise), "ratio": float(ratio), "false_alarms_per_hour": float(false_alarms),
             "dt": float(dt), "choice": "k0 = sqrt(2) omega, K_O = omega / sqrt(2) (damping 1/sqrt 2)",
-            "why": f"the slowest in which a contact of {ratio:g}x the threshold crosses it within t_detect - {SAMPLES} dt"}
+            "why": f"the slowest in which a contact of {ratio:g}x the threshold crosses it within t_detect - {SAMPLES} dt "
+                   f"- t_rise / 2"}
