@@ -32,7 +32,7 @@ FALSE_ALARMS = 1.0          # per hour of the log's time
 MERGE = 0.05                # s: alarms closer than this are one episode
 MIN_EPISODES = 30
 V_MOVING = 0.05             # rad/s
-QUANTILES = (0.999, 0.995, 0.99, 0.98, 0.95, 0.9, 0.8)
+QUANTILES = (0.999, 0.995, 0.99, 0.98, 0.95, 0.9, 0.8, 0.7, 0.6, 0.5)
 
 __all__ = ["Thresholds", "calibrate", "episodes", "FALSE_ALARMS"]
 
@@ -60,6 +60,7 @@ class Thresholds:
     scale_b: list
 
     def as_dict(self):
+        """The fields as a JSON-able dict."""
         return asdict(self)
 
 

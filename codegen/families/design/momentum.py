@@ -60,7 +60,8 @@ def step_response(x, zeta=ZETA):
 
 
 def crossing_time(ratio=RATIO, zeta=ZETA):
-    """x = omega t at which the step response (``step_response``) first reaches 1 / ratio."""
+    """x = omega t at which the step response (``step_response``, damping ``zeta``) first reaches
+    1 / ``ratio``."""
     if not ratio > 1.0:
         raise ValueError(f"ratio must be > 1 (a contact above its threshold), got {ratio!r}")
     lo, hi = 0.0, math.pi / math.sqrt(1.0 - zeta * zeta)      # rising until its first peak
@@ -80,7 +81,7 @@ def threshold_level(n, nu0, false_alarms=FALSE_ALARMS):
 
 
 def torque_scale(robot, count=64):
-    """(n,) the torque scale of each joint, N m: the declared effort limit, or where none is
+    """(n,) the torque scale of each joint of ``robot``, N m: the declared effort limit, or where none is
     declared the largest |g_j(q)| over ``count`` sampled configurations (at least 1 N m)."""
     eff = np.asarray(robot.effort_limit, dtype=float)
     if np.all(np.isfinite(eff)):
@@ -91,7 +92,7 @@ def torque_scale(robot, count=64):
 
 
 def largest_inertia(robot, count=64):
-    """(n,) max over ``count`` sampled configurations of M_jj(q) (kg m^2)."""
+    """(n,) max over ``count`` sampled configurations of ``robot`` of M_jj(q) (kg m^2)."""
     Q = robot.sample_configurations(count, seed=0)
     return np.max([np.diag(np.asarray(robot.M(q))) for q in Q], axis=0)
 

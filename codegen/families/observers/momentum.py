@@ -43,21 +43,22 @@ EXAMPLES = [{"robot": "seed000_2r"}]
 
 
 def p_names(joints):
-    """The parameter names: k0, then K_O_<j>, th0_<j>, th1_<j> per joint."""
+    """The parameter names: k0, then K_O_<j>, th0_<j>, th1_<j> per joint of ``joints`` (names)."""
     return ["k0"] + [f"{g}_{j}" for g in ("K_O", "th0", "th1") for j in joints]
 
 
 def momentum_model(robot, y_cfg, v, tau, K):
-    """tau + C(q, v)^T v - g(q) - tau_f(v) + K_O M(q) v at q = ``y_cfg``: the model's part of
-    p_hat' (the flow is it minus K_O p_hat); v, tau (n,) SX, K (n,) SX the gains."""
+    """tau + C(q, v)^T v - g(q) - tau_f(v) + K_O M(q) v of ``robot`` at q = ``y_cfg``: the model's
+    part of p_hat' (the flow is it minus K_O p_hat); v, tau (n,) SX, K (n,) SX the gains."""
     C = robot.coriolis(y_cfg, v)
     return (tau + ca.mtimes(C.T, v) - robot.gravity(y_cfg) - robot.friction_torque(v)
             + K * ca.mtimes(robot.mass_matrix(y_cfg), v))
 
 
 def detection(r, x2hat, th0, th1):
-    """(alarms (n,), link) of the residual r: alarm_j = |r_j| > th0_j + th1_j |x2hat_j|, link the
-    last joint (1-based) in alarm, 0 for none."""
+    """(alarms (n,), link) of the residual r: alarm_j = |r_j| > th0_j + th1_j |x2hat_j| (SX: ``x2hat``
+    the velocity estimate, ``th0``, ``th1`` the thresholds), link the last joint (1-based) in
+    alarm, 0 for none."""
     n = r.shape[0]
     alarm = ca.vertcat(*[ca.if_else(ca.fabs(r[j]) > th0[j] + th1[j] * ca.fabs(x2hat[j]), 1.0, 0.0)
                          for j in range(n)])

@@ -33,8 +33,8 @@ def _parts(robot, x, p):
 
 
 def output(robot, x, y, u, p, v_bound=None):
-    """[x2hat; r; alarm; link] (3n + 1,) of the module docstring; x (2n,), y = q (n,), u = tau (n,),
-    p (1 + 3n,) as there, the velocity saturated to ``v_bound`` ((n,) rad/s or None)."""
+    """[x2hat; r; alarm; link] (3n + 1,) of the module docstring for ``robot`` (reference robot);
+    x (2n,), y = q (n,), u = tau (n,), p (1 + 3n,) as there, the velocity saturated to ``v_bound`` ((n,) rad/s or None)."""
     z, ph, k0, K, th0, th1 = _parts(robot, x, p)
     x2hat = z + k0 * np.asarray(y, float)
     r = K * (robot.M(y) @ saturate(x2hat, v_bound) - ph)
@@ -47,7 +47,7 @@ def output(robot, x, y, u, p, v_bound=None):
 def model(robot, x, y_cfg, y, u, p, v_bound=None):
     """[FD(y_cfg, v, tau + r); tau + C(y_cfg, v)^T v - g(y_cfg) - tau_f(v) + K_O M(y_cfg) v] (2n,),
     v = sat(z + k0 y), r = K_O (M(y_cfg) v - p_hat): the model's part of the flow at the
-    configuration y_cfg."""
+    configuration y_cfg; robot, x, y, u = tau, p as in ``output``, v_bound the velocity bound."""
     z, ph, k0, K, _, _ = _parts(robot, x, p)
     v = saturate(z + k0 * np.asarray(y, float), v_bound)
     u = np.asarray(u, float)
@@ -58,7 +58,8 @@ def model(robot, x, y_cfg, y, u, p, v_bound=None):
 
 
 def rhs_model(robot, x, y, u, p, m):
-    """[m_1 - k0 x2hat; m_2 - K_O p_hat] (2n,) with the model's part m (2n,) given."""
+    """[m_1 - k0 x2hat; m_2 - K_O p_hat] (2n,) with the model's part m (2n,) given; robot, x, y,
+    u, p as in ``output``."""
     z, ph, k0, K, _, _ = _parts(robot, x, p)
     m = np.asarray(m, float)
     n = robot.n
@@ -66,27 +67,30 @@ def rhs_model(robot, x, y, u, p, m):
 
 
 def rhs_split(robot, x, y_cfg, y, u, p, v_bound=None):
-    """The flow with the model at y_cfg (``model``) and the injection at y."""
+    """The flow with the model at y_cfg (``model``) and the injection at y; robot, x, u, p,
+    v_bound as in ``model``."""
     return rhs_model(robot, x, y, u, p, model(robot, x, y_cfg, y, u, p, v_bound))
 
 
 def rhs(robot, x, y, u, p, v_bound=None):
-    """The flow: ``rhs_split`` with the model at y itself."""
+    """The flow: ``rhs_split`` with the model at y itself; robot, x, u, p, v_bound as there."""
     return rhs_split(robot, x, y, y, u, p, v_bound)
 
 
 def rate(robot, x, p):
-    """The velocity observer's gain rate k0 on z (integrated exactly by etdrk4)."""
+    """The velocity observer's gain rate k0 = p[0] on z (integrated exactly by etdrk4); robot, x
+    unused."""
     return float(p[0])
 
 
 def rate_states(robot):
-    """0/1 per state (2n,): the rate acts on z only."""
+    """0/1 per state (2n,) of ``robot``: the rate acts on z only."""
     return np.concatenate([np.ones(robot.n), np.zeros(robot.n)])
 
 
 def retune(robot, x, y, p_old, p_new):
-    """z+ = z + (k0_old - k0_new) y (x2hat continuous), p_hat kept."""
+    """z+ = z + (k0_old - k0_new) y (x2hat continuous), p_hat kept: x (2n,) at y, the parameters
+    p_old to p_new; robot as in ``output``."""
     n = robot.n
     x = np.asarray(x, float).copy()
     x[:n] = reduced_order.retune(robot, x[:n], y, p_old[:1], p_new[:1])
@@ -94,7 +98,8 @@ def retune(robot, x, y, p_old, p_new):
 
 
 def init(robot, y0, est0, p, v_bound=None):
-    """x(0) = [x2hat(0) - k0 q0; M(q0) sat(x2hat(0))] (r(0) = 0); est0's first n slots x2hat(0)."""
+    """x(0) = [x2hat(0) - k0 q0; M(q0) sat(x2hat(0))] (r(0) = 0) for ``robot`` at y0 = q0, est0's
+    first n slots x2hat(0), p the parameters, v_bound the velocity bound."""
     n = robot.n
     est0 = np.asarray(est0, float)
     z0 = reduced_order.init(robot, y0, est0[:n], p[:1])
@@ -102,6 +107,6 @@ def init(robot, y0, est0, p, v_bound=None):
 
 
 def sizes(robot):
-    """{"nx": 2n, "ny": n, "nu": n, "nest": 3n + 1}."""
+    """{"nx": 2n, "ny": n, "nu": n, "nest": 3n + 1}, n the joints of ``robot``."""
     n = robot.n
     return {"nx": 2 * n, "ny": n, "nu": n, "nest": 3 * n + 1}
