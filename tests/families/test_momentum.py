@@ -53,18 +53,22 @@ def _plant_run(robot, tau_ext, T=1.0, dt=1e-3, t_on=0.3, sub=10):
     return np.arange(N) * dt, Q, U, E
 
 
+def _observed(tau_ext):
+    """(t, estimate) of the compiled momentum observer on the 2R plant of ``_plant_run``."""
+    robot = load_robot("seed000_2r")
+    obs = compile_observer(observers.build("momentum", robot, **SENSOR), dt=1e-3)
+    t, Q, U, _ = _plant_run(robot, np.array(tau_ext))
+    obs.reset(Q[0])
+    return t, obs.run(Q, U)
+
+
 def test_residual_converges_to_the_external_torque_and_isolates_the_link():
     """On the model's own 2R plant a 5 N m torque on joint 1 only (a contact on link 1) is the
     residual within 0.5 % from 0.2 s after it on (0.05 % at 1 s: the arm the contact moves is settling
     under its controller), joint 2's residual stays below 1 % of it, the alarm of joint 1
     rises within 20 ms and the link is 1; no alarm before the contact."""
-    robot = load_robot("seed000_2r")
-    spec = observers.build("momentum", robot, **SENSOR)
-    obs = compile_observer(spec, dt=1e-3)
-    t, Q, U, E = _plant_run(robot, np.array([5.0, 0.0]))
-    obs.reset(Q[0])
-    est = obs.run(Q, U)
-    n = robot.n
+    t, est = _observed([5.0, 0.0])
+    n = 2
     r, alarm, link = est[:, n:2 * n], est[:, 2 * n:3 * n], est[:, 3 * n]
     late = t > 0.5
     assert np.max(np.abs(r[late, 0] - 5.0)) < 0.025
@@ -77,12 +81,7 @@ def test_residual_converges_to_the_external_torque_and_isolates_the_link():
 
 
 def test_a_torque_on_the_last_joint_names_the_last_link():
-    robot = load_robot("seed000_2r")
-    spec = observers.build("momentum", robot, **SENSOR)
-    obs = compile_observer(spec, dt=1e-3)
-    t, Q, U, E = _plant_run(robot, np.array([4.0, 4.0]))
-    obs.reset(Q[0])
-    est = obs.run(Q, U)
+    t, est = _observed([4.0, 4.0])
     assert np.all(est[t > 0.5, -1] == 2.0)
 
 
