@@ -12,21 +12,22 @@ contact of ``ratio`` times the threshold crosses it at omega t = x, the root of 
 1 - e^(-x/sqrt 2) (cos(x/sqrt 2) + sin(x/sqrt 2)) = 1 / ratio (x = 1.03 at ratio 3). Every noise
 grows with omega, so omega is the smallest that meets the detection time t_detect less SAMPLES
 samples (the contact shows in the next sample, the alarm in the one after, one to spare) and
-half the contact's own rise t_rise (a force rising linearly acts as a step half-way up):
+half the contact's own rise t_rise (a force rising linearly acts as a step half-way up), and the
+output lag at omega_f = FILTER omega, counted as its delay 1 / omega_f:
 
-    omega = x / (t_detect - SAMPLES dt - t_rise / 2)
+    omega = (x + 1 / FILTER) / (t_detect - SAMPLES dt - t_rise / 2)
 
 Threshold: two noises reach r. The torque noise (std sigma_tau per sample at dt) passes through
 the same filter, whose noise bandwidth is omega / (2 sqrt 2): sigma_tau^2 dt omega / (2 sqrt 2); the encoder's (std
 sigma_q) enters the velocity x2hat = z + k0 q at gain k0 and the residual through K_O M(q) x2hat,
 white from sample to sample: (K_O k0 M_jj sigma_q)^2 = (omega^2 M_jj sigma_q)^2, M_jj the largest diagonal inertia over
-sampled configurations. |r_j| of a Gaussian r crosses u sigma_r upwards nu0 e^(-u^2 / 2) times
+sampled configurations; the output lag passes omega_f dt / 2 of the white part's variance. |r_j| of a Gaussian r crosses u sigma_r upwards nu0 e^(-u^2 / 2) times
 per second each way, nu0 = omega / (2 pi) (Rice's formula for the second-order filter; the
 encoder's white part crosses more often, which the log's calibration measures). For a false-alarm
 rate R (per hour of motion, over all n joints) the level is
 
     th0_j = sigma_r,j sqrt(2 ln(2 n nu0 3600 / R)),
-    sigma_r,j^2 = sigma_tau,j^2 dt omega / (2 sqrt 2) + (omega^2 M_jj sigma_q)^2.
+    sigma_r,j^2 = sigma_tau,j^2 dt omega / (2 sqrt 2) + (omega^2 M_jj sigma_q)^2 omega_f dt / 2.
 
 A log measures sigma_r and the tail instead (codegen.logs.detect); these are the defaults
 before one.
@@ -45,6 +46,7 @@ FALSE_ALARMS = 1.0       # per hour of motion, all joints together
 NOISE_SHARE = 0.01       # the default torque noise: 1 % of the joint's torque scale
 SAMPLES = 3              # samples of the detection time the response does not get
 T_RISE = 0.005           # s, a contact's rise to its full force
+FILTER = 4.0             # omega_f / omega: the output lag well above the residual's bandwidth
 
 __all__ = ["design_momentum", "crossing_time", "step_response", "threshold_level", "torque_scale", "largest_inertia"]
 
@@ -121,7 +123,7 @@ def design_momentum(robot, dt, torque_noise=None, t_detect=T_DETECT, false_alarm
     Returns
     -------
     dict
-        omega (1/s), k0 = sqrt(2) omega, K_O = omega / sqrt(2), th0 (n,) N m, th1 (n,) N m s/rad (0: no velocity term
+        omega (1/s), k0 = sqrt(2) omega, K_O = omega / sqrt(2), omega_f = FILTER omega, th0 (n,) N m, th1 (n,) N m s/rad (0: no velocity term
         until a log measures one), sigma_r (n,) N m, level u, nu0 (1/s), and the inputs.
     """
     n = robot.n
@@ -133,12 +135,14 @@ def design_momentum(robot, dt, torque_noise=None, t_detect=T_DETECT, false_alarm
     sigma = (NOISE_SHARE * torque_scale(robot) if not stated else
              check_torque_uncertainty(torque_noise, n, robot.joint_names))
     x = crossing_time(ratio)
-    omega = x / budget
+    omega = (x + 1.0 / FILTER) / budget
     sigma_q, M = sensor_sigma(noise, quantization), largest_inertia(robot)
-    sigma_r = np.sqrt(sigma ** 2 * dt * omega / (4.0 * ZETA) + (omega ** 2 * M * sigma_q) ** 2)
+    omega_f = FILTER * omega
+    white = min(1.0, omega_f * dt / (2.0 - min(omega_f * dt, 1.0)))      # a first-order lag's share of white noise
+    sigma_r = np.sqrt(sigma ** 2 * dt * omega / (4.0 * ZETA) + (omega ** 2 * M * sigma_q) ** 2 * white)
     nu0 = omega / (2.0 * math.pi)
     u = threshold_level(n, nu0, false_alarms)
-    return {"omega": float(omega), "k0": float(omega / ZETA), "K_O": float(omega * ZETA),
+    return {"omega": float(omega), "k0": float(omega / ZETA), "K_O": float(omega * ZETA), "omega_f": float(omega_f),
             "th0": (u * sigma_r).tolist(), "th1": [0.0] * n, "sigma_r": sigma_r.tolist(),
             "level": float(u), "nu0": float(nu0), "crossing": float(x),
             "torque_noise": sigma.tolist(), "torque_noise_rule": "stated" if stated else
