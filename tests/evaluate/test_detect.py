@@ -91,7 +91,7 @@ def _mujoco_contacts(robot_name):
 
 
 @pytest.mark.long
-@pytest.mark.parametrize("robot_name", ["ur5"])
+@pytest.mark.parametrize("robot_name", ["ur5", "panda"])
 def test_contacts_on_the_real_arm_plant(robot_name):
     """With the identified model and thresholds set on a clean 20 s run: every contact whose true
     J^T f exceeds 3x some joint's threshold on its plateau is detected within 20 ms, the link
