@@ -17,6 +17,8 @@ import numpy as np
 
 from ..logs.detect import FALSE_ALARMS, MERGE, calibrate, episodes
 
+SLOW_LOG_SAMPLES = 10
+
 __all__ = ["Detection", "run_momentum", "detect", "events_of", "write_detection"]
 
 
@@ -48,13 +50,12 @@ def run_momentum(robot, recording, p=None, spec=None, **build):
     """(spec, estimate (N, 3n + 1), note): the compiled momentum observer for ``robot`` over the
     ``recording`` (its stamps), designed at the log's median step; ``p`` the runtime parameters
     (None: the designed ones); ``build`` keyword arguments of the family."""
-    from codegen import observers
-
+    from ..families import observers
     from .compare import run_observer
     t = np.asarray(recording.t, float)
     dt = _dt(t)
     if spec is None:
-        spec = observers.build("momentum", robot, dt=dt, **build)
+        spec = observers.build("momentum", robot, dt=dt, **detection_time(dt, build))
     est, note = run_observer(spec, recording.q, recording.tau, dt, t=t, p=p)
     return spec, est, note
 
@@ -67,8 +68,9 @@ def _with_thresholds(spec, th0, th1):
 
 
 def events_of(t, alarm, link, tau_ext, merge=MERGE):
-    """[{start, end, link, peak}]: the runs of any joint's alarm (closer than ``merge`` s joined),
-    the link most often named in each, and the signed tau_ext (n,) of largest |.| per joint."""
+    """[{start, end, link, peak}]: the runs of any joint's ``alarm`` (N, n) at the stamps ``t``
+    (N,) (closer than ``merge`` s joined), the ``link`` (N,) most often named in each, and the
+    signed ``tau_ext`` (N, n) of largest |.| per joint."""
     out = []
     for s, e in episodes(t, np.asarray(alarm).any(axis=1), merge):
         links = link[s:e + 1][link[s:e + 1] > 0].astype(int)
@@ -120,8 +122,18 @@ def detect(robot, recording, clean=None, false_alarms=FALSE_ALARMS, th0=None, th
 
 
 def _build(robot, recording, build):
-    from codegen import observers
-    return observers.build("momentum", robot, dt=_dt(np.asarray(recording.t, float)), **build)
+    from ..families import observers
+    dt = _dt(np.asarray(recording.t, float))
+    return observers.build("momentum", robot, dt=dt, **detection_time(dt, build))
+
+
+def detection_time(dt, build):
+    """``build`` with the detection time a log's sample time dt (s) allows when none is given:
+    the design's T_DETECT, or SLOW_LOG_SAMPLES samples on a slower log (a 100 Hz logger)."""
+    from ..families.design.momentum import T_DETECT
+    if "t_detect" in build:
+        return build
+    return {**build, "t_detect": max(T_DETECT, SLOW_LOG_SAMPLES * dt)}
 
 
 def write_detection(det, out):
@@ -150,7 +162,8 @@ def write_detection(det, out):
 
 
 def figure(det, path):
-    """Residuals with their thresholds (+-), one axes per joint, events shaded."""
+    """The figure of ``det`` (Detection) at ``path`` (PNG): residuals with their thresholds (+-),
+    one axes per joint, events shaded; returns the path."""
     from .sim.plots import _plt, _save
     plt = _plt()
     n = len(det.joint_names)

@@ -48,7 +48,7 @@ class ContactRun:
     contacts: list
 
     def log(self, joint_names):
-        """The user's log as a Recording (no qd)."""
+        """The user's log as a Recording (no qd) with ``joint_names`` (the robot's, in order)."""
         from ...logs.recording import Recording
         return Recording(t=self.t, q=self.q_meas, tau=self.tau_meas, qd=None, joint_names=list(joint_names))
 
@@ -61,7 +61,8 @@ def _body_of_joint(plant, joint):
 
 def contact_run(plant, reference, T, contacts, seed=0, kp=KP, kd=KD):
     """The closed loop of ``plant`` (a RealPlant) on ``reference`` for T s with ``contacts`` (list of
-    Contact), on the plant's jittered clock (``plant.instants``), every instant logged.
+    Contact), on the plant's jittered clock (``plant.instants``), every instant logged; ``seed``
+    of the instants and the sensors' noise, ``kp``, ``kd`` the computed-torque gains (1/s^2, 1/s).
 
     Returns
     -------
