@@ -47,7 +47,7 @@ test-long: $(VENV)/.installed
 # against the robot's own velocity signal (each command run once, its result shared by the workers).
 # CI runs it after `make test`
 test-real: $(VENV)/.installed c-tools
-	$(PY) -m pytest -n auto -m real -rs
+	$(PY) -m pytest -n auto -m real -rxXs
 
 # the C under ASan/UBSan on edge-case CSVs and a libFuzzer campaign (also part of `make test`)
 sanitize: $(VENV)/.installed c-tools

@@ -114,6 +114,6 @@ def wild_torque(folder):
 HELD = [(nan_value, "NaN or Inf in column 'q_q2', row 11"),
         (not_a_number, "row 21, column 'tau_q1': 'abc' is not a number"),
         (ragged_row, "row 31 has 4 values, the header 5"),
-        (time_goes_back, "time stamps go back at row "),
+        (time_goes_back, "time stamps go back at sample "),
         (missing_column, "missing columns tau_q2"),
         (wild_torque, "row 51, column 'tau_q2': 1e+300 outside")]

@@ -233,10 +233,24 @@ def test_newlib_settings_follow_the_multilib(arm):
 
 
 def test_firmware_reports_an_observer_failure(arm, seed000, tmp_path):
+    """A finite double that overflows in the step (the observer built without input ranges, which
+    would refuse it first: ERR_OUT_OF_RANGE, the test below) ends the run with ERR_NONFINITE_RESULT."""
+    from codegen import observers
+    from models import load_robot
     Y, U = np.zeros((5, 2)), np.zeros((5, 2))
     Y[3] = 1e306                                   # finite double, overflows in the step
-    fw = cortex_m.firmware(seed000["double"], "m7", tmp_path)
+    spec = observers.build("reduced_order", load_robot("seed000_2r"), limits="none")
+    folder = emit(spec.target(precision="double"), tmp_path / "gen", spec=spec)
+    fw = cortex_m.firmware(folder, "m7", tmp_path / "fw")
     with pytest.raises(cortex_m.EmbeddedError, match="ERR_NONFINITE_RESULT"):
+        cortex_m.run(fw, Y, U, "double")
+
+
+def test_firmware_refuses_a_sample_out_of_range(arm, seed000, tmp_path):
+    Y, U = np.zeros((5, 2)), np.zeros((5, 2))
+    Y[3] = 1e306
+    fw = cortex_m.firmware(seed000["double"], "m7", tmp_path)
+    with pytest.raises(cortex_m.EmbeddedError, match="ERR_OUT_OF_RANGE"):
         cortex_m.run(fw, Y, U, "double")
 
 
