@@ -327,8 +327,9 @@ def _clock(t, Q, qdm, mode, period, N, rep, bad):
 
 def _velocity_clock(t, Q, V, kept, N, rep):
     """(Clock or None, lattice): the intervals the velocity signal measures between the kept rows
-    (codegen.logs.intervals), taken when q is smoother on them than on the stamps by more than
-    chance (as for the ticks). On a lattice of whole ticks (9 in 10 of them within 3 standard errors
+    (codegen.logs.intervals), for a uniform time column (a counter need not be the sample clock;
+    stamps that vary are the sampler's own times, or a logger's, rebuilt on the ticks), taken when q
+    is smoother on them than on the stamps by more than chance (as for the ticks). On a lattice of whole ticks (9 in 10 of them within 3 standard errors
     of one, and twice as close as to the stamps' steps) the tick fit does better: (None, True). A signal whose intervals are not the stamps' scale
     (another unit), too few measured, or q no smoother: (None, False), the log read as without it."""
     s = t[kept]
@@ -339,6 +340,9 @@ def _velocity_clock(t, Q, V, kept, N, rep):
         return None, False
     if z_lattice < min(3.0, 0.5 * z_stamps):
         return None, True
+    every = np.diff(t)
+    if not np.all(np.abs(every - np.median(every)) <= 1e-6 * np.median(every)):
+        return None, False              # stamps that vary are the sampler's own times (or a logger's: the ticks)
     dt, S, corrected, gross = intervals.combine(h, se, step)
     if not np.all(dt > 0):
         return None, False

@@ -247,3 +247,14 @@ def test_a_time_column_in_ms_or_us_is_refused_with_its_unit(unit, scale):
     q, _ = motion(t, 2)
     with pytest.raises(ValueError, match=f"looks like {unit} \\(a 1000 Hz log\\)"):
         rebuild(t * scale, q)
+
+
+def test_jittered_sample_times_are_kept_whatever_a_lagging_velocity_signal_says():
+    """Stamps that vary are the sampler's own times: a velocity signal 2 ms late does not move them
+    (fitting each interval to q's increments would absorb q's noise and look smoother)."""
+    rng = np.random.default_rng(9)
+    t = np.concatenate([[0.0], np.cumsum(rng.uniform(0.7e-3, 1.3e-3, 3999))])
+    q, _ = motion(t, len(JOINTS), 9)
+    qdm = motion(t - 2e-3, len(JOINTS), 9)[1]
+    clock = rebuild(t, np.round(q / 1e-6) * 1e-6 + 1e-6 * rng.standard_normal(q.shape), qdm)
+    assert clock.kind == "stamps" and np.array_equal(clock.t, t)
