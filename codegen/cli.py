@@ -904,6 +904,20 @@ def _robot_options(p):
     a("--K", metavar="K", help="joint stiffness (N m/rad): one number or one per joint, comma-separated")
 
 
+def _log_command(sub, name, debug, text, robot_help="catalog robot",
+                 urdf_help="a robot from a URDF file (e.g. identify's)"):
+    """The subcommand ``name`` (help ``text``) of a command that reads a log: the log, the robot
+    (``robot_help``, ``urdf_help``), --lock and the clock and column options."""
+    p = sub.add_parser(name, parents=[debug], help=text)
+    p.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag "
+                               "(.bag file, ROS 2 bag folder)")
+    p.add_argument("--robot", help=robot_help)
+    p.add_argument("--urdf", metavar="PATH", help=urdf_help)
+    p.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    _clock_option(p)
+    return p
+
+
 def _clock_option(p):
     """--clock of every command that reads a log (and its --columns and --topic)."""
     p.add_argument("--clock", default="auto", metavar="auto|stamps|ticks[=PERIOD]",
@@ -1056,33 +1070,19 @@ def parser():
                         "edge-case CSVs, and a libFuzzer campaign of their step")
     sa.add_argument("--runs", type=int, default=100000, help="libFuzzer runs per target")
     sa.add_argument("--seconds", type=int, default=60, help="at most this long fuzzing per target")
-    d = sub.add_parser("describe", parents=[debug], help="what a log is: its clock, resolution, noise, motion "
-                       "band and (with a robot) torque residual, measured from it")
-    d.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder)")
-    d.add_argument("--robot", help="catalog robot (the torque against its model is measured too)")
-    d.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file")
-    d.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
-    _clock_option(d)
+    d = _log_command(sub, "describe", debug, "what a log is: its clock, resolution, noise, motion band and "
+                     "(with a robot) torque residual, measured from it",
+                     "catalog robot (the torque against its model is measured too)", "a robot from a URDF file")
     d.add_argument("--json", metavar="FILE", help="also write the figures to this file")
-    de = sub.add_parser("design", parents=[debug], help="a family's gains tuned on a log without truth")
-    de.add_argument("log", help="a CSV (t, q_<joint>, tau_<joint>; other names: --columns) or a ROS bag (.bag file, ROS 2 bag folder)")
-    de.add_argument("--robot", help="catalog robot")
-    de.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
-    de.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
+    de = _log_command(sub, "design", debug, "a family's gains tuned on a log without truth")
     de.add_argument("--family", required=True, help="observer family (see `list`)")
-    _clock_option(de)
     de.add_argument("--quantization", type=float, help="encoder step (rad; default: measured on the log)")
     de.add_argument("--noise", type=float, help="position noise std (rad; default: measured on the log)")
     de.add_argument("--torque-uncertainty", metavar="NM|FILE",
                     help="the model's torque error (N m, or identify's report.json; default: measured on the log)")
     de.add_argument("--json", metavar="FILE", help="also write the design to this file")
-    dt_ = sub.add_parser("detect", parents=[debug], help="external torque, collisions and the collided link "
-                         "over a log (the momentum observer)")
-    dt_.add_argument("log", help="CSV with t, q_<joint>, tau_<joint>")
-    dt_.add_argument("--robot", help="catalog robot")
-    dt_.add_argument("--urdf", metavar="PATH", help="a robot from a URDF file (e.g. identify's)")
-    dt_.add_argument("--lock", action="append", metavar="JOINT=VALUE", help="hold a URDF joint; repeatable")
-    _clock_option(dt_)
+    dt_ = _log_command(sub, "detect", debug, "external torque, collisions and the collided link over a log "
+                       "(the momentum observer)")
     dt_.add_argument("--calibrate", metavar="CLEAN.csv", help="a collision-free log of the arm: the thresholds "
                      "are set on it (default: the design's, from the torque noise)")
     dt_.add_argument("--false-alarms", type=float, default=1.0, metavar="PER_HOUR",
