@@ -603,6 +603,7 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
                     t_ss, level, progress):
     """The Entry of one family on the log: built (designed for the log's sensor), tuned on it
     when ``tune_on`` (the better variant kept), run."""
+    from ..discrete.stability import UnstableDiscretization
     from ..pipeline.load import ObserverError
     t, Y, U, dt = rec.t, rec.q, rec.tau, rec.dt
     inputs = {**design_for(fam, design), **given}
@@ -612,8 +613,13 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
         if slots is None or spec.ny != robot.n:
             raise ValueError(f"families: {fam!r} does not estimate qd from q (ny = {spec.ny}, "
                              f"est = {', '.join(spec.est_names)})")
-        obs, notes = observer_block(spec, dt, reference, stamped=True, stepping=stepping)
         tuned, p = (None, np.array(spec.p_default, dtype=float))
+        try:
+            obs, notes = observer_block(spec, dt, reference, stamped=True, stepping=stepping)
+        except UnstableDiscretization as e:     # this family (variant) cannot run on the log: a failure, not the run's
+            candidates.append((np.inf, spec, p, np.full((len(Y), spec.nest), np.nan), slots, None,
+                               [designed_for, f"no stable discretisation on this log's steps: {e}"], used))
+            continue
         if tune_on and not given:
             tuned, p = tuning.tune_observer(obs, spec, fam, Y, U, t, val, obs.dt_limit, slots,
                                             progress=progress, t_from=t_ss)
@@ -631,7 +637,7 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
         J = tuned.score if tuned is not None else val.score(full[:, slots], t_ss)
         candidates.append((J, spec, p, full, slots, tuned, [designed_for] + notes, used))
     J, spec, p, full, slots, tuned, notes, used = min(candidates, key=lambda c: c[0] if np.isfinite(c[0]) else np.inf)
-    if len(candidates) > 1:
+    if len(candidates) > 1 and np.isfinite(J):
         other = [c for c in candidates if c[1] is not spec][0]
         notes.append(f"variant {spec.variant} (forward-validation error {math.sqrt(J):.3g} rad/s; "
                      f"{other[1].variant}: {math.sqrt(other[0]):.3g})")

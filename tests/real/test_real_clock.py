@@ -29,22 +29,19 @@ def test_the_truth_explains_q(name):
     assert tr.moving.mean() >= 0.05
 
 
-@pytest.mark.parametrize("name", params(PANDA, {"panda": "period 0.98425 ms",
-                                                "panda-first-half": "period 0.98489 ms",
-                                                "panda-second-half": "period 0.99870 ms"}))
+@pytest.mark.parametrize("name", params(PANDA))
 def test_panda_period_is_its_tick(name, bed):
     c = judged(name, bed)
     assert c["period"] is not None and c["period_error"] <= 2e-4, (c["period"], c["text"])
 
 
-@pytest.mark.parametrize("name", params(PANDA, {"panda": "99.07 % right to 0.1 ms",
-                                                "panda-first-half": "99.27 % right to 0.1 ms"}))
+@pytest.mark.parametrize("name", params(PANDA))
 def test_panda_intervals(name, bed):
     c = judged(name, bed)
     assert c["right"] >= 0.995, (c["right"], c["pairs"], c["text"])
 
 
-@pytest.mark.parametrize("name", params(GEN3, {"gen3-testing2": "84.5 % right to 25 us (the stamps kept)"}))
+@pytest.mark.parametrize("name", params(GEN3))
 def test_gen3_intervals(name, bed):
     c = judged(name, bed)
     assert c["right"] >= 0.95, (c["right"], c["pairs"], c["text"])

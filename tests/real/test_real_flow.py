@@ -13,10 +13,7 @@ pytestmark = pytest.mark.real
 ARMS = tuple(real_judge.FLOWS)
 
 
-@pytest.mark.parametrize("arm", params(ARMS, {
-    "panda": "compare refuses identify's URDF (panda_link4's inertia not positive definite after snapping)",
-    **{a: "identify refuses the log (relative std above 0.05, inf on the Gen3 and the UR5)" for a in ARMS
-       if a != "panda"}}))
+@pytest.mark.parametrize("arm", params(ARMS))
 def test_the_flow_runs(arm, bed):
     steps = bed.flow(arm)
     failed = {k: s["error"] for k, s in steps.items() if not s["ok"]}
