@@ -617,6 +617,8 @@ def _observer_entry(item, fam, given, robot, rec, design, noise, val, tune_on, r
         try:
             obs, notes = observer_block(spec, dt, reference, stamped=True, stepping=stepping)
         except UnstableDiscretization as e:     # this family (variant) cannot run on the log: a failure, not the run's
+            if any(v is not None for v in (stepping or {}).values()):
+                raise                           # the stepping the user chose: refused in its own words
             candidates.append((np.inf, spec, p, np.full((len(Y), spec.nest), np.nan), slots, None,
                                [designed_for, f"no stable discretisation on this log's steps: {e}"], used))
             continue
