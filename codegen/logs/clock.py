@@ -291,15 +291,15 @@ def _clock(t, Q, qdm, mode, period, N, rep, bad):
     if mode == "stamps":
         return _stamps(t, np.flatnonzero(~bad), "asked for (--clock stamps)", N)
     steps = np.diff(t)
+    uniform = steps.min() > 0 and np.all(np.abs(steps - np.median(steps)) <= 1e-6 * np.median(steps))
     rep = rep & ~bad
     kept = np.flatnonzero(~rep & ~bad)
     lattice = False
     if mode == "auto" and qdm is not None and len(kept) >= 4 * _WINDOW and np.all(np.diff(t[kept]) > 0):
-        clock, lattice = _velocity_clock(t, Q, qdm, kept, N, rep)
+        clock, lattice = _velocity_clock(t, Q, qdm, kept, N, rep, uniform)
         if clock is not None:
             return clock
-    if (mode == "auto" and not lattice and steps.min() > 0
-            and np.all(np.abs(steps - np.median(steps)) <= 1e-6 * np.median(steps))):
+    if mode == "auto" and not lattice and uniform:
         return _stamps(t, np.flatnonzero(~bad), "uniform: every step the median step to 1e-6", N)
     if len(kept) < 4 * _WINDOW:
         if mode == "ticks":
@@ -325,12 +325,13 @@ def _clock(t, Q, qdm, mode, period, N, rep, bad):
     return _stamps(t, np.flatnonzero(~bad), why, N)
 
 
-def _velocity_clock(t, Q, V, kept, N, rep):
+def _velocity_clock(t, Q, V, kept, N, rep, uniform):
     """(Clock or None, lattice): the intervals the velocity signal measures between the kept rows
     (codegen.logs.intervals), for a uniform time column (a counter need not be the sample clock;
     stamps that vary are the sampler's own times, or a logger's, rebuilt on the ticks), taken when q
-    is smoother on them than on the stamps by more than chance (as for the ticks). On a lattice of whole ticks (9 in 10 of them within 3 standard errors
-    of one, and twice as close as to the stamps' steps) the tick fit does better: (None, True). A signal whose intervals are not the stamps' scale
+    is smoother on them than on the stamps by more than chance (as for the ticks). On a lattice of
+    whole ticks (9 in 10 of them within 3 standard errors of one, and twice as close as to the
+    stamps' steps) the tick fit does better: (None, True). A signal whose intervals are not the stamps' scale
     (another unit), too few measured, or q no smoother: (None, False), the log read as without it."""
     s = t[kept]
     step = np.diff(s)
@@ -340,8 +341,7 @@ def _velocity_clock(t, Q, V, kept, N, rep):
         return None, False
     if z_lattice < min(3.0, 0.5 * z_stamps):
         return None, True
-    every = np.diff(t)
-    if not np.all(np.abs(every - np.median(every)) <= 1e-6 * np.median(every)):
+    if not uniform:
         return None, False              # stamps that vary are the sampler's own times (or a logger's: the ticks)
     dt, S, corrected, gross = intervals.combine(h, se, step)
     if not np.all(dt > 0):
